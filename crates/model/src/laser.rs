@@ -1,0 +1,328 @@
+//! The ALACS laser-triangulation model of the seed paper: the high-fidelity
+//! model, eqs. (7)-(8), and its low-fidelity special case beta = 0, eq. (10).
+//!
+//! For normalized, undistorted coordinates (u_n, v_n) of a laser pixel and
+//! slide travel d:
+//!
+//! ```text
+//! D = sin(alpha) - u_n cos(alpha) - v_n tan(beta)
+//! z = L / D,  x = u_n z,  y = v_n z,  L = L0 - d
+//! ```
+//!
+//! Equivalently the laser is the plane `-cos(alpha) x - tan(beta) y +
+//! sin(alpha) z = L` in the camera frame, with the laser's origin at
+//! `(-L cos(alpha), 0, L sin(alpha))`, eq. (4).
+
+use std::path::Path;
+
+use nalgebra::{Matrix3x2, Point2, Point3, Vector3};
+use serde::{Deserialize, Serialize};
+
+use crate::{Error, Plane, Result};
+
+/// Full stroke of the seed paper's linear slide: 20 cm.
+pub const SLIDE_STROKE_MM: f64 = 200.0;
+
+/// Slack on the stroke's ends for a computed travel: rounding in
+/// [`LaserModel::slide_for_point`] must not turn the end of the stroke into
+/// "outside" (1 nm, far below any slide's resolution).
+const STROKE_SLACK_MM: f64 = 1e-6;
+
+/// Which of the seed paper's two models.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum Fidelity {
+    /// Low fidelity, eq. (10): beta fixed at 0; parameters (alpha, L0).
+    #[serde(rename = "low-fidelity", alias = "low")]
+    Low,
+    /// High fidelity, eq. (7): parameters (alpha, L0, beta).
+    #[serde(rename = "high-fidelity", alias = "high")]
+    High,
+}
+
+impl Fidelity {
+    /// The name used in laser.yaml and JSON: `low-fidelity` or `high-fidelity`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Fidelity::Low => "low-fidelity",
+            Fidelity::High => "high-fidelity",
+        }
+    }
+
+    /// Number of free parameters: 2 (alpha, L0) or 3 (alpha, L0, beta).
+    pub fn parameter_count(self) -> usize {
+        match self {
+            Fidelity::Low => 2,
+            Fidelity::High => 3,
+        }
+    }
+}
+
+impl std::fmt::Display for Fidelity {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// Laser-camera extrinsics of the ALACS model.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LaserModel {
+    /// Which model; `Low` ignores `beta_rad`.
+    pub fidelity: Fidelity,
+    /// alpha: rotation about the laser frame's y axis between laser and camera frames.
+    pub alpha_rad: f64,
+    /// beta: angle between the laser plane and the laser frame's (y, z) plane.
+    pub beta_rad: f64,
+    /// L0: laser-camera distance at slide travel 0.
+    pub l0_mm: f64,
+}
+
+/// Where the slide must go to put the laser plane on a point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SlideTarget {
+    /// Slide travel d that puts the point on the laser plane.
+    pub slide_mm: f64,
+    /// Whether `slide_mm` lies within `0 ..= stroke`.
+    pub within_stroke: bool,
+    /// `slide_mm` clamped to the stroke.
+    pub clamped_mm: f64,
+}
+
+/// laser.yaml as written on disk (FORMATS.md).
+#[derive(Debug, Deserialize)]
+struct LaserFile {
+    model: Fidelity,
+    alpha_deg: f64,
+    beta_deg: Option<f64>,
+    l0_mm: f64,
+}
+
+impl LaserModel {
+    /// A model from radians.
+    pub fn new(fidelity: Fidelity, alpha_rad: f64, beta_rad: f64, l0_mm: f64) -> Self {
+        let beta_rad = if fidelity == Fidelity::Low { 0.0 } else { beta_rad };
+        Self { fidelity, alpha_rad, beta_rad, l0_mm }
+    }
+
+    /// A model from degrees, as files and the paper give them.
+    pub fn from_degrees(fidelity: Fidelity, alpha_deg: f64, beta_deg: f64, l0_mm: f64) -> Self {
+        Self::new(fidelity, alpha_deg.to_radians(), beta_deg.to_radians(), l0_mm)
+    }
+
+    /// alpha in degrees.
+    pub fn alpha_deg(&self) -> f64 {
+        self.alpha_rad.to_degrees()
+    }
+
+    /// beta in degrees (0 for the low-fidelity model).
+    pub fn beta_deg(&self) -> f64 {
+        self.effective_beta_rad().to_degrees()
+    }
+
+    /// beta as the model uses it: 0 for the low-fidelity model.
+    pub fn effective_beta_rad(&self) -> f64 {
+        match self.fidelity {
+            Fidelity::Low => 0.0,
+            Fidelity::High => self.beta_rad,
+        }
+    }
+
+    /// Checks that the parameters describe a laser in front of the camera:
+    /// finite values, L0 > 0, 0 < alpha < 180 deg, |beta| < 90 deg.
+    pub fn validate(&self) -> Result<()> {
+        let invalid = |message: String| Err(Error::InvalidParameters { what: "laser", message });
+        if !(self.alpha_rad.is_finite() && self.beta_rad.is_finite() && self.l0_mm.is_finite()) {
+            return invalid(format!(
+                "parameters must be finite (alpha {} rad, beta {} rad, L0 {} mm)",
+                self.alpha_rad, self.beta_rad, self.l0_mm
+            ));
+        }
+        if self.l0_mm <= 0.0 {
+            return invalid(format!("l0_mm must be positive, got {}", self.l0_mm));
+        }
+        if !(self.alpha_rad > 0.0 && self.alpha_rad < std::f64::consts::PI) {
+            return invalid(format!("alpha_deg must lie in (0, 180), got {}", self.alpha_deg()));
+        }
+        if self.effective_beta_rad().abs() >= std::f64::consts::FRAC_PI_2 {
+            return invalid(format!("beta_deg must lie in (-90, 90), got {}", self.beta_deg()));
+        }
+        Ok(())
+    }
+
+    /// L = L0 - d: the laser-camera distance at slide travel `slide_mm`.
+    pub fn laser_distance_mm(&self, slide_mm: f64) -> f64 {
+        self.l0_mm - slide_mm
+    }
+
+    /// D = sin(alpha) - u_n cos(alpha) - v_n tan(beta), the denominator of eq. (7).
+    pub fn denominator(&self, normalized: &Point2<f64>) -> f64 {
+        self.alpha_rad.sin()
+            - normalized.x * self.alpha_rad.cos()
+            - normalized.y * self.effective_beta_rad().tan()
+    }
+
+    /// Depth z of the laser point seen at `normalized`, eq. (7) (eq. (10) for
+    /// the low-fidelity model). Errors where the ray misses the laser plane
+    /// in front of the camera.
+    pub fn depth_mm(&self, normalized: &Point2<f64>, slide_mm: f64) -> Result<f64> {
+        let denominator = self.denominator(normalized);
+        let depth_mm = self.laser_distance_mm(slide_mm) / denominator;
+        if denominator > 0.0 && depth_mm.is_finite() && depth_mm > 0.0 {
+            Ok(depth_mm)
+        } else {
+            Err(Error::NoIntersection { u_n: normalized.x, v_n: normalized.y, denominator })
+        }
+    }
+
+    /// The 3-D point in the camera frame seen at `normalized`, eqs. (7)-(8).
+    pub fn triangulate(&self, normalized: &Point2<f64>, slide_mm: f64) -> Result<Point3<f64>> {
+        let z_mm = self.depth_mm(normalized, slide_mm)?;
+        Ok(Point3::new(normalized.x * z_mm, normalized.y * z_mm, z_mm))
+    }
+
+    /// 3x2 Jacobian of [`Self::triangulate`] with respect to (u_n, v_n).
+    pub fn triangulate_jacobian(
+        &self,
+        normalized: &Point2<f64>,
+        slide_mm: f64,
+    ) -> Result<Matrix3x2<f64>> {
+        let z = self.depth_mm(normalized, slide_mm)?;
+        let denominator = self.denominator(normalized);
+        // dz/du = L cos(alpha) / D^2 = z cos(alpha) / D, likewise for v with tan(beta).
+        let dz_du = z * self.alpha_rad.cos() / denominator;
+        let dz_dv = z * self.effective_beta_rad().tan() / denominator;
+        let (u, v) = (normalized.x, normalized.y);
+        Ok(Matrix3x2::new(z + u * dz_du, u * dz_dv, v * dz_du, z + v * dz_dv, dz_du, dz_dv))
+    }
+
+    /// Gradient of the modelled depth z_hat of eq. (9) with respect to the
+    /// parameters (alpha in rad, L0 in mm, beta in rad). For the low-fidelity
+    /// model the beta entry is the derivative at beta = 0, which callers that
+    /// fit two parameters ignore.
+    pub fn depth_gradient_params(
+        &self,
+        normalized: &Point2<f64>,
+        slide_mm: f64,
+    ) -> Result<Vector3<f64>> {
+        let z = self.depth_mm(normalized, slide_mm)?;
+        let denominator = self.denominator(normalized);
+        let (sin_a, cos_a) = self.alpha_rad.sin_cos();
+        let cos_b = self.effective_beta_rad().cos();
+        // z = L / D:  dz/dp = -z/D * dD/dp for the angles, dz/dL0 = 1/D.
+        let dz_dalpha = -z / denominator * (cos_a + normalized.x * sin_a);
+        let dz_dl0 = 1.0 / denominator;
+        let dz_dbeta = z / denominator * normalized.y / (cos_b * cos_b);
+        Ok(Vector3::new(dz_dalpha, dz_dl0, dz_dbeta))
+    }
+
+    /// Signed Euclidean distance of `point_in_camera` from the laser plane at
+    /// slide travel `slide_mm` (positive on the side away from the camera):
+    /// the geometric residual offered beside eq. (9)'s depth residual.
+    pub fn signed_distance_mm(&self, point_in_camera: &Point3<f64>, slide_mm: f64) -> f64 {
+        self.plane_in_camera(slide_mm).signed_distance_mm(point_in_camera)
+    }
+
+    /// Gradient of [`Self::signed_distance_mm`] with respect to the parameters
+    /// (alpha in rad, L0 in mm, beta in rad). With the normal scaled to unit
+    /// length the distance is
+    /// `-cos(a) cos(b) x - sin(b) y + sin(a) cos(b) z - L cos(b)`.
+    pub fn signed_distance_gradient_params(
+        &self,
+        point_in_camera: &Point3<f64>,
+        slide_mm: f64,
+    ) -> Vector3<f64> {
+        let (x, y, z) = (point_in_camera.x, point_in_camera.y, point_in_camera.z);
+        let (sin_a, cos_a) = self.alpha_rad.sin_cos();
+        let (sin_b, cos_b) = self.effective_beta_rad().sin_cos();
+        let l_mm = self.laser_distance_mm(slide_mm);
+        Vector3::new(
+            (sin_a * x + cos_a * z) * cos_b,
+            -cos_b,
+            cos_a * sin_b * x - cos_b * y - sin_a * sin_b * z + l_mm * sin_b,
+        )
+    }
+
+    /// The laser plane in the camera frame at slide travel `slide_mm`:
+    /// `-cos(alpha) x - tan(beta) y + sin(alpha) z = L`.
+    pub fn plane_in_camera(&self, slide_mm: f64) -> Plane {
+        let (sin_a, cos_a) = self.alpha_rad.sin_cos();
+        Plane {
+            normal: Vector3::new(-cos_a, -self.effective_beta_rad().tan(), sin_a),
+            offset_mm: self.laser_distance_mm(slide_mm),
+        }
+    }
+
+    /// The laser's origin (the line generator) in the camera frame, eq. (4):
+    /// `(-L cos(alpha), 0, L sin(alpha))`. Surfaces that the segment from it
+    /// to a point crosses shadow that point.
+    pub fn origin_in_camera(&self, slide_mm: f64) -> Point3<f64> {
+        let l_mm = self.laser_distance_mm(slide_mm);
+        let (sin_a, cos_a) = self.alpha_rad.sin_cos();
+        Point3::new(-l_mm * cos_a, 0.0, l_mm * sin_a)
+    }
+
+    /// The inverse the scanner needs: the slide travel d that puts the laser
+    /// plane through `point_in_camera`, from `n · p = L0 - d`.
+    pub fn slide_for_point(&self, point_in_camera: &Point3<f64>) -> f64 {
+        let plane = self.plane_in_camera(0.0);
+        self.l0_mm - plane.normal.dot(&point_in_camera.coords)
+    }
+
+    /// [`Self::slide_for_point`] with the stroke `0 ..= stroke_mm` checked and clamped.
+    pub fn slide_target(&self, point_in_camera: &Point3<f64>, stroke_mm: f64) -> SlideTarget {
+        let slide_mm = self.slide_for_point(point_in_camera);
+        SlideTarget {
+            slide_mm,
+            within_stroke: (-STROKE_SLACK_MM..=stroke_mm + STROKE_SLACK_MM).contains(&slide_mm),
+            clamped_mm: slide_mm.clamp(0.0, stroke_mm.max(0.0)),
+        }
+    }
+
+    /// Parses laser.yaml text (FORMATS.md). `beta_deg` may be omitted for the
+    /// low-fidelity model; unknown extra keys are ignored.
+    pub fn from_yaml_str(text: &str) -> Result<Self> {
+        Self::parse_yaml(text, Path::new("<string>"))
+    }
+
+    /// Reads laser.yaml.
+    pub fn from_yaml_file(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|source| Error::Io { path: path.to_path_buf(), source })?;
+        Self::parse_yaml(&text, path)
+    }
+
+    fn parse_yaml(text: &str, path: &Path) -> Result<Self> {
+        let parse_error = |message: String| Error::Parse { path: path.to_path_buf(), message };
+        let file: LaserFile = serde_saphyr::from_str(text)
+            .map_err(|e| parse_error(e.without_snippet().to_string()))?;
+        let beta_deg = match (file.model, file.beta_deg) {
+            (Fidelity::High, None) => {
+                return Err(parse_error(
+                    "missing key `beta_deg` (required for model: high-fidelity)".into(),
+                ));
+            }
+            (_, beta) => beta.unwrap_or(0.0),
+        };
+        let model = Self::from_degrees(file.model, file.alpha_deg, beta_deg, file.l0_mm);
+        model.validate().map_err(|e| parse_error(e.to_string()))?;
+        Ok(model)
+    }
+
+    /// laser.yaml text with the four keys of FORMATS.md (shortest
+    /// round-trip float formatting, so reading it back gives the same model).
+    pub fn to_yaml_string(&self) -> String {
+        format!(
+            "model: {}\nalpha_deg: {}\nbeta_deg: {}\nl0_mm: {}\n",
+            self.fidelity,
+            self.alpha_deg(),
+            self.beta_deg(),
+            self.l0_mm
+        )
+    }
+
+    /// Writes laser.yaml, with `header` (e.g. provenance) as leading `#` comment lines.
+    pub fn to_yaml_file(&self, path: &Path, header: &str) -> Result<()> {
+        let mut text: String = header.lines().map(|line| format!("# {line}\n")).collect();
+        text.push_str(&self.to_yaml_string());
+        std::fs::write(path, text).map_err(|source| Error::Io { path: path.to_path_buf(), source })
+    }
+}
