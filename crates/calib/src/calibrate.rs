@@ -1,0 +1,315 @@
+//! The seed paper's four calibration methods (Section 4.1, Table 1).
+
+use alacs_model::{Fidelity, LaserModel};
+
+use crate::linear::LinearForm;
+use crate::ransac::{self, Estimator, RansacOptions};
+use crate::refine::{Residual, refine};
+use crate::{Error, LaserSample, Result, validate_samples};
+
+/// The four methods of the seed paper's Table 1.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Method {
+    /// Method 1: low-fidelity model (beta = 0), all data.
+    LowFidelityAllData,
+    /// Method 2: low-fidelity model, RANSAC.
+    LowFidelityRansac,
+    /// Method 3: high-fidelity model, all data.
+    HighFidelityAllData,
+    /// Method 4: high-fidelity model, RANSAC (Algorithm 1): the seed's method and the default.
+    HighFidelityRansac,
+}
+
+impl Method {
+    /// All four, in the paper's order.
+    pub const ALL: [Method; 4] = [
+        Method::LowFidelityAllData,
+        Method::LowFidelityRansac,
+        Method::HighFidelityAllData,
+        Method::HighFidelityRansac,
+    ];
+
+    /// The paper's number, 1 to 4.
+    pub fn number(self) -> u8 {
+        match self {
+            Method::LowFidelityAllData => 1,
+            Method::LowFidelityRansac => 2,
+            Method::HighFidelityAllData => 3,
+            Method::HighFidelityRansac => 4,
+        }
+    }
+
+    /// The method with the paper's number `n`.
+    pub fn from_number(n: u8) -> Option<Self> {
+        Self::ALL.into_iter().find(|m| m.number() == n)
+    }
+
+    /// The paper's name, e.g. `High-fidelity model + RANSAC`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::LowFidelityAllData => "Low-fidelity model + All data",
+            Method::LowFidelityRansac => "Low-fidelity model + RANSAC",
+            Method::HighFidelityAllData => "High-fidelity model + All data",
+            Method::HighFidelityRansac => "High-fidelity model + RANSAC",
+        }
+    }
+
+    /// Which model the method fits.
+    pub fn fidelity(self) -> Fidelity {
+        match self {
+            Method::LowFidelityAllData | Method::LowFidelityRansac => Fidelity::Low,
+            Method::HighFidelityAllData | Method::HighFidelityRansac => Fidelity::High,
+        }
+    }
+
+    /// Whether the method rejects outliers with RANSAC.
+    pub fn is_robust(self) -> bool {
+        matches!(self, Method::LowFidelityRansac | Method::HighFidelityRansac)
+    }
+}
+
+/// Default inlier threshold epsilon: 2 mm, four standard deviations of the
+/// 0.5 mm depth noise that the paper's Method 4 residual (0.39 mm mean) implies.
+pub const DEFAULT_THRESHOLD_MM: f64 = 2.0;
+
+/// Calibration settings; `Default` gives the documented defaults.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CalibrationOptions {
+    /// What the least-squares step minimizes.
+    pub residual: Residual,
+    /// RANSAC inlier threshold epsilon on |z - z_hat|, in mm.
+    pub threshold_mm: f64,
+    /// RANSAC stopping confidence.
+    pub confidence: f64,
+    /// RANSAC cap on hypotheses (k_max).
+    pub max_iterations: usize,
+    /// RANSAC seed.
+    pub seed: u64,
+}
+
+impl Default for CalibrationOptions {
+    fn default() -> Self {
+        Self {
+            residual: Residual::Depth,
+            threshold_mm: DEFAULT_THRESHOLD_MM,
+            confidence: 0.999,
+            max_iterations: 2000,
+            seed: 0,
+        }
+    }
+}
+
+/// One standard deviation of each fitted parameter.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ParameterStdDev {
+    /// Of alpha, degrees.
+    pub alpha_deg: f64,
+    /// Of L0, mm.
+    pub l0_mm: f64,
+    /// Of beta, degrees (`None` for the low-fidelity model).
+    pub beta_deg: Option<f64>,
+}
+
+/// The result of one calibration method.
+#[derive(Debug, Clone)]
+pub struct LaserCalibration {
+    /// Which method.
+    pub method: Method,
+    /// The fitted laser.
+    pub laser: LaserModel,
+    /// 0-based indices of the samples the final fit used (all for methods 1 and 3).
+    pub inliers: Vec<usize>,
+    /// Number of samples given.
+    pub n_samples: usize,
+    /// Mean |z - z_hat| over `inliers`, the paper's Table 1 metric.
+    pub mean_abs_error_mm: f64,
+    /// Mean |z - z_hat| over all samples.
+    pub mean_abs_error_all_mm: f64,
+    /// Root mean square of z - z_hat over `inliers`.
+    pub rms_error_mm: f64,
+    /// Parameter standard deviations from the fit's covariance, where defined.
+    pub std_dev: Option<ParameterStdDev>,
+    /// Hypotheses RANSAC drew (robust methods only).
+    pub ransac_iterations: Option<usize>,
+    /// What the least-squares step minimized.
+    pub residual: Residual,
+}
+
+/// Rounds of "refit on the inliers, re-classify with the refit model" after
+/// RANSAC; the set is normally stable after one.
+const MAX_REFIT_ROUNDS: usize = 5;
+
+/// Relative depth spread (max - min over the median) below which the samples
+/// count as taken at one depth: one board distance cannot separate L0 from alpha.
+const MIN_RELATIVE_DEPTH_SPREAD: f64 = 0.01;
+
+/// Ratio of the minor to the major spread of the laser pixels (u_n, v_n)
+/// below which they count as collinear: one line in the image is one line in
+/// space, and many planes contain it.
+const MIN_IMAGE_SPREAD_RATIO: f64 = 1e-3;
+
+/// Calibrates the laser from `samples` with `method`.
+pub fn calibrate(
+    samples: &[LaserSample],
+    method: Method,
+    options: &CalibrationOptions,
+) -> Result<LaserCalibration> {
+    validate_samples(samples)?;
+    let fidelity = method.fidelity();
+    let form = LinearForm::new(fidelity, samples);
+    check_geometry(samples, fidelity, form.unknowns() + 1)?;
+
+    let (laser, inliers, covariance, ransac_iterations) = if method.is_robust() {
+        let (refined, inliers, iterations) = robust_fit(samples, &form, options)?;
+        (refined.laser, inliers, refined.covariance, Some(iterations))
+    } else {
+        let all: Vec<usize> = (0..samples.len()).collect();
+        let initial = form.solve_least_squares(samples.iter()).ok_or_else(|| {
+            Error::Degenerate("the linear system of eq. (7) is rank deficient".into())
+        })?;
+        let refined = refine(samples, &all, &initial, options.residual)?;
+        (refined.laser, all, refined.covariance, None)
+    };
+
+    let errors: Vec<f64> = samples.iter().map(|s| depth_error_mm(&laser, s).abs()).collect();
+    let mean = |indices: &mut dyn Iterator<Item = usize>| {
+        let (sum, count) = indices.fold((0.0, 0usize), |(sum, n), i| (sum + errors[i], n + 1));
+        sum / count.max(1) as f64
+    };
+    let rms = (inliers.iter().map(|&i| errors[i] * errors[i]).sum::<f64>()
+        / inliers.len().max(1) as f64)
+        .sqrt();
+    Ok(LaserCalibration {
+        method,
+        laser,
+        mean_abs_error_mm: mean(&mut inliers.iter().copied()),
+        mean_abs_error_all_mm: mean(&mut (0..samples.len())),
+        rms_error_mm: rms,
+        inliers,
+        n_samples: samples.len(),
+        std_dev: covariance.map(|c| ParameterStdDev {
+            alpha_deg: c[(0, 0)].sqrt().to_degrees(),
+            l0_mm: c[(1, 1)].sqrt(),
+            beta_deg: (fidelity == Fidelity::High).then(|| c[(2, 2)].sqrt().to_degrees()),
+        }),
+        ransac_iterations,
+        residual: options.residual,
+    })
+}
+
+/// All four methods on the same samples, as the paper's Table 1.
+pub fn compare(
+    samples: &[LaserSample],
+    options: &CalibrationOptions,
+) -> Result<Vec<LaserCalibration>> {
+    Method::ALL.into_iter().map(|m| calibrate(samples, m, options)).collect()
+}
+
+/// z - z_hat for one sample under `laser` (eq. (9)'s residual).
+pub fn depth_error_mm(laser: &LaserModel, sample: &LaserSample) -> f64 {
+    sample.z_mm - laser.laser_distance_mm(sample.slide_mm) / laser.denominator(&sample.normalized())
+}
+
+/// Rejects sample sets that cannot determine the parameters, naming why.
+fn check_geometry(samples: &[LaserSample], fidelity: Fidelity, need: usize) -> Result<()> {
+    if samples.len() < need {
+        return Err(Error::TooFewSamples { got: samples.len(), need, model: fidelity.as_str() });
+    }
+    let mut depths: Vec<f64> = samples.iter().map(|s| s.z_mm).collect();
+    depths.sort_by(f64::total_cmp);
+    let (min, max, median) = (depths[0], depths[depths.len() - 1], depths[depths.len() / 2]);
+    if max - min < MIN_RELATIVE_DEPTH_SPREAD * median {
+        return Err(Error::Degenerate(format!(
+            "all samples lie at one depth (z {min:.1}..{max:.1} mm); place the board at several distances (the paper uses 0.6-1.2 m)"
+        )));
+    }
+    if fidelity == Fidelity::High {
+        let n = samples.len() as f64;
+        let (mu, mv) = samples.iter().fold((0.0, 0.0), |(a, b), s| (a + s.u_n / n, b + s.v_n / n));
+        let (suu, suv, svv) = samples.iter().fold((0.0, 0.0, 0.0), |(a, b, c), s| {
+            let (du, dv) = (s.u_n - mu, s.v_n - mv);
+            (a + du * du, b + du * dv, c + dv * dv)
+        });
+        // Eigenvalues of the 2x2 scatter matrix.
+        let half_trace = 0.5 * (suu + svv);
+        let root = (0.25 * (suu - svv).powi(2) + suv * suv).sqrt();
+        let (major, minor) = (half_trace + root, (half_trace - root).max(0.0));
+        if major <= 0.0 || (minor / major).sqrt() < MIN_IMAGE_SPREAD_RATIO {
+            return Err(Error::Degenerate(
+                "the laser pixels are collinear in the image, which leaves beta undetermined; use laser points from several board positions".into(),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// RANSAC over the linear minimal solver, then LM refits on the inliers
+/// until the inlier set is stable.
+fn robust_fit(
+    samples: &[LaserSample],
+    form: &LinearForm,
+    options: &CalibrationOptions,
+) -> Result<(crate::refine::Refined, Vec<usize>, usize)> {
+    let estimator = LaserEstimator { samples, form };
+    let ransac_options = RansacOptions {
+        threshold: options.threshold_mm,
+        confidence: options.confidence,
+        max_iterations: options.max_iterations,
+        seed: options.seed,
+    };
+    let need = form.unknowns() + 1;
+    let no_consensus = |best| Error::NoConsensus {
+        best,
+        n: samples.len(),
+        threshold_mm: options.threshold_mm,
+        need,
+    };
+    let outcome = ransac::ransac(&estimator, &ransac_options).ok_or_else(|| no_consensus(0))?;
+    let mut inliers = outcome.inliers;
+    let mut laser = outcome.model;
+    for _ in 0..MAX_REFIT_ROUNDS {
+        if inliers.len() < need {
+            return Err(no_consensus(inliers.len()));
+        }
+        let refined = refine(samples, &inliers, &laser, options.residual)?;
+        let next = ransac::inliers(&estimator, &refined.laser, options.threshold_mm);
+        if next == inliers || next.len() < need {
+            return Ok((refined, inliers, outcome.iterations));
+        }
+        laser = refined.laser;
+        inliers = next;
+    }
+    let refined = refine(samples, &inliers, &laser, options.residual)?;
+    Ok((refined, inliers, outcome.iterations))
+}
+
+/// The laser model as a RANSAC estimator: minimal linear solver, depth residual.
+struct LaserEstimator<'a> {
+    samples: &'a [LaserSample],
+    form: &'a LinearForm,
+}
+
+impl Estimator for LaserEstimator<'_> {
+    type Model = LaserModel;
+
+    fn len(&self) -> usize {
+        self.samples.len()
+    }
+
+    fn sample_size(&self) -> usize {
+        self.form.unknowns()
+    }
+
+    fn fit_minimal(&self, indices: &[usize]) -> Option<LaserModel> {
+        let subset: Vec<&LaserSample> = indices.iter().map(|&i| &self.samples[i]).collect();
+        self.form.solve_minimal(&subset)
+    }
+
+    fn residual(&self, laser: &LaserModel, index: usize) -> f64 {
+        let sample = &self.samples[index];
+        if laser.denominator(&sample.normalized()) <= 0.0 {
+            return f64::INFINITY;
+        }
+        depth_error_mm(laser, sample).abs()
+    }
+}

@@ -1,0 +1,149 @@
+//! The linear form of the laser model, for closed-form estimates.
+//!
+//! Eq. (7) rearranged: `1/z = (sin a - u cos a - v tan b) / L`, which is
+//! linear in `p = (sin a / L, cos a / L, tan b / L)`:
+//!
+//! ```text
+//! p1 - u p2 - v p3 = 1/z                       (one slide position, L fixed)
+//! p1 - u p2 - v p3 + d/z q = 1/z,  q = 1/L0    (several slide positions)
+//! ```
+//!
+//! with `p` divided by L0 in the second form. Three samples (two for the
+//! low-fidelity model, where p3 = 0; one more with several slide positions)
+//! give a minimal solver for RANSAC hypotheses; all samples, weighted by z^2
+//! so that the algebraic residual approximates the depth residual of
+//! eq. (9), give the initial estimate for the nonlinear refinement.
+
+use alacs_model::{Fidelity, LaserModel};
+use nalgebra::{DMatrix, DVector, Matrix4, Vector4};
+
+use crate::LaserSample;
+
+/// Slide positions closer together than this are treated as one: the
+/// column for 1/L0 would be nearly parallel to the right-hand side, leaving
+/// L0 undetermined by the linear form.
+const MIN_SLIDE_SPREAD_MM: f64 = 10.0;
+
+/// Singular-value ratio (of the column-scaled design) below which the
+/// samples do not determine the parameters.
+const RANK_TOLERANCE: f64 = 1e-9;
+
+/// The linear system for one set of samples.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct LinearForm {
+    fidelity: Fidelity,
+    /// `Some(d)` when every sample shares (to `MIN_SLIDE_SPREAD_MM`) slide travel d.
+    common_slide_mm: Option<f64>,
+}
+
+impl LinearForm {
+    /// The form for `samples`; several slide positions add the 1/L0 column.
+    pub(crate) fn new(fidelity: Fidelity, samples: &[LaserSample]) -> Self {
+        let (min, max, sum) =
+            samples.iter().fold((f64::INFINITY, f64::NEG_INFINITY, 0.0), |(lo, hi, sum), s| {
+                (lo.min(s.slide_mm), hi.max(s.slide_mm), sum + s.slide_mm)
+            });
+        let common_slide_mm =
+            (max - min < MIN_SLIDE_SPREAD_MM).then(|| sum / samples.len().max(1) as f64);
+        Self { fidelity, common_slide_mm }
+    }
+
+    /// Number of unknowns, which is also the minimal sample size.
+    pub(crate) fn unknowns(&self) -> usize {
+        let angles = match self.fidelity {
+            Fidelity::Low => 2,
+            Fidelity::High => 3,
+        };
+        angles + usize::from(self.common_slide_mm.is_none())
+    }
+
+    /// One row `a · p = b` of the system (entries past `unknowns()` are 0).
+    fn row(&self, s: &LaserSample) -> (Vector4<f64>, f64) {
+        let w = 1.0 / s.z_mm;
+        let mut a = Vector4::zeros();
+        a[0] = 1.0;
+        a[1] = -s.u_n;
+        let mut next = 2;
+        if self.fidelity == Fidelity::High {
+            a[2] = -s.v_n;
+            next = 3;
+        }
+        if self.common_slide_mm.is_none() {
+            a[next] = s.slide_mm * w;
+        }
+        (a, w)
+    }
+
+    /// The model from a solution `p` of the system, if it describes a laser
+    /// in front of the camera.
+    fn model(&self, p: &[f64]) -> Option<LaserModel> {
+        let tan_term = if self.fidelity == Fidelity::High { p[2] } else { 0.0 };
+        let (l0_mm, tan_beta) = match self.common_slide_mm {
+            // p = (sin a, cos a, tan b) / L.
+            Some(slide_mm) => {
+                let l_mm = 1.0 / p[0].hypot(p[1]);
+                (l_mm + slide_mm, tan_term * l_mm)
+            }
+            // p = (sin a, cos a, tan b, 1) / L0.
+            None => {
+                let q = p[self.unknowns() - 1];
+                (1.0 / q, tan_term / q)
+            }
+        };
+        let laser = LaserModel::new(self.fidelity, p[0].atan2(p[1]), tan_beta.atan(), l0_mm);
+        laser.validate().ok().map(|()| laser)
+    }
+
+    /// Minimal solver: the model through exactly `unknowns()` samples, or
+    /// `None` for a degenerate subset.
+    pub(crate) fn solve_minimal(&self, subset: &[&LaserSample]) -> Option<LaserModel> {
+        let k = self.unknowns();
+        let mut a = DMatrix::zeros(k, k);
+        let mut b = DVector::zeros(k);
+        for (i, s) in subset.iter().take(k).enumerate() {
+            let (row, rhs) = self.row(s);
+            for j in 0..k {
+                a[(i, j)] = row[j];
+            }
+            b[i] = rhs;
+        }
+        let p = a.lu().solve(&b)?;
+        self.model(p.as_slice())
+    }
+
+    /// Weighted least squares over `samples` (rows weighted by z^2, so the
+    /// residual approximates the depth error). `None` when the samples do not
+    /// determine the parameters.
+    pub(crate) fn solve_least_squares<'a>(
+        &self,
+        samples: impl Iterator<Item = &'a LaserSample>,
+    ) -> Option<LaserModel> {
+        let k = self.unknowns();
+        // Normal equations: k <= 4 unknowns, one pass, no allocation per sample.
+        let mut ata = Matrix4::<f64>::zeros();
+        let mut atb = Vector4::<f64>::zeros();
+        for s in samples {
+            let (row, rhs) = self.row(s);
+            let weight = s.z_mm * s.z_mm;
+            let (row, rhs) = (row * weight, rhs * weight);
+            ata += row * row.transpose();
+            atb += row * rhs;
+        }
+        // Equilibrate columns so the rank test compares like with like.
+        let scale = Vector4::from_fn(|i, _| {
+            if i < k && ata[(i, i)] > 0.0 { 1.0 / ata[(i, i)].sqrt() } else { 0.0 }
+        });
+        let scaled = DMatrix::from_fn(k, k, |i, j| ata[(i, j)] * scale[i] * scale[j]);
+        let rhs = DVector::from_fn(k, |i, _| atb[i] * scale[i]);
+        let svd = scaled.svd(true, true);
+        let max = svd.singular_values.max();
+        let min = svd.singular_values.min();
+        // Singular values of A^T A are squares of those of A.
+        if max.is_nan() || max <= 0.0 || (min / max).sqrt() < RANK_TOLERANCE {
+            return None;
+        }
+        let y = svd.solve(&rhs, 0.0).ok()?;
+        let p: Vec<f64> = (0..k).map(|i| y[i] * scale[i]).collect();
+        self.model(&p)
+    }
+}

@@ -1,0 +1,134 @@
+//! Calibration samples s_i = [u_n, v_n, z] (seed paper, Section 3.2) and
+//! their CSV file (FORMATS.md: `u_n,v_n,z_mm[,slide_mm]`).
+
+use std::path::Path;
+
+use nalgebra::Point2;
+
+use crate::{Error, Result};
+
+/// One calibration sample: a laser pixel's normalized, undistorted
+/// coordinates, the depth measured for it (from the board pose), and the
+/// slide travel when it was taken.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct LaserSample {
+    /// Normalized x (x/z) of the laser pixel, eq. (1).
+    pub u_n: f64,
+    /// Normalized y (y/z) of the laser pixel, eq. (1).
+    pub v_n: f64,
+    /// Measured depth z in the camera frame.
+    pub z_mm: f64,
+    /// Slide travel d when the sample was taken (L = L0 - d).
+    #[serde(default)]
+    pub slide_mm: f64,
+}
+
+impl LaserSample {
+    /// The normalized coordinates as a point.
+    pub fn normalized(&self) -> Point2<f64> {
+        Point2::new(self.u_n, self.v_n)
+    }
+
+    /// The measured 3-D point z (u_n, v_n, 1) in the camera frame.
+    pub fn point_in_camera(&self) -> nalgebra::Point3<f64> {
+        nalgebra::Point3::new(self.u_n * self.z_mm, self.v_n * self.z_mm, self.z_mm)
+    }
+
+    /// What is wrong with the sample, if anything.
+    fn problem(&self) -> Option<String> {
+        for (name, value) in
+            [("u_n", self.u_n), ("v_n", self.v_n), ("z_mm", self.z_mm), ("slide_mm", self.slide_mm)]
+        {
+            if !value.is_finite() {
+                return Some(format!("{name} is {value}, not a finite number"));
+            }
+        }
+        (self.z_mm <= 0.0).then(|| format!("z_mm is {}, depth must be positive", self.z_mm))
+    }
+}
+
+/// Checks every sample for finite values and positive depth.
+pub fn validate_samples(samples: &[LaserSample]) -> Result<()> {
+    for (index, sample) in samples.iter().enumerate() {
+        if let Some(message) = sample.problem() {
+            return Err(Error::InvalidSample { index, message });
+        }
+    }
+    Ok(())
+}
+
+/// Reads samples.csv: header `u_n,v_n,z_mm`, optional `slide_mm` (missing = 0),
+/// extra columns ignored. Every value must be a finite number and every
+/// depth positive; errors name the file, line and column.
+pub fn read_samples_csv(path: &Path) -> Result<Vec<LaserSample>> {
+    let file = std::fs::File::open(path)
+        .map_err(|source| Error::Io { path: path.to_path_buf(), source })?;
+    parse_samples_csv(file, path)
+}
+
+/// [`read_samples_csv`] from any reader; `path` names the input in errors.
+pub fn parse_samples_csv(reader: impl std::io::Read, path: &Path) -> Result<Vec<LaserSample>> {
+    let csv_error =
+        |line: Option<u64>, message: String| Error::Csv { path: path.to_path_buf(), line, message };
+    let mut reader =
+        csv::ReaderBuilder::new().trim(csv::Trim::All).comment(Some(b'#')).from_reader(reader);
+    let headers = reader.headers().map_err(|e| csv_error(Some(1), e.to_string()))?.clone();
+    let column = |name: &str| headers.iter().position(|h| h == name);
+    let required = |name: &str| {
+        column(name).ok_or_else(|| {
+            csv_error(
+                Some(1),
+                format!(
+                    "missing column `{name}` (header must be u_n,v_n,z_mm[,slide_mm]; found `{}`)",
+                    headers.iter().collect::<Vec<_>>().join(",")
+                ),
+            )
+        })
+    };
+    let (i_u, i_v, i_z) = (required("u_n")?, required("v_n")?, required("z_mm")?);
+    let i_slide = column("slide_mm");
+
+    let mut samples = Vec::new();
+    for record in reader.records() {
+        let record =
+            record.map_err(|e| csv_error(e.position().map(|p| p.line()), e.to_string()))?;
+        let line = record.position().map(|p| p.line());
+        let value = |index: usize, name: &str| -> Result<f64> {
+            let text = record.get(index).unwrap_or("");
+            text.parse::<f64>()
+                .map_err(|_| csv_error(line, format!("column `{name}`: `{text}` is not a number")))
+        };
+        let sample = LaserSample {
+            u_n: value(i_u, "u_n")?,
+            v_n: value(i_v, "v_n")?,
+            z_mm: value(i_z, "z_mm")?,
+            slide_mm: match i_slide {
+                Some(i) if !record.get(i).unwrap_or("").is_empty() => value(i, "slide_mm")?,
+                _ => 0.0,
+            },
+        };
+        if let Some(message) = sample.problem() {
+            return Err(csv_error(line, message));
+        }
+        samples.push(sample);
+    }
+    if samples.is_empty() {
+        return Err(csv_error(None, "no samples (the file has a header but no rows)".into()));
+    }
+    Ok(samples)
+}
+
+/// Writes samples.csv with all four columns (shortest round-trip floats).
+pub fn write_samples_csv(path: &Path, samples: &[LaserSample]) -> Result<()> {
+    let io_error = |source| Error::Io { path: path.to_path_buf(), source };
+    std::fs::write(path, samples_csv_string(samples)).map_err(io_error)
+}
+
+/// The text of samples.csv for `samples`.
+pub fn samples_csv_string(samples: &[LaserSample]) -> String {
+    let mut text = String::from("u_n,v_n,z_mm,slide_mm\n");
+    for s in samples {
+        text.push_str(&format!("{},{},{},{}\n", s.u_n, s.v_n, s.z_mm, s.slide_mm));
+    }
+    text
+}
