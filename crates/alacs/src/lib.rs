@@ -1,0 +1,30 @@
+//! `alacs`: the Active LAser-Camera Scanner, a perception module that gives a
+//! robotic fruit harvester millimetre fruit positions from a red line laser
+//! on a linear slide and a fixed RGB camera.
+//!
+//! This facade re-exports the domain crates:
+//! - [`model`]: the camera model and the ALACS laser model (eqs. (1)-(10) of the seed paper),
+//! - [`calib`]: robust laser calibration (eq. (9), Algorithm 1, the four methods of Table 1),
+//! - [`sim`]: the seeded simulator with ground truth.
+//!
+//! # Example
+//! ```
+//! use alacs::{CalibrationOptions, Method, calibrate};
+//! use alacs::sim::{SampleOptions, simulate_samples};
+//! use alacs::{Camera, Fidelity, LaserModel};
+//!
+//! let truth = LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98);
+//! let options = SampleOptions { outlier_fraction: 0.3, ..SampleOptions::default() };
+//! let sim = simulate_samples(&Camera::blackfly_s_5mp(), &truth, &options).unwrap();
+//! let fit = calibrate(&sim.samples, Method::HighFidelityRansac, &CalibrationOptions::default()).unwrap();
+//! assert!((fit.laser.alpha_deg() - 19.07).abs() < 0.1);
+//! ```
+
+pub use alacs_calib as calib;
+pub use alacs_model as model;
+pub use alacs_sim as sim;
+
+pub use alacs_calib::{
+    CalibrationOptions, LaserCalibration, LaserSample, Method, calibrate, compare,
+};
+pub use alacs_model::{Camera, Distortion, Fidelity, LaserModel};

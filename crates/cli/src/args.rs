@@ -1,0 +1,165 @@
+//! The command line, as close to what the user typed as possible; each
+//! command turns these into validated library options.
+
+use std::path::PathBuf;
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+
+/// alacs: the Active LAser-Camera Scanner. Millimetre fruit positions from a
+/// line laser on a slide and a camera.
+#[derive(Debug, Parser)]
+#[command(name = "alacs", version, about, long_about = None)]
+pub struct Cli {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Calibrate the laser-camera extrinsics.
+    #[command(subcommand)]
+    Calibrate(CalibrateCommand),
+    /// Map laser pixels to 3-D points in the camera frame (eqs. (3), (7), (8)).
+    Triangulate(TriangulateArgs),
+    /// Generate simulated data with ground truth.
+    #[command(subcommand)]
+    Simulate(SimulateCommand),
+    /// Run the main job on the built-in simulator and print the results.
+    Demo(DemoArgs),
+}
+
+/// `alacs calibrate ...`
+#[derive(Debug, Subcommand)]
+pub enum CalibrateCommand {
+    /// Fit (alpha, L0, beta) to samples u_n,v_n,z_mm[,slide_mm] (the seed paper's eq. (9)).
+    Laser(CalibrateLaserArgs),
+}
+
+/// The residual minimized by the least-squares step.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum ResidualArg {
+    /// z - z_hat, the seed paper's eq. (9) (default).
+    Depth,
+    /// Distance of the measured point from the laser plane.
+    Plane,
+}
+
+/// `alacs calibrate laser`
+#[derive(Debug, Args)]
+pub struct CalibrateLaserArgs {
+    /// Samples CSV: header u_n,v_n,z_mm and optionally slide_mm.
+    #[arg(long, value_name = "FILE")]
+    pub samples: PathBuf,
+    /// The seed paper's method: 1 low fidelity, 2 low fidelity + RANSAC,
+    /// 3 high fidelity, 4 high fidelity + RANSAC.
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(1..=4))]
+    pub method: u8,
+    /// Run all four methods and print the paper's Table 1.
+    #[arg(long)]
+    pub compare: bool,
+    /// RANSAC inlier threshold epsilon on |z - z_hat|, in mm.
+    #[arg(long, value_name = "E", default_value_t = alacs::calib::DEFAULT_THRESHOLD_MM)]
+    pub threshold_mm: f64,
+    /// RANSAC seed (same seed, same result).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// RANSAC cap on hypotheses (k_max).
+    #[arg(long, value_name = "K", default_value_t = 2000)]
+    pub max_iterations: usize,
+    /// Residual the least-squares fit minimizes.
+    #[arg(long, value_enum, default_value = "depth")]
+    pub residual: ResidualArg,
+    /// Print one JSON object (FORMATS.md) on standard output instead of text.
+    #[arg(long)]
+    pub json: bool,
+    /// Write the fitted laser.yaml here (the --method result; with --compare, Method 4 unless --method says otherwise).
+    #[arg(short, long, value_name = "FILE")]
+    pub output: Option<PathBuf>,
+}
+
+/// `alacs triangulate`
+#[derive(Debug, Args)]
+pub struct TriangulateArgs {
+    /// camera.yaml (ROS camera_calibration_parsers format).
+    #[arg(long, value_name = "FILE")]
+    pub camera: PathBuf,
+    /// laser.yaml.
+    #[arg(long, value_name = "FILE")]
+    pub laser: PathBuf,
+    /// Slide travel d in mm (L = L0 - d).
+    #[arg(long, value_name = "D", allow_negative_numbers = true)]
+    pub slide_mm: f64,
+    /// Pixels CSV with header u_px,v_px.
+    #[arg(long, value_name = "FILE")]
+    pub pixels: PathBuf,
+    /// Print {"points_mm": [[x, y, z], ...]} instead of CSV.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `alacs simulate ...`
+#[derive(Debug, Subcommand)]
+pub enum SimulateCommand {
+    /// Calibration samples like the seed paper's (samples.csv + truth.json).
+    Samples(SimulateSamplesArgs),
+}
+
+/// `alacs simulate samples`
+#[derive(Debug, Args)]
+pub struct SimulateSamplesArgs {
+    /// Output folder (created).
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+    /// Seed: same seed, same bytes.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Board poses.
+    #[arg(long, default_value_t = 10)]
+    pub views: usize,
+    /// Laser points per view.
+    #[arg(long, default_value_t = 3)]
+    pub points_per_view: usize,
+    /// Board distance range MIN,MAX in mm.
+    #[arg(long, value_name = "MIN,MAX", default_value = "600,1200")]
+    pub depth_mm: String,
+    /// Standard deviation of the depth noise, mm.
+    #[arg(long, default_value_t = 0.5)]
+    pub noise_mm: f64,
+    /// Fraction of samples made outliers (0 to 1).
+    #[arg(long, default_value_t = 0.0)]
+    pub outliers: f64,
+    /// Slide positions in mm, cycled over the views, e.g. 0,50,100.
+    #[arg(long, value_name = "D,D,...", default_value = "0")]
+    pub slides: String,
+    /// Camera to render with (default: a FLIR Blackfly S 5 MP-like camera).
+    #[arg(long, value_name = "FILE")]
+    pub camera: Option<PathBuf>,
+    /// Laser to render with (overrides --alpha-deg, --beta-deg, --l0-mm).
+    #[arg(long, value_name = "FILE")]
+    pub laser: Option<PathBuf>,
+    /// True alpha, degrees.
+    #[arg(long, default_value_t = 19.07)]
+    pub alpha_deg: f64,
+    /// True beta, degrees.
+    #[arg(long, default_value_t = 0.69, allow_negative_numbers = true)]
+    pub beta_deg: f64,
+    /// True L0, mm.
+    #[arg(long, default_value_t = 381.98)]
+    pub l0_mm: f64,
+    /// Print a JSON summary on standard output.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `alacs demo`
+#[derive(Debug, Args)]
+pub struct DemoArgs {
+    /// Seed of the simulated data.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Print one JSON object on standard output instead of text.
+    #[arg(long)]
+    pub json: bool,
+}

@@ -1,0 +1,6 @@
+//! One module per subcommand.
+
+pub mod calibrate;
+pub mod demo;
+pub mod simulate;
+pub mod triangulate;

@@ -1,0 +1,57 @@
+//! A failed command: the error and the exit code FORMATS.md gives it.
+
+/// Exit code 1: the input was readable but the job failed.
+pub const JOB_FAILED: u8 = 1;
+/// Exit code 2: bad usage or unreadable input.
+pub const BAD_INPUT: u8 = 2;
+
+/// A command's failure.
+pub struct Failure {
+    /// Process exit code.
+    pub code: u8,
+    /// What went wrong, printed with its context chain.
+    pub error: anyhow::Error,
+}
+
+/// Result of a command.
+pub type CmdResult<T = ()> = Result<T, Failure>;
+
+impl Failure {
+    /// Unreadable or invalid input (exit 2).
+    pub fn bad_input(error: impl Into<anyhow::Error>) -> Self {
+        Self { code: BAD_INPUT, error: error.into() }
+    }
+
+    /// A job that failed on readable input (exit 1).
+    pub fn job_failed(error: impl Into<anyhow::Error>) -> Self {
+        Self { code: JOB_FAILED, error: error.into() }
+    }
+}
+
+impl From<alacs::calib::Error> for Failure {
+    fn from(error: alacs::calib::Error) -> Self {
+        if error.is_bad_input() { Self::bad_input(error) } else { Self::job_failed(error) }
+    }
+}
+
+impl From<alacs::model::Error> for Failure {
+    fn from(error: alacs::model::Error) -> Self {
+        use alacs::model::Error as E;
+        match error {
+            E::Io { .. } | E::Parse { .. } | E::InvalidParameters { .. } => Self::bad_input(error),
+            _ => Self::job_failed(error),
+        }
+    }
+}
+
+impl From<alacs::sim::Error> for Failure {
+    fn from(error: alacs::sim::Error) -> Self {
+        use alacs::sim::Error as E;
+        match error {
+            E::Model(e) => e.into(),
+            E::Calib(e) => e.into(),
+            E::InvalidOptions(_) => Self::bad_input(error),
+            _ => Self::job_failed(error),
+        }
+    }
+}

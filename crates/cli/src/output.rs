@@ -1,0 +1,109 @@
+//! What commands print: FORMATS.md's JSON objects and readable tables.
+
+use std::fmt::Write as _;
+
+use alacs::LaserCalibration;
+use alacs::model::Fidelity;
+use serde_json::{Value, json};
+
+/// One calibration as FORMATS.md's `calibrate laser --json` object, with
+/// `method`, `name` and the fit's statistics added.
+pub fn calibration_json(c: &LaserCalibration) -> Value {
+    json!({
+        "model": c.laser.fidelity.as_str(),
+        "alpha_deg": c.laser.alpha_deg(),
+        "beta_deg": c.laser.beta_deg(),
+        "l0_mm": c.laser.l0_mm,
+        "inliers": c.inliers,
+        "mean_abs_error_mm": c.mean_abs_error_mm,
+        "mean_abs_error_all_mm": c.mean_abs_error_all_mm,
+        "n_samples": c.n_samples,
+        "method": c.method.number(),
+        "name": c.method.name(),
+        "rms_error_mm": c.rms_error_mm,
+        "residual": c.residual.as_str(),
+        "ransac_iterations": c.ransac_iterations,
+        "std_dev": c.std_dev.map(|s| json!({
+            "alpha_deg": s.alpha_deg,
+            "l0_mm": s.l0_mm,
+            "beta_deg": s.beta_deg,
+        })),
+    })
+}
+
+/// Prints `value` as the one JSON object on standard output.
+pub fn print_json(value: &Value) {
+    println!("{value}");
+}
+
+/// The seed paper's Table 1 for `results`.
+pub fn table_1(results: &[LaserCalibration]) -> String {
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "{:<44} {:>11} {:>9} {:>10} {:>15} {:>9}",
+        "", "alpha (deg)", "L0 (mm)", "beta (deg)", "Mean error (mm)", "inliers"
+    );
+    for c in results {
+        let beta = match c.laser.fidelity {
+            Fidelity::Low => "/".to_string(),
+            Fidelity::High => format!("{:.2}", c.laser.beta_deg()),
+        };
+        let _ = writeln!(
+            out,
+            "{:<44} {:>11.2} {:>9.2} {:>10} {:>15.2} {:>9}",
+            format!("Method {} ({})", c.method.number(), c.method.name()),
+            c.laser.alpha_deg(),
+            c.laser.l0_mm,
+            beta,
+            c.mean_abs_error_mm,
+            format!("{}/{}", c.inliers.len(), c.n_samples)
+        );
+    }
+    out
+}
+
+/// A readable summary of one calibration, with standard deviations.
+pub fn summary(c: &LaserCalibration, threshold_mm: f64) -> String {
+    let mut out = String::new();
+    let _ =
+        write!(out, "Method {} ({}): {} samples", c.method.number(), c.method.name(), c.n_samples);
+    match c.ransac_iterations {
+        Some(k) => {
+            let _ = writeln!(
+                out,
+                ", {} inliers within {threshold_mm} mm ({k} RANSAC hypotheses)",
+                c.inliers.len()
+            );
+        }
+        None => out.push('\n'),
+    }
+    let std = c.std_dev;
+    let pm = |v: Option<f64>, digits: usize| match v {
+        Some(s) => format!("  +- {s:.digits$}"),
+        None => String::new(),
+    };
+    let _ = writeln!(
+        out,
+        "  alpha = {:>9.4} deg{}",
+        c.laser.alpha_deg(),
+        pm(std.map(|s| s.alpha_deg), 4)
+    );
+    let _ = writeln!(out, "  L0    = {:>9.3} mm {}", c.laser.l0_mm, pm(std.map(|s| s.l0_mm), 3));
+    if c.laser.fidelity == Fidelity::High {
+        let _ = writeln!(
+            out,
+            "  beta  = {:>9.4} deg{}",
+            c.laser.beta_deg(),
+            pm(std.and_then(|s| s.beta_deg), 4)
+        );
+    }
+    let _ = writeln!(
+        out,
+        "  mean |z - z_hat| = {:.3} mm over the fitted samples, {:.3} mm over all ({} residual)",
+        c.mean_abs_error_mm,
+        c.mean_abs_error_all_mm,
+        c.residual.as_str()
+    );
+    out
+}

@@ -1,0 +1,249 @@
+//! The `alacs` program end to end: outputs and exit codes of FORMATS.md.
+
+// Test helpers outside #[test] functions may fail loudly too.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use serde_json::Value;
+
+fn alacs(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_alacs")).args(args).output().expect("alacs runs")
+}
+
+/// A fresh folder for one test.
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn stdout_json(output: &Output) -> Value {
+    assert!(output.status.success(), "stderr: {}", String::from_utf8_lossy(&output.stderr));
+    let text = String::from_utf8(output.stdout.clone()).unwrap();
+    // Exactly one JSON object and nothing else on standard output.
+    serde_json::from_str(text.trim()).unwrap_or_else(|e| panic!("{e}: {text}"))
+}
+
+fn stderr(output: &Output) -> String {
+    String::from_utf8_lossy(&output.stderr).into_owned()
+}
+
+/// Simulated samples with 30 % outliers in `dir`, returning the CSV path.
+fn simulated_samples(dir: &Path, seed: &str) -> String {
+    let out = dir.to_str().unwrap();
+    let output = alacs(&["simulate", "samples", "--out", out, "--seed", seed, "--outliers", "0.3"]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    dir.join("samples.csv").to_str().unwrap().to_owned()
+}
+
+#[test]
+fn calibrate_laser_json_has_the_formats_md_keys() {
+    let dir = scratch("calibrate_json");
+    let samples = simulated_samples(&dir, "5");
+    let laser_yaml = dir.join("laser.yaml");
+    let output = alacs(&[
+        "calibrate",
+        "laser",
+        "--samples",
+        &samples,
+        "--json",
+        "-o",
+        laser_yaml.to_str().unwrap(),
+    ]);
+    let json = stdout_json(&output);
+    for key in [
+        "model",
+        "alpha_deg",
+        "beta_deg",
+        "l0_mm",
+        "inliers",
+        "mean_abs_error_mm",
+        "mean_abs_error_all_mm",
+        "n_samples",
+    ] {
+        assert!(json.get(key).is_some(), "missing {key} in {json}");
+    }
+    assert_eq!(json["model"], "high-fidelity");
+    assert_eq!(json["n_samples"], 30);
+    assert!((json["alpha_deg"].as_f64().unwrap() - 19.07).abs() < 0.15);
+    // The planted outliers are not among the inliers.
+    let truth: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("truth.json")).unwrap()).unwrap();
+    let inliers = json["inliers"].as_array().unwrap();
+    for outlier in truth["outliers"].as_array().unwrap() {
+        assert!(!inliers.contains(outlier), "outlier {outlier} among inliers");
+    }
+    // laser.yaml reads back to the printed parameters.
+    let laser = alacs::LaserModel::from_yaml_file(&laser_yaml).unwrap();
+    assert_eq!(laser.l0_mm, json["l0_mm"].as_f64().unwrap());
+}
+
+#[test]
+fn compare_json_lists_the_four_methods_ranked_as_table_1() {
+    let dir = scratch("compare_json");
+    let samples = simulated_samples(&dir, "6");
+    let json =
+        stdout_json(&alacs(&["calibrate", "laser", "--samples", &samples, "--compare", "--json"]));
+    let methods = json["methods"].as_array().unwrap();
+    assert_eq!(methods.len(), 4);
+    for (i, m) in methods.iter().enumerate() {
+        assert_eq!(m["method"], i + 1);
+        assert!(m["name"].as_str().is_some());
+    }
+    assert_eq!(methods[0]["model"], "low-fidelity");
+    assert_eq!(methods[0]["beta_deg"], 0.0);
+    let error = |i: usize| methods[i]["mean_abs_error_mm"].as_f64().unwrap();
+    assert!(error(1) < error(0) && error(3) < error(2) && error(3) < error(1));
+}
+
+#[test]
+fn compare_prints_a_table_like_the_papers() {
+    let dir = scratch("compare_text");
+    let samples = simulated_samples(&dir, "7");
+    let output = alacs(&["calibrate", "laser", "--samples", &samples, "--compare"]);
+    assert!(output.status.success());
+    let text = String::from_utf8(output.stdout).unwrap();
+    for needle in
+        ["alpha (deg)", "L0 (mm)", "beta (deg)", "Mean error (mm)", "Method 1", "Method 4"]
+    {
+        assert!(text.contains(needle), "{needle} missing from\n{text}");
+    }
+}
+
+#[test]
+fn unreadable_input_exits_2_naming_the_file() {
+    let dir = scratch("bad_input");
+    let missing = dir.join("missing.csv");
+    let output = alacs(&["calibrate", "laser", "--samples", missing.to_str().unwrap()]);
+    assert_eq!(output.status.code(), Some(2));
+    assert!(stderr(&output).contains("missing.csv"), "{}", stderr(&output));
+
+    let malformed = dir.join("malformed.csv");
+    std::fs::write(&malformed, "u_n,v_n,z_mm\n0.1,0.2,800\n0.1,0.2,NaN\n").unwrap();
+    let output = alacs(&["calibrate", "laser", "--samples", malformed.to_str().unwrap(), "--json"]);
+    assert_eq!(output.status.code(), Some(2));
+    assert!(output.stdout.is_empty());
+    let message = stderr(&output);
+    assert!(message.contains("malformed.csv") && message.contains("line 3"), "{message}");
+    assert!(!message.contains("panicked"), "{message}");
+
+    let output =
+        alacs(&["calibrate", "laser", "--samples", malformed.to_str().unwrap(), "--method", "5"]);
+    assert_eq!(output.status.code(), Some(2));
+}
+
+#[test]
+fn degenerate_samples_exit_1_with_a_reason() {
+    let dir = scratch("degenerate");
+    let path = dir.join("one_depth.csv");
+    let rows: String = (0..20)
+        .map(|i| format!("{},{},800\n", -0.1 + 0.001 * f64::from(i), -0.3 + 0.03 * f64::from(i)))
+        .collect();
+    std::fs::write(&path, format!("u_n,v_n,z_mm\n{rows}")).unwrap();
+    let output = alacs(&["calibrate", "laser", "--samples", path.to_str().unwrap()]);
+    assert_eq!(output.status.code(), Some(1));
+    assert!(stderr(&output).contains("one depth"), "{}", stderr(&output));
+}
+
+#[test]
+fn triangulate_maps_pixels_to_points_on_the_laser_plane() {
+    let dir = scratch("triangulate");
+    let camera = alacs::Camera::blackfly_s_5mp();
+    let camera_yaml = dir.join("camera.yaml");
+    camera.to_yaml_file(&camera_yaml).unwrap();
+    let laser = alacs::LaserModel::from_degrees(alacs::Fidelity::High, 19.07, 0.69, 381.98);
+    let laser_yaml = dir.join("laser.yaml");
+    laser.to_yaml_file(&laser_yaml, "test").unwrap();
+    let pixels = dir.join("pixels.csv");
+    // The last row is far right: its ray misses the laser plane in front of the camera.
+    std::fs::write(&pixels, "u_px,v_px\n1000,100\n1100.5,1024\n1200,2000\n2447,1000\n").unwrap();
+    let args = [
+        "triangulate",
+        "--camera",
+        camera_yaml.to_str().unwrap(),
+        "--laser",
+        laser_yaml.to_str().unwrap(),
+        "--slide-mm",
+        "50",
+        "--pixels",
+        pixels.to_str().unwrap(),
+        "--json",
+    ];
+    let output = alacs(&args);
+    let json = stdout_json(&output);
+    let points = json["points_mm"].as_array().unwrap();
+    assert_eq!(points.len(), 4);
+    for p in &points[..3] {
+        let p: Vec<f64> = p.as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+        let point = nalgebra::Point3::new(p[0], p[1], p[2]);
+        assert!(laser.signed_distance_mm(&point, 50.0).abs() < 1e-6);
+        let back = camera.project(&point).unwrap();
+        assert!(back.x.is_finite());
+    }
+    let pixel = camera
+        .project(&nalgebra::Point3::new(
+            points[1][0].as_f64().unwrap(),
+            points[1][1].as_f64().unwrap(),
+            points[1][2].as_f64().unwrap(),
+        ))
+        .unwrap();
+    assert!((pixel.x - 1100.5).abs() < 1e-6 && (pixel.y - 1024.0).abs() < 1e-6);
+    assert!(points[3].is_null());
+    assert!(stderr(&output).contains("row 4"));
+}
+
+#[test]
+fn triangulate_rejects_a_malformed_camera_file() {
+    let dir = scratch("triangulate_bad");
+    let camera_yaml = dir.join("camera.yaml");
+    std::fs::write(&camera_yaml, "image_width: 640\nimage_height: [480\n").unwrap();
+    let laser_yaml = dir.join("laser.yaml");
+    std::fs::write(&laser_yaml, "model: high-fidelity\nalpha_deg: 19\nbeta_deg: 0.5\nl0_mm: 380\n")
+        .unwrap();
+    let pixels = dir.join("pixels.csv");
+    std::fs::write(&pixels, "u_px,v_px\n1,2\n").unwrap();
+    let output = alacs(&[
+        "triangulate",
+        "--camera",
+        camera_yaml.to_str().unwrap(),
+        "--laser",
+        laser_yaml.to_str().unwrap(),
+        "--slide-mm",
+        "0",
+        "--pixels",
+        pixels.to_str().unwrap(),
+    ]);
+    assert_eq!(output.status.code(), Some(2));
+    assert!(stderr(&output).contains("camera.yaml"), "{}", stderr(&output));
+}
+
+#[test]
+fn simulate_samples_is_deterministic() {
+    let a = scratch("sim_a");
+    let b = scratch("sim_b");
+    simulated_samples(&a, "42");
+    simulated_samples(&b, "42");
+    for file in ["samples.csv", "truth.json"] {
+        assert_eq!(
+            std::fs::read(a.join(file)).unwrap(),
+            std::fs::read(b.join(file)).unwrap(),
+            "{file}"
+        );
+    }
+}
+
+#[test]
+fn demo_json_reports_four_methods_and_accuracy() {
+    let json = stdout_json(&alacs(&["demo", "--json"]));
+    assert_eq!(json["methods"].as_array().unwrap().len(), 4);
+    let accuracy = json["accuracy"].as_array().unwrap();
+    assert_eq!(accuracy.len(), 5);
+    for a in accuracy {
+        // The seed paper's worst cases: 0.6 / 1.2 / 4 mm. Calibration error
+        // alone (noise-free pixels) must stay well inside them.
+        assert!(a["max_abs_error_mm"]["z"].as_f64().unwrap() < 4.0, "{a}");
+    }
+}
