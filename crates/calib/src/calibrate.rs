@@ -1,6 +1,6 @@
 //! The seed paper's four calibration methods (Section 4.1, Table 1).
 
-use alacs_model::{Fidelity, LaserModel};
+use alacs_model::{Fidelity, LaserModel, PreparedLaser};
 
 use crate::linear::LinearForm;
 use crate::ransac::{self, Estimator, RansacOptions};
@@ -171,7 +171,8 @@ pub fn calibrate(
         (refined.laser, all, refined.covariance, None)
     };
 
-    let errors: Vec<f64> = samples.iter().map(|s| depth_error_mm(&laser, s).abs()).collect();
+    let prepared = laser.prepare();
+    let errors: Vec<f64> = samples.iter().map(|s| depth_error(&prepared, s).abs()).collect();
     let mean = |indices: &mut dyn Iterator<Item = usize>| {
         let (sum, count) = indices.fold((0.0, 0usize), |(sum, n), i| (sum + errors[i], n + 1));
         sum / count.max(1) as f64
@@ -207,7 +208,13 @@ pub fn compare(
 
 /// z - z_hat for one sample under `laser` (eq. (9)'s residual).
 pub fn depth_error_mm(laser: &LaserModel, sample: &LaserSample) -> f64 {
-    sample.z_mm - laser.laser_distance_mm(sample.slide_mm) / laser.denominator(&sample.normalized())
+    depth_error(&laser.prepare(), sample)
+}
+
+/// [`depth_error_mm`] with the trigonometry evaluated once.
+fn depth_error(laser: &PreparedLaser, sample: &LaserSample) -> f64 {
+    sample.z_mm
+        - laser.model.laser_distance_mm(sample.slide_mm) / laser.denominator(&sample.normalized())
 }
 
 /// Rejects sample sets that cannot determine the parameters, naming why.
@@ -216,8 +223,11 @@ fn check_geometry(samples: &[LaserSample], fidelity: Fidelity, need: usize) -> R
         return Err(Error::TooFewSamples { got: samples.len(), need, model: fidelity.as_str() });
     }
     let mut depths: Vec<f64> = samples.iter().map(|s| s.z_mm).collect();
-    depths.sort_by(f64::total_cmp);
-    let (min, max, median) = (depths[0], depths[depths.len() - 1], depths[depths.len() / 2]);
+    let (min, max) = depths
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &z| (lo.min(z), hi.max(z)));
+    let middle = depths.len() / 2;
+    let median = *depths.select_nth_unstable_by(middle, f64::total_cmp).1;
     if max - min < MIN_RELATIVE_DEPTH_SPREAD * median {
         return Err(Error::Degenerate(format!(
             "all samples lie at one depth (z {min:.1}..{max:.1} mm); place the board at several distances (the paper uses 0.6-1.2 m)"
@@ -266,13 +276,13 @@ fn robust_fit(
     };
     let outcome = ransac::ransac(&estimator, &ransac_options).ok_or_else(|| no_consensus(0))?;
     let mut inliers = outcome.inliers;
-    let mut laser = outcome.model;
+    let mut laser = outcome.model.model;
     for _ in 0..MAX_REFIT_ROUNDS {
         if inliers.len() < need {
             return Err(no_consensus(inliers.len()));
         }
         let refined = refine(samples, &inliers, &laser, options.residual)?;
-        let next = ransac::inliers(&estimator, &refined.laser, options.threshold_mm);
+        let next = ransac::inliers(&estimator, &refined.laser.prepare(), options.threshold_mm);
         if next == inliers || next.len() < need {
             return Ok((refined, inliers, outcome.iterations));
         }
@@ -290,7 +300,7 @@ struct LaserEstimator<'a> {
 }
 
 impl Estimator for LaserEstimator<'_> {
-    type Model = LaserModel;
+    type Model = PreparedLaser;
 
     fn len(&self) -> usize {
         self.samples.len()
@@ -300,16 +310,16 @@ impl Estimator for LaserEstimator<'_> {
         self.form.unknowns()
     }
 
-    fn fit_minimal(&self, indices: &[usize]) -> Option<LaserModel> {
+    fn fit_minimal(&self, indices: &[usize]) -> Option<PreparedLaser> {
         let subset: Vec<&LaserSample> = indices.iter().map(|&i| &self.samples[i]).collect();
-        self.form.solve_minimal(&subset)
+        self.form.solve_minimal(&subset).map(|laser| laser.prepare())
     }
 
-    fn residual(&self, laser: &LaserModel, index: usize) -> f64 {
+    fn residual(&self, laser: &PreparedLaser, index: usize) -> f64 {
         let sample = &self.samples[index];
         if laser.denominator(&sample.normalized()) <= 0.0 {
             return f64::INFINITY;
         }
-        depth_error_mm(laser, sample).abs()
+        depth_error(laser, sample).abs()
     }
 }

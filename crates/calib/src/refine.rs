@@ -73,13 +73,13 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for Problem<'_> {
     }
 
     fn residuals(&self) -> Option<DVector<f64>> {
-        let laser = self.laser();
+        let laser = self.laser().prepare();
         Some(DVector::from_iterator(
             self.samples.len(),
             self.samples.iter().map(|s| match self.residual {
                 Residual::Depth => {
                     let d = laser.denominator(&s.normalized()).max(MIN_DENOMINATOR);
-                    s.z_mm - laser.laser_distance_mm(s.slide_mm) / d
+                    s.z_mm - laser.model.laser_distance_mm(s.slide_mm) / d
                 }
                 Residual::PlaneDistance => {
                     laser.signed_distance_mm(&s.point_in_camera(), s.slide_mm)
@@ -89,7 +89,7 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for Problem<'_> {
     }
 
     fn jacobian(&self) -> Option<DMatrix<f64>> {
-        let laser = self.laser();
+        let laser = self.laser().prepare();
         let p = self.params.len();
         let mut jac = DMatrix::zeros(self.samples.len(), p);
         for (i, s) in self.samples.iter().enumerate() {

@@ -153,30 +153,36 @@ impl LaserModel {
         self.l0_mm - slide_mm
     }
 
+    /// This model with its trigonometric terms evaluated once, for loops
+    /// over many pixels or samples.
+    pub fn prepare(&self) -> PreparedLaser {
+        let (sin_alpha, cos_alpha) = self.alpha_rad.sin_cos();
+        let (sin_beta, cos_beta) = self.effective_beta_rad().sin_cos();
+        PreparedLaser {
+            model: *self,
+            sin_alpha,
+            cos_alpha,
+            sin_beta,
+            cos_beta,
+            tan_beta: sin_beta / cos_beta,
+        }
+    }
+
     /// D = sin(alpha) - u_n cos(alpha) - v_n tan(beta), the denominator of eq. (7).
     pub fn denominator(&self, normalized: &Point2<f64>) -> f64 {
-        self.alpha_rad.sin()
-            - normalized.x * self.alpha_rad.cos()
-            - normalized.y * self.effective_beta_rad().tan()
+        self.prepare().denominator(normalized)
     }
 
     /// Depth z of the laser point seen at `normalized`, eq. (7) (eq. (10) for
     /// the low-fidelity model). Errors where the ray misses the laser plane
     /// in front of the camera.
     pub fn depth_mm(&self, normalized: &Point2<f64>, slide_mm: f64) -> Result<f64> {
-        let denominator = self.denominator(normalized);
-        let depth_mm = self.laser_distance_mm(slide_mm) / denominator;
-        if denominator > 0.0 && depth_mm.is_finite() && depth_mm > 0.0 {
-            Ok(depth_mm)
-        } else {
-            Err(Error::NoIntersection { u_n: normalized.x, v_n: normalized.y, denominator })
-        }
+        self.prepare().depth_mm(normalized, slide_mm)
     }
 
     /// The 3-D point in the camera frame seen at `normalized`, eqs. (7)-(8).
     pub fn triangulate(&self, normalized: &Point2<f64>, slide_mm: f64) -> Result<Point3<f64>> {
-        let z_mm = self.depth_mm(normalized, slide_mm)?;
-        Ok(Point3::new(normalized.x * z_mm, normalized.y * z_mm, z_mm))
+        self.prepare().triangulate(normalized, slide_mm)
     }
 
     /// 3x2 Jacobian of [`Self::triangulate`] with respect to (u_n, v_n).
@@ -185,70 +191,42 @@ impl LaserModel {
         normalized: &Point2<f64>,
         slide_mm: f64,
     ) -> Result<Matrix3x2<f64>> {
-        let z = self.depth_mm(normalized, slide_mm)?;
-        let denominator = self.denominator(normalized);
-        // dz/du = L cos(alpha) / D^2 = z cos(alpha) / D, likewise for v with tan(beta).
-        let dz_du = z * self.alpha_rad.cos() / denominator;
-        let dz_dv = z * self.effective_beta_rad().tan() / denominator;
-        let (u, v) = (normalized.x, normalized.y);
-        Ok(Matrix3x2::new(z + u * dz_du, u * dz_dv, v * dz_du, z + v * dz_dv, dz_du, dz_dv))
+        self.prepare().triangulate_jacobian(normalized, slide_mm)
     }
 
     /// Gradient of the modelled depth z_hat of eq. (9) with respect to the
-    /// parameters (alpha in rad, L0 in mm, beta in rad). For the low-fidelity
-    /// model the beta entry is the derivative at beta = 0, which callers that
-    /// fit two parameters ignore.
+    /// parameters (alpha in rad, L0 in mm, beta in rad); see
+    /// [`PreparedLaser::depth_gradient_params`].
     pub fn depth_gradient_params(
         &self,
         normalized: &Point2<f64>,
         slide_mm: f64,
     ) -> Result<Vector3<f64>> {
-        let z = self.depth_mm(normalized, slide_mm)?;
-        let denominator = self.denominator(normalized);
-        let (sin_a, cos_a) = self.alpha_rad.sin_cos();
-        let cos_b = self.effective_beta_rad().cos();
-        // z = L / D:  dz/dp = -z/D * dD/dp for the angles, dz/dL0 = 1/D.
-        let dz_dalpha = -z / denominator * (cos_a + normalized.x * sin_a);
-        let dz_dl0 = 1.0 / denominator;
-        let dz_dbeta = z / denominator * normalized.y / (cos_b * cos_b);
-        Ok(Vector3::new(dz_dalpha, dz_dl0, dz_dbeta))
+        self.prepare().depth_gradient_params(normalized, slide_mm)
     }
 
     /// Signed Euclidean distance of `point_in_camera` from the laser plane at
     /// slide travel `slide_mm` (positive on the side away from the camera):
     /// the geometric residual offered beside eq. (9)'s depth residual.
     pub fn signed_distance_mm(&self, point_in_camera: &Point3<f64>, slide_mm: f64) -> f64 {
-        self.plane_in_camera(slide_mm).signed_distance_mm(point_in_camera)
+        self.prepare().signed_distance_mm(point_in_camera, slide_mm)
     }
 
     /// Gradient of [`Self::signed_distance_mm`] with respect to the parameters
-    /// (alpha in rad, L0 in mm, beta in rad). With the normal scaled to unit
-    /// length the distance is
-    /// `-cos(a) cos(b) x - sin(b) y + sin(a) cos(b) z - L cos(b)`.
+    /// (alpha in rad, L0 in mm, beta in rad); see
+    /// [`PreparedLaser::signed_distance_gradient_params`].
     pub fn signed_distance_gradient_params(
         &self,
         point_in_camera: &Point3<f64>,
         slide_mm: f64,
     ) -> Vector3<f64> {
-        let (x, y, z) = (point_in_camera.x, point_in_camera.y, point_in_camera.z);
-        let (sin_a, cos_a) = self.alpha_rad.sin_cos();
-        let (sin_b, cos_b) = self.effective_beta_rad().sin_cos();
-        let l_mm = self.laser_distance_mm(slide_mm);
-        Vector3::new(
-            (sin_a * x + cos_a * z) * cos_b,
-            -cos_b,
-            cos_a * sin_b * x - cos_b * y - sin_a * sin_b * z + l_mm * sin_b,
-        )
+        self.prepare().signed_distance_gradient_params(point_in_camera, slide_mm)
     }
 
     /// The laser plane in the camera frame at slide travel `slide_mm`:
     /// `-cos(alpha) x - tan(beta) y + sin(alpha) z = L`.
     pub fn plane_in_camera(&self, slide_mm: f64) -> Plane {
-        let (sin_a, cos_a) = self.alpha_rad.sin_cos();
-        Plane {
-            normal: Vector3::new(-cos_a, -self.effective_beta_rad().tan(), sin_a),
-            offset_mm: self.laser_distance_mm(slide_mm),
-        }
+        self.prepare().plane_in_camera(slide_mm)
     }
 
     /// The laser's origin (the line generator) in the camera frame, eq. (4):
@@ -324,5 +302,116 @@ impl LaserModel {
         let mut text: String = header.lines().map(|line| format!("# {line}\n")).collect();
         text.push_str(&self.to_yaml_string());
         std::fs::write(path, text).map_err(|source| Error::Io { path: path.to_path_buf(), source })
+    }
+}
+
+/// A [`LaserModel`] with its sines, cosines and tangents evaluated once: the
+/// form for loops over many pixels or samples. The formulas of eqs. (7)-(8)
+/// and the residuals of eq. (9) live here; [`LaserModel`]'s methods of the
+/// same names call these.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PreparedLaser {
+    /// The model.
+    pub model: LaserModel,
+    sin_alpha: f64,
+    cos_alpha: f64,
+    sin_beta: f64,
+    cos_beta: f64,
+    tan_beta: f64,
+}
+
+impl PreparedLaser {
+    /// D = sin(alpha) - u_n cos(alpha) - v_n tan(beta), the denominator of eq. (7).
+    pub fn denominator(&self, normalized: &Point2<f64>) -> f64 {
+        self.sin_alpha - normalized.x * self.cos_alpha - normalized.y * self.tan_beta
+    }
+
+    /// Depth z of the laser point seen at `normalized`, eq. (7) (eq. (10) for
+    /// the low-fidelity model). Errors where the ray misses the laser plane
+    /// in front of the camera.
+    pub fn depth_mm(&self, normalized: &Point2<f64>, slide_mm: f64) -> Result<f64> {
+        let denominator = self.denominator(normalized);
+        let depth_mm = self.model.laser_distance_mm(slide_mm) / denominator;
+        if denominator > 0.0 && depth_mm.is_finite() && depth_mm > 0.0 {
+            Ok(depth_mm)
+        } else {
+            Err(Error::NoIntersection { u_n: normalized.x, v_n: normalized.y, denominator })
+        }
+    }
+
+    /// The 3-D point in the camera frame seen at `normalized`, eqs. (7)-(8).
+    pub fn triangulate(&self, normalized: &Point2<f64>, slide_mm: f64) -> Result<Point3<f64>> {
+        let z_mm = self.depth_mm(normalized, slide_mm)?;
+        Ok(Point3::new(normalized.x * z_mm, normalized.y * z_mm, z_mm))
+    }
+
+    /// 3x2 Jacobian of [`Self::triangulate`] with respect to (u_n, v_n).
+    pub fn triangulate_jacobian(
+        &self,
+        normalized: &Point2<f64>,
+        slide_mm: f64,
+    ) -> Result<Matrix3x2<f64>> {
+        let z = self.depth_mm(normalized, slide_mm)?;
+        let denominator = self.denominator(normalized);
+        // dz/du = L cos(alpha) / D^2 = z cos(alpha) / D, likewise for v with tan(beta).
+        let dz_du = z * self.cos_alpha / denominator;
+        let dz_dv = z * self.tan_beta / denominator;
+        let (u, v) = (normalized.x, normalized.y);
+        Ok(Matrix3x2::new(z + u * dz_du, u * dz_dv, v * dz_du, z + v * dz_dv, dz_du, dz_dv))
+    }
+
+    /// Gradient of the modelled depth z_hat of eq. (9) with respect to the
+    /// parameters (alpha in rad, L0 in mm, beta in rad). For the low-fidelity
+    /// model the beta entry is the derivative at beta = 0, which callers that
+    /// fit two parameters ignore.
+    pub fn depth_gradient_params(
+        &self,
+        normalized: &Point2<f64>,
+        slide_mm: f64,
+    ) -> Result<Vector3<f64>> {
+        let z = self.depth_mm(normalized, slide_mm)?;
+        let denominator = self.denominator(normalized);
+        let (sin_a, cos_a, cos_b) = (self.sin_alpha, self.cos_alpha, self.cos_beta);
+        // z = L / D:  dz/dp = -z/D * dD/dp for the angles, dz/dL0 = 1/D.
+        let dz_dalpha = -z / denominator * (cos_a + normalized.x * sin_a);
+        let dz_dl0 = 1.0 / denominator;
+        let dz_dbeta = z / denominator * normalized.y / (cos_b * cos_b);
+        Ok(Vector3::new(dz_dalpha, dz_dl0, dz_dbeta))
+    }
+
+    /// Signed Euclidean distance of `point_in_camera` from the laser plane at
+    /// slide travel `slide_mm` (positive on the side away from the camera):
+    /// the geometric residual offered beside eq. (9)'s depth residual.
+    pub fn signed_distance_mm(&self, point_in_camera: &Point3<f64>, slide_mm: f64) -> f64 {
+        self.plane_in_camera(slide_mm).signed_distance_mm(point_in_camera)
+    }
+
+    /// Gradient of [`Self::signed_distance_mm`] with respect to the parameters
+    /// (alpha in rad, L0 in mm, beta in rad). With the normal scaled to unit
+    /// length the distance is
+    /// `-cos(a) cos(b) x - sin(b) y + sin(a) cos(b) z - L cos(b)`.
+    pub fn signed_distance_gradient_params(
+        &self,
+        point_in_camera: &Point3<f64>,
+        slide_mm: f64,
+    ) -> Vector3<f64> {
+        let (x, y, z) = (point_in_camera.x, point_in_camera.y, point_in_camera.z);
+        let (sin_a, cos_a) = (self.sin_alpha, self.cos_alpha);
+        let (sin_b, cos_b) = (self.sin_beta, self.cos_beta);
+        let l_mm = self.model.laser_distance_mm(slide_mm);
+        Vector3::new(
+            (sin_a * x + cos_a * z) * cos_b,
+            -cos_b,
+            cos_a * sin_b * x - cos_b * y - sin_a * sin_b * z + l_mm * sin_b,
+        )
+    }
+
+    /// The laser plane in the camera frame at slide travel `slide_mm`:
+    /// `-cos(alpha) x - tan(beta) y + sin(alpha) z = L`.
+    pub fn plane_in_camera(&self, slide_mm: f64) -> Plane {
+        Plane {
+            normal: Vector3::new(-self.cos_alpha, -self.tan_beta, self.sin_alpha),
+            offset_mm: self.model.laser_distance_mm(slide_mm),
+        }
     }
 }

@@ -40,4 +40,4 @@ mod laser;
 pub use camera::*;
 pub use error::{Error, Result};
 pub use geometry::{Plane, Ray};
-pub use laser::{Fidelity, LaserModel, SLIDE_STROKE_MM, SlideTarget};
+pub use laser::{Fidelity, LaserModel, PreparedLaser, SLIDE_STROKE_MM, SlideTarget};
