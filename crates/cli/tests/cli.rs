@@ -148,6 +148,17 @@ fn degenerate_samples_exit_1_with_a_reason() {
     assert!(stderr(&output).contains("one depth"), "{}", stderr(&output));
 }
 
+/// Runs `alacs triangulate` on camera.yaml, laser.yaml and pixels.csv in `dir`.
+fn triangulate(dir: &Path, slide_mm: &str, extra: &[&str]) -> Output {
+    let file = |name: &str| dir.join(name).to_str().unwrap().to_owned();
+    let (camera, laser, pixels) = (file("camera.yaml"), file("laser.yaml"), file("pixels.csv"));
+    let mut args =
+        vec!["triangulate", "--camera", &camera, "--laser", &laser, "--slide-mm", slide_mm];
+    args.extend(["--pixels", &pixels]);
+    args.extend(extra);
+    alacs(&args)
+}
+
 #[test]
 fn triangulate_maps_pixels_to_points_on_the_laser_plane() {
     let dir = scratch("triangulate");
@@ -160,19 +171,7 @@ fn triangulate_maps_pixels_to_points_on_the_laser_plane() {
     let pixels = dir.join("pixels.csv");
     // The last row is far right: its ray misses the laser plane in front of the camera.
     std::fs::write(&pixels, "u_px,v_px\n1000,100\n1100.5,1024\n1200,2000\n2447,1000\n").unwrap();
-    let args = [
-        "triangulate",
-        "--camera",
-        camera_yaml.to_str().unwrap(),
-        "--laser",
-        laser_yaml.to_str().unwrap(),
-        "--slide-mm",
-        "50",
-        "--pixels",
-        pixels.to_str().unwrap(),
-        "--json",
-    ];
-    let output = alacs(&args);
+    let output = triangulate(&dir, "50", &["--json"]);
     let json = stdout_json(&output);
     let points = json["points_mm"].as_array().unwrap();
     assert_eq!(points.len(), 4);
@@ -205,17 +204,7 @@ fn triangulate_rejects_a_malformed_camera_file() {
         .unwrap();
     let pixels = dir.join("pixels.csv");
     std::fs::write(&pixels, "u_px,v_px\n1,2\n").unwrap();
-    let output = alacs(&[
-        "triangulate",
-        "--camera",
-        camera_yaml.to_str().unwrap(),
-        "--laser",
-        laser_yaml.to_str().unwrap(),
-        "--slide-mm",
-        "0",
-        "--pixels",
-        pixels.to_str().unwrap(),
-    ]);
+    let output = triangulate(&dir, "0", &[]);
     assert_eq!(output.status.code(), Some(2));
     assert!(stderr(&output).contains("camera.yaml"), "{}", stderr(&output));
 }

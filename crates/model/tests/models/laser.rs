@@ -270,3 +270,25 @@ fn plane_distance_gradient_matches_finite_differences() {
         }
     }
 }
+
+#[test]
+fn camera_rays_meet_the_laser_plane_where_triangulation_puts_them() {
+    use alacs_model::Ray;
+    let laser = paper_laser();
+    for slide_mm in [0.0, 80.0] {
+        let plane = laser.plane_in_camera(slide_mm);
+        for n in normalized_grid() {
+            let hit = plane.intersect(&Ray::through_normalized(n.x, n.y)).unwrap();
+            let point = laser.triangulate(&n, slide_mm).unwrap();
+            assert!((hit - point).norm() < 1e-9, "{hit} vs {point}");
+        }
+    }
+    // Rays that miss the plane in front of the camera have no intersection.
+    let plane = laser.plane_in_camera(0.0);
+    assert!(plane.intersect(&Ray::through_normalized(2.0, 0.0)).is_none());
+    // A ray parallel to the plane has none either.
+    let along = nalgebra::Vector3::new(laser.alpha_rad.sin(), 0.0, laser.alpha_rad.cos());
+    assert!(
+        plane.intersect(&Ray { origin: nalgebra::Point3::origin(), direction: along }).is_none()
+    );
+}
