@@ -129,6 +129,11 @@ impl LinearForm {
             ata += row * row.transpose();
             atb += row * rhs;
         }
+        // Values far outside any camera's range can overflow the sums; such
+        // a system determines nothing.
+        if !(ata.iter().all(|v| v.is_finite()) && atb.iter().all(|v| v.is_finite())) {
+            return None;
+        }
         // Equilibrate columns so the rank test compares like with like.
         let scale = Vector4::from_fn(|i, _| {
             if i < k && ata[(i, i)] > 0.0 { 1.0 / ata[(i, i)].sqrt() } else { 0.0 }

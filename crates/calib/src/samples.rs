@@ -7,6 +7,13 @@ use nalgebra::Point2;
 
 use crate::{Error, Result};
 
+/// Largest |u_n| or |v_n| accepted: tan(89.9 deg) is about 573, so no real
+/// lens sees beyond this.
+const MAX_NORMALIZED: f64 = 1e3;
+
+/// Largest depth accepted: 1 km, far beyond any laser-line sensor's reach.
+const MAX_DEPTH_MM: f64 = 1e6;
+
 /// One calibration sample: a laser pixel's normalized, undistorted
 /// coordinates, the depth measured for it (from the board pose), and the
 /// slide travel when it was taken.
@@ -43,7 +50,18 @@ impl LaserSample {
                 return Some(format!("{name} is {value}, not a finite number"));
             }
         }
-        (self.z_mm <= 0.0).then(|| format!("z_mm is {}, depth must be positive", self.z_mm))
+        if self.z_mm <= 0.0 {
+            return Some(format!("z_mm is {}, depth must be positive", self.z_mm));
+        }
+        if self.u_n.abs() > MAX_NORMALIZED || self.v_n.abs() > MAX_NORMALIZED {
+            return Some(format!(
+                "normalized coordinates ({:e}, {:e}) lie beyond {MAX_NORMALIZED} (a ray more than 89.9 deg off the optical axis): not a camera pixel",
+                self.u_n, self.v_n
+            ));
+        }
+        (self.z_mm > MAX_DEPTH_MM).then(|| {
+            format!("z_mm is {:e} mm, beyond {MAX_DEPTH_MM} mm: not a laser point", self.z_mm)
+        })
     }
 }
 
@@ -61,8 +79,8 @@ pub fn validate_samples(samples: &[LaserSample]) -> Result<()> {
 /// extra columns ignored. Every value must be a finite number and every
 /// depth positive; errors name the file, line and column.
 pub fn read_samples_csv(path: &Path) -> Result<Vec<LaserSample>> {
-    let file = std::fs::File::open(path)
-        .map_err(|source| Error::Io { path: path.to_path_buf(), source })?;
+    let file =
+        std::fs::File::open(path).map_err(|error| Error::Io { path: path.to_path_buf(), error })?;
     parse_samples_csv(file, path)
 }
 
@@ -120,7 +138,7 @@ pub fn parse_samples_csv(reader: impl std::io::Read, path: &Path) -> Result<Vec<
 
 /// Writes samples.csv with all four columns (shortest round-trip floats).
 pub fn write_samples_csv(path: &Path, samples: &[LaserSample]) -> Result<()> {
-    let io_error = |source| Error::Io { path: path.to_path_buf(), source };
+    let io_error = |error| Error::Io { path: path.to_path_buf(), error };
     std::fs::write(path, samples_csv_string(samples)).map_err(io_error)
 }
 

@@ -333,3 +333,23 @@ fn samples_csv_errors_name_the_file_line_and_problem() {
     let err = alacs_calib::read_samples_csv(Path::new("/nonexistent/samples.csv")).unwrap_err();
     assert!(err.to_string().contains("/nonexistent/samples.csv"), "{err}");
 }
+
+/// A fuzzed CSV with values near f64::MAX made the linear solver's SVD panic
+/// on NaN ("Singular value was NaN"); such values are now rejected as input.
+#[test]
+fn regression_huge_values_are_rejected_not_a_panic() {
+    let err =
+        parse("u_n,v_n,z_mm\n1e308,1e308,1e308\n-1e308,2,3\n0,0,1e-300\n5,5,5\n").unwrap_err();
+    assert!(err.is_bad_input(), "{err}");
+    let tiny_depths = [
+        sample(0.1, 0.0, 1e-300),
+        sample(-0.1, 0.1, 2e-300),
+        sample(0.0, -0.2, 3e-300),
+        sample(0.2, 0.3, 1e-299),
+        sample(0.05, 0.2, 5e-300),
+    ];
+    for method in Method::ALL {
+        // Either an error or a result: never a panic.
+        let _ = calibrate(&tiny_depths, method, &CalibrationOptions::default());
+    }
+}

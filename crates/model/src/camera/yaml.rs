@@ -337,7 +337,7 @@ impl Camera {
     /// Reads camera.yaml; errors name the file.
     pub fn from_yaml_file(path: &Path) -> Result<Camera> {
         let text = std::fs::read_to_string(path)
-            .map_err(|source| Error::Io { path: path.to_path_buf(), source })?;
+            .map_err(|error| Error::Io { path: path.to_path_buf(), error })?;
         Self::parse_yaml(&text, path)
     }
 
@@ -374,7 +374,7 @@ impl Camera {
     /// Writes camera.yaml ([`Camera::to_yaml_string`]).
     pub fn to_yaml_file(&self, path: &Path) -> Result<()> {
         std::fs::write(path, self.to_yaml_string())
-            .map_err(|source| Error::Io { path: path.to_path_buf(), source })
+            .map_err(|error| Error::Io { path: path.to_path_buf(), error })
     }
 }
 
