@@ -36,8 +36,10 @@ mod camera;
 mod error;
 mod geometry;
 mod laser;
+mod scan_plan;
 
 pub use camera::*;
 pub use error::{Error, Result};
 pub use geometry::{Plane, Ray};
 pub use laser::{Fidelity, LaserModel, PreparedLaser, SLIDE_STROKE_MM, SlideTarget};
+pub use scan_plan::{ScanPlan, ScanStrategy};

@@ -292,3 +292,49 @@ fn camera_rays_meet_the_laser_plane_where_triangulation_puts_them() {
         plane.intersect(&Ray { origin: nalgebra::Point3::origin(), direction: along }).is_none()
     );
 }
+
+#[test]
+fn the_scan_plan_starts_on_the_left_half_and_steps_right() {
+    use alacs_model::ScanStrategy;
+    let laser = paper_laser();
+    let strategy = ScanStrategy::default();
+    let fruit = nalgebra::Point3::new(30.0, -20.0, 900.0);
+    let plan = strategy.plan(&laser, &fruit, 40.0);
+    assert_eq!(plan.slides_mm.len(), 5);
+    assert!(!plan.shifted);
+    // The first plane passes 20 mm (half a radius) left of the centre, at the centre's depth and row.
+    let start = fruit - nalgebra::Vector3::new(20.0, 0.0, 0.0);
+    assert!(laser.signed_distance_mm(&start, plan.slides_mm[0]).abs() < 1e-9);
+    for pair in plan.slides_mm.windows(2) {
+        assert!((pair[1] - pair[0] - 10.0).abs() < 1e-12);
+    }
+    // Each step moves the plane right by 10 mm / cos(alpha) at that depth.
+    let x_at = |slide_mm: f64| {
+        let plane = laser.plane_in_camera(slide_mm);
+        (plane.offset_mm - plane.normal.y * fruit.y - plane.normal.z * fruit.z) / plane.normal.x
+    };
+    let step = x_at(plan.slides_mm[1]) - x_at(plan.slides_mm[0]);
+    assert!((step - 10.0 / laser.alpha_rad.cos()).abs() < 1e-9, "{step}");
+}
+
+#[test]
+fn scan_plans_shift_into_the_stroke() {
+    use alacs_model::ScanStrategy;
+    let laser = paper_laser();
+    let strategy = ScanStrategy::default();
+    // Far right at close range needs travel beyond the stroke: the sweep ends at 200 mm.
+    let right = laser.triangulate(&Point2::new(0.2, 0.0), 250.0).unwrap();
+    let plan = strategy.plan(&laser, &right, 40.0);
+    assert!(plan.shifted && plan.unclamped_start_mm > 200.0);
+    assert_eq!(plan.slides_mm, vec![160.0, 170.0, 180.0, 190.0, 200.0]);
+    // Far left needs negative travel: the sweep starts at 0.
+    let left = laser.triangulate(&Point2::new(-0.3, 0.0), -80.0).unwrap();
+    let plan = strategy.plan(&laser, &left, 40.0);
+    assert!(plan.shifted);
+    assert_eq!(plan.slides_mm, vec![0.0, 10.0, 20.0, 30.0, 40.0]);
+    // A sweep longer than the stroke starts at 0 and is clamped at its end.
+    let long = ScanStrategy { frames: 30, ..strategy };
+    let plan = long.plan(&laser, &left, 40.0);
+    assert_eq!(plan.slides_mm[0], 0.0);
+    assert_eq!(*plan.slides_mm.last().unwrap(), 200.0);
+}
