@@ -1,6 +1,6 @@
 //! The one error type of `alacs-sim`.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Result with this crate's [`Error`].
 pub type Result<T, E = Error> = std::result::Result<T, E>;
@@ -16,12 +16,20 @@ pub enum Error {
     #[error("cannot simulate: {0}")]
     Infeasible(String),
     /// Writing an output failed.
-    #[error("{path}: {source}")]
+    #[error("{path}: {error}")]
     Io {
         /// The file.
         path: PathBuf,
         /// What the operating system said.
-        source: std::io::Error,
+        error: std::io::Error,
+    },
+    /// Writing an image failed.
+    #[error("{path}: {error}")]
+    Image {
+        /// The file.
+        path: PathBuf,
+        /// What the image encoder said.
+        error: image::ImageError,
     },
     /// A camera or laser model error.
     #[error(transparent)]
@@ -29,4 +37,29 @@ pub enum Error {
     /// Writing samples failed.
     #[error(transparent)]
     Calib(#[from] alacs_calib::Error),
+}
+
+/// Maps an I/O error on `path` to [`Error::Io`].
+pub(crate) fn io_error(path: &Path) -> impl FnOnce(std::io::Error) -> Error {
+    let path = path.to_path_buf();
+    move |error| Error::Io { path, error }
+}
+
+/// Writes an RGB8 PNG, or a JPEG of `jpeg_quality` (1-100) when given.
+pub(crate) fn save_image(
+    image: &image::RgbImage,
+    path: &Path,
+    jpeg_quality: Option<u8>,
+) -> Result<()> {
+    let image_error = |error| Error::Image { path: path.to_path_buf(), error };
+    match jpeg_quality {
+        None => image.save_with_format(path, image::ImageFormat::Png).map_err(image_error),
+        Some(quality) => {
+            let file = std::fs::File::create(path).map_err(io_error(path))?;
+            let mut writer = std::io::BufWriter::new(file);
+            image::codecs::jpeg::JpegEncoder::new_with_quality(&mut writer, quality)
+                .encode_image(image)
+                .map_err(image_error)
+        }
+    }
 }

@@ -1,0 +1,271 @@
+//! The checkerboard calibration target and a scene of one board at a pose.
+//!
+//! The board frame is OpenCV's (FORMATS.md): origin at the first inner
+//! corner, x along a row, y down the columns, z into the board; the inner
+//! corners are at (col * square_x, row * square_y, 0). As in OpenCV's
+//! pattern, the square at the top-left of the board (up and left of the
+//! origin) is black, and a white border surrounds the squares.
+
+use alacs_model::Ray;
+use nalgebra::{Isometry3, Point3, Vector3};
+
+use crate::render::{Scene, SurfaceHit};
+use crate::{Error, Result};
+
+/// A printed checkerboard: `(cols + 1) x (rows + 1)` squares around
+/// `cols x rows` inner corners, in a white border.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Checkerboard {
+    /// Inner corners `(cols, rows)`: along x (a row) and along y (a column).
+    pub inner_corners: (usize, usize),
+    /// Square size along x and along y, mm.
+    pub square_mm: (f64, f64),
+    /// Width of the white border around the squares, mm.
+    pub border_mm: f64,
+    /// Albedo of the black squares (all channels and the laser's red).
+    pub black_reflectance: f64,
+    /// Albedo of the white squares and the border (all channels and the laser's red).
+    pub white_reflectance: f64,
+}
+
+impl Default for Checkerboard {
+    /// 11 x 8 inner corners of 30 mm squares with a 30 mm border: a
+    /// 420 x 330 mm board, which fills a good part of the 5 MP camera's view
+    /// at 0.6-1.2 m (the image is 630 x 530 mm at 0.6 m).
+    fn default() -> Self {
+        Self {
+            inner_corners: (11, 8),
+            square_mm: (30.0, 30.0),
+            border_mm: 30.0,
+            black_reflectance: 0.05,
+            white_reflectance: 0.85,
+        }
+    }
+}
+
+impl Checkerboard {
+    /// Checks that the board is printable: at least 2 x 2 inner corners,
+    /// positive squares, a non-negative border, reflectances in 0..1.
+    pub fn validate(&self) -> Result<()> {
+        let invalid = |m: String| Err(Error::InvalidOptions(m));
+        let (cols, rows) = self.inner_corners;
+        if cols < 2 || rows < 2 {
+            return invalid(format!(
+                "board needs at least 2 x 2 inner corners, got {cols} x {rows}"
+            ));
+        }
+        let (sx, sy) = self.square_mm;
+        if !(sx > 0.0 && sy > 0.0 && sx.is_finite() && sy.is_finite()) {
+            return invalid(format!("square size {sx} x {sy} mm must be positive"));
+        }
+        if !(self.border_mm >= 0.0 && self.border_mm.is_finite()) {
+            return invalid(format!("board border {} mm must be non-negative", self.border_mm));
+        }
+        for (name, value) in [("black", self.black_reflectance), ("white", self.white_reflectance)]
+        {
+            if !(0.0..=1.0).contains(&value) {
+                return invalid(format!("{name} reflectance {value} must lie in 0..1"));
+            }
+        }
+        Ok(())
+    }
+
+    /// The inner corners in OpenCV's order (row-major from the top-left), in
+    /// the board frame: `(col * square_x, row * square_y, 0)`, mm.
+    pub fn object_points(&self) -> Vec<Point3<f64>> {
+        let (cols, rows) = self.inner_corners;
+        let (sx, sy) = self.square_mm;
+        (0..rows)
+            .flat_map(|row| {
+                (0..cols).map(move |col| Point3::new(col as f64 * sx, row as f64 * sy, 0.0))
+            })
+            .collect()
+    }
+
+    /// The board's centre (the middle of the inner corners), board frame, mm.
+    pub fn centre_in_board(&self) -> Point3<f64> {
+        let (cols, rows) = self.inner_corners;
+        let (sx, sy) = self.square_mm;
+        Point3::new((cols as f64 - 1.0) * sx / 2.0, (rows as f64 - 1.0) * sy / 2.0, 0.0)
+    }
+
+    /// The squares' extent `(x_min, x_max, y_min, y_max)` in the board frame, mm.
+    pub fn squares_extent_mm(&self) -> (f64, f64, f64, f64) {
+        let (cols, rows) = self.inner_corners;
+        let (sx, sy) = self.square_mm;
+        (-sx, cols as f64 * sx, -sy, rows as f64 * sy)
+    }
+
+    /// The whole board's extent, border included, `(x_min, x_max, y_min, y_max)`, mm.
+    pub fn extent_mm(&self) -> (f64, f64, f64, f64) {
+        let (x0, x1, y0, y1) = self.squares_extent_mm();
+        let b = self.border_mm;
+        (x0 - b, x1 + b, y0 - b, y1 + b)
+    }
+
+    /// The four outer corners of the board (border included), board frame,
+    /// clockwise from the top-left as seen from the front.
+    pub fn outline_in_board(&self) -> [Point3<f64>; 4] {
+        let (x0, x1, y0, y1) = self.extent_mm();
+        [
+            Point3::new(x0, y0, 0.0),
+            Point3::new(x1, y0, 0.0),
+            Point3::new(x1, y1, 0.0),
+            Point3::new(x0, y1, 0.0),
+        ]
+    }
+
+    /// The reflectance of the printed side at board coordinates (x, y), mm;
+    /// None off the board.
+    #[inline]
+    pub fn reflectance_at(&self, x_mm: f64, y_mm: f64) -> Option<f64> {
+        let (x0, x1, y0, y1) = self.extent_mm();
+        if !(x0..=x1).contains(&x_mm) || !(y0..=y1).contains(&y_mm) {
+            return None;
+        }
+        let (cols, rows) = self.inner_corners;
+        let (sx, sy) = self.square_mm;
+        // Square (i, j), 0-based from the top-left square (i = 0 is x in [-sx, 0)).
+        // x and y are bounded by the board's extent here, so the casts are exact.
+        let i = floor_to_i64(x_mm / sx) + 1;
+        let j = floor_to_i64(y_mm / sy) + 1;
+        let on_squares = (0..=cols as i64).contains(&i) && (0..=rows as i64).contains(&j);
+        // The top-left square (0, 0) is black, as in OpenCV's pattern.
+        let black = on_squares && (i + j) % 2 == 0;
+        Some(if black { self.black_reflectance } else { self.white_reflectance })
+    }
+}
+
+/// floor(x) as an integer for |x| well inside i64's range, without a libm
+/// call (the renderer calls this for every sub-pixel ray).
+fn floor_to_i64(x: f64) -> i64 {
+    // `as` truncates towards zero (and saturates); step down for negatives.
+    let truncated = x as i64;
+    if (truncated as f64) > x { truncated - 1 } else { truncated }
+}
+
+/// A scene of one checkerboard at `camera_from_board`: the printed side
+/// faces the camera when the board's z axis points away from it. The back
+/// of the board is unprinted (white).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BoardScene {
+    board: Checkerboard,
+    camera_from_board: Isometry3<f64>,
+    /// Board z axis in the camera frame (the plane's normal).
+    normal_in_camera: Vector3<f64>,
+    /// normal · p for points p on the board, mm.
+    offset_mm: f64,
+    /// The board's x and y axes in the camera frame (rows of board_from_camera's rotation).
+    x_axis_in_camera: Vector3<f64>,
+    y_axis_in_camera: Vector3<f64>,
+    /// Board coordinates of the camera centre projected on the axes: x_axis · T, y_axis · T.
+    x_of_translation: f64,
+    y_of_translation: f64,
+}
+
+/// Segment parameters within this of an end (relative) do not block: the
+/// shaded point itself lies on the board.
+const SEGMENT_END_TOLERANCE: f64 = 1e-9;
+
+impl BoardScene {
+    /// The board at a pose (`point_in_camera = camera_from_board * point_in_board`).
+    pub fn new(board: Checkerboard, camera_from_board: Isometry3<f64>) -> BoardScene {
+        let rotation = camera_from_board.rotation.to_rotation_matrix();
+        let normal_in_camera = rotation * Vector3::z();
+        let x_axis_in_camera = rotation * Vector3::x();
+        let y_axis_in_camera = rotation * Vector3::y();
+        let translation = camera_from_board.translation.vector;
+        BoardScene {
+            board,
+            camera_from_board,
+            normal_in_camera,
+            offset_mm: normal_in_camera.dot(&translation),
+            x_axis_in_camera,
+            y_axis_in_camera,
+            x_of_translation: x_axis_in_camera.dot(&translation),
+            y_of_translation: y_axis_in_camera.dot(&translation),
+        }
+    }
+
+    /// The board.
+    pub fn board(&self) -> &Checkerboard {
+        &self.board
+    }
+
+    /// The board's pose.
+    pub fn camera_from_board(&self) -> &Isometry3<f64> {
+        &self.camera_from_board
+    }
+
+    /// Board coordinates (x, y) of a camera-frame point on the board plane.
+    #[inline]
+    fn board_xy(&self, point_in_camera: &Point3<f64>) -> (f64, f64) {
+        (
+            self.x_axis_in_camera.dot(&point_in_camera.coords) - self.x_of_translation,
+            self.y_axis_in_camera.dot(&point_in_camera.coords) - self.y_of_translation,
+        )
+    }
+
+    /// Where the line `origin + t direction` crosses the board plane, if it does.
+    #[inline]
+    fn plane_parameter(&self, origin: &Point3<f64>, direction: &Vector3<f64>) -> Option<f64> {
+        let along = self.normal_in_camera.dot(direction);
+        let t = (self.offset_mm - self.normal_in_camera.dot(&origin.coords)) / along;
+        t.is_finite().then_some(t)
+    }
+
+    /// The hit at `point` (on the plane), seen along `direction`.
+    #[inline]
+    fn hit(&self, point: Point3<f64>, direction: &Vector3<f64>) -> Option<SurfaceHit> {
+        let (x, y) = self.board_xy(&point);
+        let printed = self.board.reflectance_at(x, y)?;
+        let front = self.normal_in_camera.dot(direction) > 0.0;
+        let (reflectance, normal) = if front {
+            (printed, -self.normal_in_camera)
+        } else {
+            (self.board.white_reflectance, self.normal_in_camera)
+        };
+        Some(SurfaceHit {
+            point,
+            normal,
+            albedo_rgb: [reflectance; 3],
+            laser_reflectance: reflectance,
+            // A printed board is matte.
+            specular: 0.0,
+            shininess: 1.0,
+        })
+    }
+}
+
+impl Scene for BoardScene {
+    #[inline]
+    fn intersect(&self, ray: &Ray) -> Option<SurfaceHit> {
+        let t = self.plane_parameter(&ray.origin, &ray.direction)?;
+        if t <= 0.0 {
+            return None;
+        }
+        self.hit(ray.origin + ray.direction * t, &ray.direction)
+    }
+
+    #[inline]
+    fn intersect_camera_ray(&self, x_n: f64, y_n: f64) -> Option<SurfaceHit> {
+        // The same as intersect() for a ray from the origin, without the
+        // generic origin terms.
+        let direction = Vector3::new(x_n, y_n, 1.0);
+        let t = self.offset_mm / self.normal_in_camera.dot(&direction);
+        if !(t > 0.0 && t.is_finite()) {
+            return None;
+        }
+        self.hit(Point3::from(direction * t), &direction)
+    }
+
+    fn blocked(&self, from: &Point3<f64>, to: &Point3<f64>) -> bool {
+        let Some(s) = self.plane_parameter(from, &(to - from)) else { return false };
+        if !(SEGMENT_END_TOLERANCE..1.0 - SEGMENT_END_TOLERANCE).contains(&s) {
+            return false;
+        }
+        let crossing = from + (to - from) * s;
+        let (x, y) = self.board_xy(&crossing);
+        self.board.reflectance_at(x, y).is_some()
+    }
+}

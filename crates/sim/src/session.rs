@@ -1,0 +1,522 @@
+//! Calibration sessions (FORMATS.md): a checkerboard at random poses, each
+//! rendered with the laser line at one or more slide positions (and
+//! optionally with the laser off), with session.yaml, camera.yaml and the
+//! ground truth in truth.json.
+
+use std::path::Path;
+use std::sync::Arc;
+
+use alacs_model::{Camera, LaserModel};
+use image::RgbImage;
+use nalgebra::{Isometry3, Point2, Point3, Rotation3, Translation3, Unit, UnitQuaternion, Vector3};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde_json::{Value, json};
+
+use crate::board::{BoardScene, Checkerboard};
+use crate::error::{io_error, save_image};
+use crate::render::{LaserStripe, RayMap, RenderOptions, mix_seed};
+use crate::{Error, Result, camera_to_json, laser_to_json};
+
+/// How to generate a calibration session. `Default`: 10 poses at 0.6-1.2 m,
+/// tilted up to 40 deg, the laser at d = 0, the default board, lights and
+/// sensor, full resolution.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SessionOptions {
+    /// Board poses.
+    pub n_views: usize,
+    /// Slide positions d, mm: each pose is rendered at each of them (the seed
+    /// paper's accuracy experiment uses 0, 50, 100, 150, 200).
+    pub slides_mm: Vec<f64>,
+    /// Range of the board centre's depth, mm.
+    pub depth_mm: (f64, f64),
+    /// Largest board tilt away from facing the camera, degrees.
+    pub max_tilt_deg: f64,
+    /// Largest rotation of the board about its own normal, degrees.
+    pub max_roll_deg: f64,
+    /// Also render each pose with the laser off (`viewNN_off.png`).
+    pub laser_off: bool,
+    /// Render the camera resized by this factor ([`Camera::scaled`]); camera.yaml
+    /// and truth.json hold the camera actually rendered.
+    pub scale: f64,
+    /// The target.
+    pub board: Checkerboard,
+    /// Lights, laser look, supersampling and sensor.
+    pub render: RenderOptions,
+    /// Seed: same seed, same poses and same image bytes.
+    pub seed: u64,
+}
+
+impl Default for SessionOptions {
+    fn default() -> Self {
+        Self {
+            n_views: 10,
+            slides_mm: vec![0.0],
+            depth_mm: (600.0, 1200.0),
+            max_tilt_deg: 40.0,
+            max_roll_deg: 10.0,
+            laser_off: false,
+            scale: 1.0,
+            board: Checkerboard::default(),
+            render: RenderOptions::default(),
+            seed: 0,
+        }
+    }
+}
+
+impl SessionOptions {
+    /// Checks that the options describe a session.
+    pub fn validate(&self) -> Result<()> {
+        let invalid = |m: String| Err(Error::InvalidOptions(m));
+        if self.n_views == 0 {
+            return invalid("need at least one view".into());
+        }
+        let (near, far) = self.depth_mm;
+        if !(near > 0.0 && far >= near && far.is_finite()) {
+            return invalid(format!("depth range {near}..{far} mm must be positive and ordered"));
+        }
+        if self.slides_mm.is_empty() || self.slides_mm.iter().any(|d| !d.is_finite()) {
+            return invalid("slide positions must be finite and at least one".into());
+        }
+        if !(0.0..90.0).contains(&self.max_tilt_deg) {
+            return invalid(format!("tilt {} deg must lie in 0..90", self.max_tilt_deg));
+        }
+        if !(0.0..=180.0).contains(&self.max_roll_deg) {
+            return invalid(format!("roll {} deg must lie in 0..180", self.max_roll_deg));
+        }
+        if !(self.scale > 0.0 && self.scale.is_finite()) {
+            return invalid(format!("scale {} must be positive", self.scale));
+        }
+        self.board.validate()?;
+        self.render.validate()
+    }
+}
+
+/// One image of a session: a board pose seen with the laser at one slide position.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SessionView {
+    /// File name of the image (laser on).
+    pub image: String,
+    /// File name of the same pose with the laser off, if rendered (shared by
+    /// the views of one pose).
+    pub image_laser_off: Option<String>,
+    /// Slide travel d, mm.
+    pub slide_mm: f64,
+    /// Index of the board pose (views at several slides share a pose).
+    pub pose: usize,
+    /// The board's true pose.
+    pub camera_from_board: Isometry3<f64>,
+}
+
+/// A simulated session: the poses and how to render them. Images are
+/// rendered on demand ([`SimulatedSession::render_view`]) or while writing
+/// ([`SimulatedSession::write`]), never all held in memory.
+#[derive(Debug, Clone)]
+pub struct SimulatedSession {
+    /// The camera rendered (already scaled).
+    pub camera: Camera,
+    /// The true laser.
+    pub laser: LaserModel,
+    /// The target.
+    pub board: Checkerboard,
+    /// How views are rendered.
+    pub render: RenderOptions,
+    /// The images, pose by pose, each pose at every slide position.
+    pub views: Vec<SessionView>,
+    /// The seed the session was generated with.
+    pub seed: u64,
+    ray_map: Arc<RayMap>,
+}
+
+/// Board poses drawn before a view is declared infeasible.
+const MAX_POSE_TRIES: usize = 20_000;
+
+/// Points checked along each side of the board's outline: with lens
+/// distortion a straight edge between two corners in the image can bow out
+/// of it.
+const OUTLINE_POINTS_PER_SIDE: usize = 16;
+
+/// Margin the board's outline keeps from the image border, px.
+const IMAGE_MARGIN_PX: f64 = 2.0;
+
+/// The laser line must cross the inner-corner rectangle over at least this
+/// fraction of its shorter side, so every view has laser pixels on the squares.
+const MIN_LASER_CHORD_FRACTION: f64 = 0.5;
+
+/// Generates a session per `options`: random board poses, each fully in the
+/// image (outline inside it, in front of the camera), facing the camera
+/// and the laser, with the laser line crossing the board at every slide
+/// position. Builds the camera's ray map (the expensive part: about 45 M
+/// undistortions for a 5 MP camera at s = 3); rendering happens later.
+pub fn simulate_session(
+    camera: &Camera,
+    laser: &LaserModel,
+    options: &SessionOptions,
+) -> Result<SimulatedSession> {
+    options.validate()?;
+    camera.validate()?;
+    laser.validate()?;
+    let camera = camera.scaled(options.scale);
+    camera.validate().map_err(|e| {
+        Error::InvalidOptions(format!("scale {} gives no usable camera: {e}", options.scale))
+    })?;
+    let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
+    let multi_slide = options.slides_mm.len() > 1;
+    let mut views = Vec::new();
+    for pose in 0..options.n_views {
+        let camera_from_board = sample_pose(&camera, laser, options, &mut rng).ok_or_else(|| {
+            Error::Infeasible(format!(
+                "view {}: no board pose in {MAX_POSE_TRIES} tries puts the {:.0} x {:.0} mm board \
+                 fully in the image at {:.0}-{:.0} mm with the laser line across it at slides {:?} mm",
+                pose + 1,
+                options.board.extent_mm().1 - options.board.extent_mm().0,
+                options.board.extent_mm().3 - options.board.extent_mm().2,
+                options.depth_mm.0,
+                options.depth_mm.1,
+                options.slides_mm,
+            ))
+        })?;
+        let image_laser_off = options.laser_off.then(|| format!("view{:02}_off.png", pose + 1));
+        for (k, &slide_mm) in options.slides_mm.iter().enumerate() {
+            let image = if multi_slide {
+                format!("view{:02}_slide{}.png", pose + 1, k + 1)
+            } else {
+                format!("view{:02}.png", pose + 1)
+            };
+            views.push(SessionView {
+                image,
+                image_laser_off: image_laser_off.clone(),
+                slide_mm,
+                pose,
+                camera_from_board,
+            });
+        }
+    }
+    let ray_map = Arc::new(RayMap::with_pattern(
+        &camera,
+        options.render.supersampling,
+        options.render.pattern,
+    )?);
+    Ok(SimulatedSession {
+        camera,
+        laser: *laser,
+        board: options.board,
+        render: options.render,
+        views,
+        seed: options.seed,
+        ray_map,
+    })
+}
+
+/// Draws board poses until one passes every check of [`simulate_session`].
+fn sample_pose(
+    camera: &Camera,
+    laser: &LaserModel,
+    options: &SessionOptions,
+    rng: &mut ChaCha8Rng,
+) -> Option<Isometry3<f64>> {
+    let board = &options.board;
+    let (_, _, y0, y1) = board.extent_mm();
+    let inner_width_mm = (board.inner_corners.0 as f64 - 1.0) * board.square_mm.0;
+    let (slide_min, slide_max) = options
+        .slides_mm
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &d| (lo.min(d), hi.max(d)));
+    let middle_plane = laser.plane_in_camera((slide_min + slide_max) / 2.0);
+    let half_image_height_n = f64::from(camera.height_px) / 2.0 / camera.fy_px;
+    for _ in 0..MAX_POSE_TRIES {
+        // The board centre: at a random depth, near where the laser plane (at
+        // the middle slide) crosses the camera's middle row, shifted sideways
+        // by up to 45 % of the inner corners' width so that the boards cover
+        // more of the image (the chord check below keeps the line on the squares).
+        let z = rng.random_range(options.depth_mm.0..=options.depth_mm.1);
+        let normal = &middle_plane.normal;
+        let x_laser = (middle_plane.offset_mm - normal.z * z) / normal.x;
+        let x = x_laser + rng.random_range(-0.45..=0.45) * inner_width_mm;
+        let y_room = (z * half_image_height_n - (y1 - y0) / 2.0).max(0.0);
+        let y = rng.random_range(-1.0..=1.0) * y_room;
+        let rotation = random_tilt(rng, options.max_tilt_deg)
+            * Rotation3::from_axis_angle(
+                &Vector3::z_axis(),
+                rng.random_range(-1.0..=1.0) * options.max_roll_deg.to_radians(),
+            );
+        let centre_in_camera = Point3::new(x, y, z);
+        let translation = centre_in_camera - rotation * board.centre_in_board();
+        let camera_from_board = Isometry3::from_parts(
+            Translation3::from(translation),
+            UnitQuaternion::from_rotation_matrix(&rotation),
+        );
+        if pose_is_usable(camera, laser, options, &camera_from_board) {
+            return Some(camera_from_board);
+        }
+    }
+    None
+}
+
+/// Whether a pose shows the whole board, front side, with the laser line
+/// across the squares at every slide position.
+fn pose_is_usable(
+    camera: &Camera,
+    laser: &LaserModel,
+    options: &SessionOptions,
+    camera_from_board: &Isometry3<f64>,
+) -> bool {
+    let board = &options.board;
+    let normal = camera_from_board.rotation * Vector3::z();
+    let centre = camera_from_board * board.centre_in_board();
+    // The printed side faces the camera: the board's z axis points away from it.
+    if normal.dot(&centre.coords) <= 0.0 {
+        return false;
+    }
+    let outline = board.outline_in_board();
+    let margin = IMAGE_MARGIN_PX;
+    let (width, height) = (f64::from(camera.width_px), f64::from(camera.height_px));
+    for (k, corner) in outline.iter().enumerate() {
+        let next = outline[(k + 1) % 4];
+        for i in 0..OUTLINE_POINTS_PER_SIDE {
+            let t = i as f64 / OUTLINE_POINTS_PER_SIDE as f64;
+            let point = camera_from_board * (corner + (next - corner) * t);
+            if point.z <= 0.0 {
+                return false;
+            }
+            let normalized = Point2::new(point.x / point.z, point.y / point.z);
+            if !camera.is_distortion_invertible_at(&normalized) {
+                return false;
+            }
+            let pixel = camera.normalized_to_pixel(&normalized);
+            let inside = pixel.x >= margin - 0.5
+                && pixel.x <= width - 0.5 - margin
+                && pixel.y >= margin - 0.5
+                && pixel.y <= height - 0.5 - margin;
+            if !inside {
+                return false;
+            }
+        }
+    }
+    options
+        .slides_mm
+        .iter()
+        .all(|&slide_mm| laser_crosses_board(laser, slide_mm, board, camera_from_board))
+}
+
+/// Whether the laser at `slide_mm` lights the board's front side along a
+/// chord of the inner-corner rectangle at least [`MIN_LASER_CHORD_FRACTION`]
+/// of its shorter side long.
+fn laser_crosses_board(
+    laser: &LaserModel,
+    slide_mm: f64,
+    board: &Checkerboard,
+    camera_from_board: &Isometry3<f64>,
+) -> bool {
+    let normal = camera_from_board.rotation * Vector3::z();
+    let origin = laser.origin_in_camera(slide_mm);
+    let on_board = camera_from_board.translation.vector;
+    // The laser origin must be on the camera's side of the board (the printed side).
+    if normal.dot(&(origin.coords - on_board)) >= 0.0 {
+        return false;
+    }
+    // The laser plane in board coordinates (z = 0): a x + b y = e.
+    let plane = laser.plane_in_camera(slide_mm);
+    let in_board = camera_from_board.rotation.inverse() * plane.normal;
+    let (a, b) = (in_board.x, in_board.y);
+    let e = plane.offset_mm - plane.normal.dot(&on_board);
+    let norm = a.hypot(b);
+    if norm < 1e-12 {
+        return false;
+    }
+    let (cols, rows) = board.inner_corners;
+    let (sx, sy) = board.square_mm;
+    let (w, h) = ((cols as f64 - 1.0) * sx, (rows as f64 - 1.0) * sy);
+    let chord = clip_line_to_rectangle(a / norm, b / norm, e / norm, w, h);
+    chord >= MIN_LASER_CHORD_FRACTION * w.min(h)
+}
+
+/// Length of the line `a x + b y = e` (a, b a unit normal) inside the
+/// rectangle [0, w] x [0, h] (Liang-Barsky clipping).
+fn clip_line_to_rectangle(a: f64, b: f64, e: f64, w: f64, h: f64) -> f64 {
+    let (px, py) = (a * e, b * e);
+    let (dx, dy) = (-b, a);
+    let (mut t0, mut t1) = (f64::NEG_INFINITY, f64::INFINITY);
+    for (p, d, lo, hi) in [(px, dx, 0.0, w), (py, dy, 0.0, h)] {
+        if d.abs() < 1e-15 {
+            if p < lo || p > hi {
+                return 0.0;
+            }
+            continue;
+        }
+        let (ta, tb) = ((lo - p) / d, (hi - p) / d);
+        t0 = t0.max(ta.min(tb));
+        t1 = t1.min(ta.max(tb));
+    }
+    (t1 - t0).max(0.0)
+}
+
+/// A rotation by a random angle up to `max_tilt_deg` about a random axis in the image plane.
+fn random_tilt(rng: &mut ChaCha8Rng, max_tilt_deg: f64) -> Rotation3<f64> {
+    let heading: f64 = rng.random_range(0.0..std::f64::consts::TAU);
+    let tilt = rng.random_range(0.0..=max_tilt_deg.to_radians());
+    let axis = Unit::new_normalize(Vector3::new(heading.cos(), heading.sin(), 0.0));
+    Rotation3::from_axis_angle(&axis, tilt)
+}
+
+/// Noise stream of the laser-off image of a pose (laser-on images use their view index).
+const LASER_OFF_STREAM: u64 = 1 << 32;
+
+impl SimulatedSession {
+    /// The camera's ray map (computed once, shared by every view).
+    pub fn ray_map(&self) -> &RayMap {
+        &self.ray_map
+    }
+
+    /// The scene of view `index`'s pose.
+    pub fn scene(&self, index: usize) -> Result<BoardScene> {
+        let view = self.view(index)?;
+        Ok(BoardScene::new(self.board, view.camera_from_board))
+    }
+
+    /// The laser stripe of view `index`.
+    pub fn laser_stripe(&self, index: usize) -> Result<LaserStripe> {
+        let view = self.view(index)?;
+        Ok(LaserStripe::new(&self.laser, view.slide_mm, &self.render.laser, self.camera.fx_px))
+    }
+
+    fn view(&self, index: usize) -> Result<&SessionView> {
+        self.views.get(index).ok_or_else(|| {
+            Error::InvalidOptions(format!(
+                "view {index} does not exist (the session has {})",
+                self.views.len()
+            ))
+        })
+    }
+
+    /// Renders view `index` with the laser on.
+    pub fn render_view(&self, index: usize) -> Result<RgbImage> {
+        let scene = self.scene(index)?;
+        let stripe = self.laser_stripe(index)?;
+        let seed = mix_seed(self.seed, index as u64);
+        Ok(self.ray_map.render(
+            &scene,
+            &self.render.lighting,
+            Some(&stripe),
+            &self.render.sensor,
+            seed,
+        ))
+    }
+
+    /// Renders view `index`'s pose with the laser off (its own sensor noise).
+    pub fn render_laser_off(&self, index: usize) -> Result<RgbImage> {
+        let scene = self.scene(index)?;
+        let pose = self.view(index)?.pose as u64;
+        let seed = mix_seed(self.seed, LASER_OFF_STREAM + pose);
+        Ok(self.ray_map.render(&scene, &self.render.lighting, None, &self.render.sensor, seed))
+    }
+
+    /// session.yaml (FORMATS.md).
+    pub fn session_yaml(&self) -> String {
+        let (cols, rows) = self.board.inner_corners;
+        let (sx, sy) = self.board.square_mm;
+        let square = if sx == sy { format!("{sx:?}") } else { format!("[{sx:?}, {sy:?}]") };
+        let mut text = format!(
+            "# Simulated by alacs-sim (seed {}); ground truth in truth.json.\n\
+             board: {{inner_corners: [{cols}, {rows}], square_mm: {square}}}\nviews:\n",
+            self.seed
+        );
+        for view in &self.views {
+            text.push_str(&format!(
+                "  - image: {}\n    slide_mm: {:?}\n",
+                view.image, view.slide_mm
+            ));
+            if let Some(off) = &view.image_laser_off {
+                text.push_str(&format!("    image_laser_off: {off}\n"));
+            }
+        }
+        text
+    }
+
+    /// truth.json (FORMATS.md): the camera rendered, the laser, the board and
+    /// each view's `camera_from_board` (4 x 4, row-major, translation in mm).
+    pub fn truth_json(&self) -> Value {
+        let views: Vec<Value> = self
+            .views
+            .iter()
+            .map(|view| {
+                let matrix = view.camera_from_board.to_homogeneous();
+                let rows: Vec<Vec<f64>> =
+                    (0..4).map(|r| (0..4).map(|c| matrix[(r, c)]).collect()).collect();
+                let mut entry = json!({
+                    "image": view.image,
+                    "slide_mm": view.slide_mm,
+                    "pose": view.pose,
+                    "camera_from_board": rows,
+                });
+                if let (Some(off), Some(map)) = (&view.image_laser_off, entry.as_object_mut()) {
+                    map.insert("image_laser_off".into(), json!(off));
+                }
+                entry
+            })
+            .collect();
+        let board = &self.board;
+        json!({
+            "camera": camera_to_json(&self.camera),
+            "laser": laser_to_json(&self.laser),
+            "board": {
+                "inner_corners": [board.inner_corners.0, board.inner_corners.1],
+                "square_mm": [board.square_mm.0, board.square_mm.1],
+                "border_mm": board.border_mm,
+                "black_reflectance": board.black_reflectance,
+                "white_reflectance": board.white_reflectance,
+            },
+            "seed": self.seed,
+            "supersampling": self.render.supersampling,
+            "stripe_sigma_px": self.render.laser.stripe_sigma_px,
+            "views": views,
+        })
+    }
+
+    /// How many images [`SimulatedSession::write`] renders and writes: each
+    /// view, plus one laser-off image per pose that has one.
+    pub fn image_count(&self) -> usize {
+        let mut poses_off: Vec<usize> =
+            self.views.iter().filter(|v| v.image_laser_off.is_some()).map(|v| v.pose).collect();
+        poses_off.dedup();
+        self.views.len() + poses_off.len()
+    }
+
+    /// Writes session.yaml, camera.yaml, truth.json and every image (PNG,
+    /// RGB8) into `dir`, creating it.
+    pub fn write(&self, dir: &Path) -> Result<()> {
+        self.write_with_progress(dir, |_, _| {})
+    }
+
+    /// [`SimulatedSession::write`], calling `progress(done, total)` after
+    /// each image.
+    pub fn write_with_progress(
+        &self,
+        dir: &Path,
+        mut progress: impl FnMut(usize, usize),
+    ) -> Result<()> {
+        std::fs::create_dir_all(dir).map_err(io_error(dir))?;
+        let total = self.image_count();
+        let mut done = 0;
+        let mut last_off_pose = None;
+        for (index, view) in self.views.iter().enumerate() {
+            save_image(&self.render_view(index)?, &dir.join(&view.image), None)?;
+            done += 1;
+            progress(done, total);
+            if let Some(off) = &view.image_laser_off
+                && last_off_pose != Some(view.pose)
+            {
+                save_image(&self.render_laser_off(index)?, &dir.join(off), None)?;
+                last_off_pose = Some(view.pose);
+                done += 1;
+                progress(done, total);
+            }
+        }
+        let session_path = dir.join("session.yaml");
+        std::fs::write(&session_path, self.session_yaml()).map_err(io_error(&session_path))?;
+        self.camera.to_yaml_file(&dir.join("camera.yaml"))?;
+        let truth_path = dir.join("truth.json");
+        let text = serde_json::to_string_pretty(&self.truth_json()).unwrap_or_default();
+        std::fs::write(&truth_path, text + "\n").map_err(io_error(&truth_path))
+    }
+}
