@@ -104,6 +104,12 @@ pub struct TriangulateArgs {
 pub enum SimulateCommand {
     /// Calibration samples like the seed paper's (samples.csv + truth.json).
     Samples(SimulateSamplesArgs),
+    /// A rendered calibration session: checkerboard views with the laser
+    /// line (session.yaml, camera.yaml, PNGs, truth.json).
+    Session(SimulateSessionArgs),
+    /// An orchard scan: five frames of an apple with the laser stepping across it
+    /// (scan.yaml, camera.yaml, laser.yaml, frames, truth.json).
+    Scan(SimulateScanArgs),
 }
 
 /// `alacs simulate samples`
@@ -133,6 +139,55 @@ pub struct SimulateSamplesArgs {
     /// Slide positions in mm, cycled over the views, e.g. 0,50,100.
     #[arg(long, value_name = "D,D,...", default_value = "0")]
     pub slides: String,
+    /// The true camera and laser.
+    #[command(flatten)]
+    pub truth: TruthArgs,
+    /// Print a JSON summary on standard output.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `alacs simulate session`
+#[derive(Debug, Args)]
+pub struct SimulateSessionArgs {
+    /// Output folder (created).
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+    /// Seed: same seed, same bytes.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Board poses.
+    #[arg(long, default_value_t = 10)]
+    pub views: usize,
+    /// Slide positions in mm; every pose is rendered at each, e.g. 0,50,100,150,200.
+    #[arg(long, value_name = "D,D,...", default_value = "0")]
+    pub slides: String,
+    /// Also render every pose with the laser off (viewNN_off.png).
+    #[arg(long)]
+    pub laser_off: bool,
+    /// Render the camera resized by this factor (camera.yaml holds the resized camera).
+    #[arg(long, value_name = "F", default_value_t = 1.0)]
+    pub scale: f64,
+    /// Board centre distance range MIN,MAX in mm.
+    #[arg(long, value_name = "MIN,MAX", default_value = "600,1200")]
+    pub depth_mm: String,
+    /// Largest board tilt away from facing the camera, degrees.
+    #[arg(long, default_value_t = 40.0)]
+    pub max_tilt_deg: f64,
+    /// How images are rendered.
+    #[command(flatten)]
+    pub render: RenderArgs,
+    /// The true camera and laser.
+    #[command(flatten)]
+    pub truth: TruthArgs,
+    /// Print a JSON summary on standard output.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// The truth a simulator renders with.
+#[derive(Debug, Args)]
+pub struct TruthArgs {
     /// Camera to render with (default: a FLIR Blackfly S 5 MP-like camera).
     #[arg(long, value_name = "FILE")]
     pub camera: Option<PathBuf>,
@@ -148,6 +203,55 @@ pub struct SimulateSamplesArgs {
     /// True L0, mm.
     #[arg(long, default_value_t = 381.98)]
     pub l0_mm: f64,
+}
+
+/// How the simulator renders images.
+#[derive(Debug, Args)]
+pub struct RenderArgs {
+    /// Width (sigma) of the laser stripe's Gaussian cross-section, pixels.
+    #[arg(long, default_value_t = 1.5)]
+    pub stripe_sigma_px: f64,
+    /// Rays per pixel along each axis (s x s per pixel).
+    #[arg(long, value_name = "S", default_value_t = 3)]
+    pub supersampling: usize,
+    /// Turn the sensor's shot and read noise off (8-bit rounding remains).
+    #[arg(long)]
+    pub no_noise: bool,
+}
+
+/// `alacs simulate scan`
+#[derive(Debug, Args)]
+pub struct SimulateScanArgs {
+    /// Output folder (created).
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+    /// Seed: same seed, same scene and bytes.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Fraction of the fruit hidden behind leaves (0 to 1).
+    #[arg(long, value_name = "F", default_value_t = 0.0)]
+    pub occlusion: f64,
+    /// Direct sunlight instead of shade.
+    #[arg(long)]
+    pub sun: bool,
+    /// Also render every frame with the laser off (frameN_off.png).
+    #[arg(long)]
+    pub laser_off: bool,
+    /// Fruit distance range MIN,MAX in mm.
+    #[arg(long, value_name = "MIN,MAX", default_value = "600,1200")]
+    pub depth_mm: String,
+    /// Render the camera resized by this factor (camera.yaml holds the resized camera).
+    #[arg(long, value_name = "F", default_value_t = 1.0)]
+    pub scale: f64,
+    /// Write JPEG frames of this quality (1-100) instead of PNG.
+    #[arg(long, value_name = "Q")]
+    pub jpeg: Option<u8>,
+    /// How images are rendered.
+    #[command(flatten)]
+    pub render: RenderArgs,
+    /// The true camera and laser.
+    #[command(flatten)]
+    pub truth: TruthArgs,
     /// Print a JSON summary on standard output.
     #[arg(long)]
     pub json: bool,

@@ -19,6 +19,8 @@ fn main() -> ExitCode {
         args::Command::Calibrate(args::CalibrateCommand::Laser(a)) => cmd::calibrate::laser(&a),
         args::Command::Triangulate(a) => cmd::triangulate::run(&a),
         args::Command::Simulate(args::SimulateCommand::Samples(a)) => cmd::simulate::samples(&a),
+        args::Command::Simulate(args::SimulateCommand::Session(a)) => cmd::simulate::session(&a),
+        args::Command::Simulate(args::SimulateCommand::Scan(a)) => cmd::simulate::scan(&a),
         args::Command::Demo(a) => cmd::demo::run(&a),
     };
     match result {

@@ -236,3 +236,54 @@ fn demo_json_reports_four_methods_and_accuracy() {
         assert!(a["max_abs_error_mm"]["z"].as_f64().unwrap() < 4.0, "{a}");
     }
 }
+
+#[test]
+fn simulate_session_writes_a_formats_md_session() {
+    let dir = scratch("sim_session");
+    let out = dir.to_str().unwrap();
+    let args = [
+        "simulate",
+        "session",
+        "--out",
+        out,
+        "--seed",
+        "3",
+        "--views",
+        "2",
+        "--slides",
+        "0,100",
+        "--laser-off",
+        "--scale",
+        "0.1",
+        "--json",
+    ];
+    let json = stdout_json(&alacs(&args));
+    assert_eq!(json["n_views"], 4);
+    assert_eq!(json["n_images"], 6);
+    assert_eq!(
+        (json["image_width"].as_u64(), json["image_height"].as_u64()),
+        (Some(245), Some(205))
+    );
+    for file in ["session.yaml", "camera.yaml", "truth.json", "view01_slide1.png", "view02_off.png"]
+    {
+        assert!(dir.join(file).is_file(), "{file}");
+    }
+    let truth: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("truth.json")).unwrap()).unwrap();
+    assert_eq!(truth["views"].as_array().unwrap().len(), 4);
+    assert_eq!(truth["camera"]["image_width"], 245);
+    // Same seed, same bytes.
+    let again = scratch("sim_session_again");
+    let json = stdout_json(&alacs(&[&args[..3], &[again.to_str().unwrap()], &args[4..]].concat()));
+    assert_eq!(json["n_images"], 6);
+    for file in ["session.yaml", "truth.json", "view02_slide2.png", "view01_off.png"] {
+        assert_eq!(
+            std::fs::read(dir.join(file)).unwrap(),
+            std::fs::read(again.join(file)).unwrap()
+        );
+    }
+    // Invalid options are bad input (exit 2).
+    let output = alacs(&["simulate", "session", "--out", out, "--scale", "0"]);
+    assert_eq!(output.status.code(), Some(2), "{}", stderr(&output));
+    assert!(stderr(&output).contains("scale"), "{}", stderr(&output));
+}

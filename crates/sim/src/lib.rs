@@ -6,7 +6,14 @@
 //! laser points per view, depth noise and gross outliers, with the truth
 //! (camera, laser, which rows are outliers) beside them.
 //!
-//! # Example
+//! It also renders calibration sessions (FORMATS.md): a checkerboard at
+//! random poses with the laser line across it at one or more slide
+//! positions, through the real camera model (one ray per sub-pixel from
+//! [`RayMap`], eq. (3)), Lambertian shading, the laser plane of eqs.
+//! (7)-(8) with a Gaussian cross-section and shadows, and a noisy 8-bit
+//! sensor, with session.yaml, camera.yaml and truth.json.
+//!
+//! # Examples
 //! ```
 //! use alacs_sim::{SampleOptions, simulate_samples};
 //! use alacs_model::{Camera, Fidelity, LaserModel};
@@ -17,11 +24,41 @@
 //! assert_eq!(sim.samples.len(), 30);
 //! assert_eq!(sim.outliers.len(), 6);
 //! ```
+//!
+//! A small calibration session (a tenth of the 5 MP camera's resolution):
+//! ```
+//! use alacs_sim::{SessionOptions, simulate_session};
+//! use alacs_model::{Camera, Fidelity, LaserModel};
+//!
+//! let laser = LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98);
+//! let options = SessionOptions { n_views: 2, scale: 0.1, seed: 7, ..SessionOptions::default() };
+//! let session = simulate_session(&Camera::blackfly_s_5mp(), &laser, &options)?;
+//! let image = session.render_view(0)?; // the board with the laser line, RGB8
+//! assert_eq!(image.dimensions(), (245, 205));
+//! // session.write(dir) writes session.yaml, camera.yaml, truth.json and the PNGs.
+//! # Ok::<(), alacs_sim::Error>(())
+//! ```
 
+mod board;
 mod error;
+mod orchard;
+mod render;
 mod samples;
+mod scan;
+mod session;
 mod truth;
 
+pub use board::{BoardScene, Checkerboard};
 pub use error::{Error, Result};
+pub use orchard::{
+    CameraRayGrid, Hit, Kind, Material, Object, OrchardOptions, OrchardScene, Shape, orchard_scene,
+    value_noise,
+};
+pub use render::{
+    LaserLight, LaserStripe, Lighting, MAX_SUPERSAMPLING, RayMap, RenderOptions, Scene, Sensor,
+    SubpixelPattern, SurfaceHit, mix_seed,
+};
 pub use samples::{SampleOptions, SimulatedSamples, simulate_samples};
+pub use scan::{ScanFrame, ScanOptions, SimulatedScan, simulate_scan};
+pub use session::{SessionOptions, SessionView, SimulatedSession, simulate_session};
 pub use truth::{camera_to_json, laser_to_json};

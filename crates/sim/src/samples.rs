@@ -10,6 +10,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 
+use crate::error::io_error;
 use crate::{Error, Result, camera_to_json, laser_to_json};
 
 /// How to generate samples. `Default` is the seed paper's experiment:
@@ -189,11 +190,7 @@ fn random_tilt(rng: &mut ChaCha8Rng, max_tilt_deg: f64) -> Rotation3<f64> {
 impl SimulatedSamples {
     /// Writes `samples.csv` and `truth.json` (FORMATS.md) into `dir`, creating it.
     pub fn write(&self, dir: &Path) -> Result<()> {
-        let io = |path: &Path| {
-            let path = path.to_path_buf();
-            move |source| Error::Io { path, source }
-        };
-        std::fs::create_dir_all(dir).map_err(io(dir))?;
+        std::fs::create_dir_all(dir).map_err(io_error(dir))?;
         write_samples_csv(&dir.join("samples.csv"), &self.samples)?;
         let truth = serde_json::json!({
             "camera": camera_to_json(&self.camera),
@@ -203,6 +200,6 @@ impl SimulatedSamples {
         });
         let path = dir.join("truth.json");
         let text = serde_json::to_string_pretty(&truth).unwrap_or_default();
-        std::fs::write(&path, text + "\n").map_err(io(&path))
+        std::fs::write(&path, text + "\n").map_err(io_error(&path))
     }
 }

@@ -1,11 +1,17 @@
-//! `alacs simulate samples`.
+//! `alacs simulate samples`, `alacs simulate session` and `alacs simulate scan`.
 
-use alacs::sim::{SampleOptions, simulate_samples};
+use alacs::sim::{
+    LaserLight, OrchardOptions, RenderOptions, SampleOptions, ScanOptions, Sensor, SessionOptions,
+    simulate_samples, simulate_scan, simulate_session,
+};
 use alacs::{Camera, Fidelity, LaserModel};
 use anyhow::anyhow;
+use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
-use crate::args::SimulateSamplesArgs;
+use crate::args::{
+    RenderArgs, SimulateSamplesArgs, SimulateScanArgs, SimulateSessionArgs, TruthArgs,
+};
 use crate::failure::{CmdResult, Failure};
 use crate::output;
 
@@ -28,16 +34,56 @@ fn parse_range(text: &str, name: &str) -> CmdResult<(f64, f64)> {
     }
 }
 
+impl TruthArgs {
+    /// The camera of `--camera FILE`, or the default 5 MP camera, and the
+    /// laser of `--laser FILE` or of `--alpha-deg`, `--beta-deg`, `--l0-mm`.
+    fn camera_and_laser(&self) -> CmdResult<(Camera, LaserModel)> {
+        let camera = match &self.camera {
+            Some(path) => Camera::from_yaml_file(path)?,
+            None => Camera::blackfly_s_5mp(),
+        };
+        let laser = match &self.laser {
+            Some(path) => LaserModel::from_yaml_file(path)?,
+            None => {
+                LaserModel::from_degrees(Fidelity::High, self.alpha_deg, self.beta_deg, self.l0_mm)
+            }
+        };
+        Ok((camera, laser))
+    }
+}
+
+impl RenderArgs {
+    /// `defaults` with the command line's supersampling, stripe width and noise.
+    fn options(&self, defaults: RenderOptions) -> RenderOptions {
+        RenderOptions {
+            supersampling: self.supersampling,
+            laser: LaserLight { stripe_sigma_px: self.stripe_sigma_px, ..defaults.laser },
+            sensor: if self.no_noise { Sensor::noiseless() } else { defaults.sensor },
+            ..defaults
+        }
+    }
+}
+
+/// A progress bar on standard error (hidden under `--json`), spinning until
+/// its length is known.
+fn progress_bar(json: bool, message: &'static str) -> ProgressBar {
+    let bar = if json { ProgressBar::hidden() } else { ProgressBar::new_spinner() };
+    bar.set_message(message);
+    bar
+}
+
+/// Turns a spinner into a bar of `len` images.
+fn start_rendering(bar: &ProgressBar, len: usize) {
+    bar.set_length(len as u64);
+    if let Ok(style) = ProgressStyle::with_template("{spinner} [{bar:30}] {pos}/{len} {msg}") {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar.set_message("rendering");
+}
+
 /// Runs `alacs simulate samples`.
 pub fn samples(args: &SimulateSamplesArgs) -> CmdResult {
-    let camera = match &args.camera {
-        Some(path) => Camera::from_yaml_file(path)?,
-        None => Camera::blackfly_s_5mp(),
-    };
-    let laser = match &args.laser {
-        Some(path) => LaserModel::from_yaml_file(path)?,
-        None => LaserModel::from_degrees(Fidelity::High, args.alpha_deg, args.beta_deg, args.l0_mm),
-    };
+    let (camera, laser) = args.truth.camera_and_laser()?;
     let options = SampleOptions {
         n_views: args.views,
         points_per_view: args.points_per_view,
@@ -61,6 +107,104 @@ pub fn samples(args: &SimulateSamplesArgs) -> CmdResult {
             "wrote {} samples ({} outliers) to {} (samples.csv, truth.json)",
             sim.samples.len(),
             sim.outliers.len(),
+            args.out.display()
+        );
+    }
+    Ok(())
+}
+
+/// Runs `alacs simulate session`.
+pub fn session(args: &SimulateSessionArgs) -> CmdResult {
+    let (camera, laser) = args.truth.camera_and_laser()?;
+    let render = args.render.options(RenderOptions::default());
+    let options = SessionOptions {
+        n_views: args.views,
+        slides_mm: parse_list(&args.slides, "--slides")?,
+        depth_mm: parse_range(&args.depth_mm, "--depth-mm")?,
+        max_tilt_deg: args.max_tilt_deg,
+        laser_off: args.laser_off,
+        scale: args.scale,
+        render,
+        seed: args.seed,
+        ..SessionOptions::default()
+    };
+    let bar = progress_bar(args.json, "computing the camera's rays");
+    let session = simulate_session(&camera, &laser, &options)?;
+    start_rendering(&bar, session.image_count());
+    session.write_with_progress(&args.out, |done, _| bar.set_position(done as u64))?;
+    bar.finish_and_clear();
+    let images: Vec<&str> = session.views.iter().map(|view| view.image.as_str()).collect();
+    if args.json {
+        output::print_json(&json!({
+            "out": args.out.display().to_string(),
+            "n_views": session.views.len(),
+            "n_images": session.image_count(),
+            "image_width": session.camera.width_px,
+            "image_height": session.camera.height_px,
+            "images": images,
+        }));
+    } else {
+        println!(
+            "wrote {} views ({} images, {} x {} px) to {} (session.yaml, camera.yaml, truth.json, {}{})",
+            session.views.len(),
+            session.image_count(),
+            session.camera.width_px,
+            session.camera.height_px,
+            args.out.display(),
+            images.first().copied().unwrap_or_default(),
+            if images.len() > 1 { ", ..." } else { "" },
+        );
+    }
+    Ok(())
+}
+
+/// Runs `alacs simulate scan`.
+pub fn scan(args: &SimulateScanArgs) -> CmdResult {
+    let (camera, laser) = args.truth.camera_and_laser()?;
+    let defaults = ScanOptions::default();
+    let options = ScanOptions {
+        orchard: OrchardOptions {
+            depth_mm: parse_range(&args.depth_mm, "--depth-mm")?,
+            occlusion: args.occlusion,
+            ..defaults.orchard.clone()
+        },
+        sun: args.sun,
+        laser_off: args.laser_off,
+        scale: args.scale,
+        render: args.render.options(defaults.render),
+        jpeg_quality: args.jpeg,
+        seed: args.seed,
+        ..defaults
+    };
+    let bar = progress_bar(args.json, "building the scene and the camera's rays");
+    let scan = simulate_scan(&camera, &laser, &options)?;
+    start_rendering(
+        &bar,
+        scan.frames.iter().map(|f| 1 + usize::from(f.image_laser_off.is_some())).sum(),
+    );
+    scan.write(&args.out, |done, _| bar.set_position(done as u64))?;
+    bar.finish_and_clear();
+    let c = scan.scene.fruit_centre;
+    if args.json {
+        output::print_json(&json!({
+            "out": args.out.display().to_string(),
+            "n_frames": scan.frames.len(),
+            "slides_mm": scan.plan.slides_mm,
+            "fruit": {"position_mm": [c.x, c.y, c.z], "radius_mm": scan.scene.fruit_radius_mm},
+            "occlusion": scan.scene.occlusion,
+        }));
+    } else {
+        println!(
+            "wrote {} frames ({} x {} px, slides {:?} mm) of a {:.1} mm apple at ({:.1}, {:.1}, {:.1}) mm, {:.0} % hidden, to {} (scan.yaml, camera.yaml, laser.yaml, truth.json)",
+            scan.frames.len(),
+            scan.camera.width_px,
+            scan.camera.height_px,
+            scan.plan.slides_mm,
+            scan.scene.fruit_radius_mm,
+            c.x,
+            c.y,
+            c.z,
+            scan.scene.occlusion * 100.0,
             args.out.display()
         );
     }

@@ -1,0 +1,687 @@
+//! Orchard scenes for scans: a target apple (a sphere or a slightly
+//! ellipsoidal fruit, textured red and green, with a specular highlight),
+//! leaves that hide a chosen fraction of it, branches, and a wall of
+//! background foliage. Geometry and materials only; the renderer shades them.
+
+use alacs_model::Ray;
+use nalgebra::{Point3, Rotation3, Unit, Vector3};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::{Error, Result};
+
+/// How a surface reflects light: Lambertian albedo per channel plus a Phong
+/// highlight. `laser_reflectance` is the albedo at the laser's red
+/// wavelength (650 nm): high on a red apple, low on chlorophyll.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Material {
+    /// Diffuse albedo, linear RGB in 0..1.
+    pub albedo_rgb: [f64; 3],
+    /// Diffuse albedo at the laser wavelength.
+    pub laser_reflectance: f64,
+    /// Strength of the specular highlight (0 = matte).
+    pub specular: f64,
+    /// Phong exponent of the highlight.
+    pub shininess: f64,
+}
+
+/// Where a ray meets a surface.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hit {
+    /// Ray parameter of the hit.
+    pub t: f64,
+    /// The point, in the camera frame (mm).
+    pub point: Point3<f64>,
+    /// Unit surface normal, facing the ray's origin.
+    pub normal: Vector3<f64>,
+    /// The surface's material at the point.
+    pub material: Material,
+    /// Which object was hit (index into [`OrchardScene::objects`]).
+    pub object: usize,
+}
+
+/// The kinds of object in an orchard scene.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Shape {
+    /// An ellipsoid: centre, rotation (body to camera) and semi-axes.
+    Ellipsoid {
+        /// Centre in the camera frame, mm.
+        centre: Point3<f64>,
+        /// Rotation from the body frame to the camera frame.
+        rotation: Rotation3<f64>,
+        /// Semi-axes along the body frame's x, y, z, mm.
+        semi_axes_mm: Vector3<f64>,
+    },
+    /// A flat elliptical leaf.
+    Leaf {
+        /// Centre in the camera frame, mm.
+        centre: Point3<f64>,
+        /// Unit normal of the leaf's plane.
+        normal: Unit<Vector3<f64>>,
+        /// Unit direction of the leaf's long axis (perpendicular to `normal`).
+        along: Unit<Vector3<f64>>,
+        /// Half length along `along`, mm.
+        half_length_mm: f64,
+        /// Half width across, mm.
+        half_width_mm: f64,
+    },
+    /// A straight branch: a cylinder between two points.
+    Branch {
+        /// One end, mm.
+        start: Point3<f64>,
+        /// The other end, mm.
+        end: Point3<f64>,
+        /// Radius, mm.
+        radius_mm: f64,
+    },
+    /// An infinite plane (the background foliage wall).
+    Wall {
+        /// A point on the wall, mm.
+        point: Point3<f64>,
+        /// Unit normal.
+        normal: Unit<Vector3<f64>>,
+    },
+}
+
+/// What an object is, which decides its material.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    /// The target fruit.
+    Fruit,
+    /// A leaf.
+    Leaf,
+    /// A branch.
+    Branch,
+    /// Background foliage.
+    Background,
+}
+
+/// One object of the scene.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Object {
+    /// Its geometry.
+    pub shape: Shape,
+    /// What it is.
+    pub kind: Kind,
+    /// Seed of its texture.
+    pub texture_seed: u64,
+}
+
+/// A target fruit and its surroundings.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OrchardScene {
+    /// Every object; the target fruit is `objects[0]`.
+    pub objects: Vec<Object>,
+    /// The fruit's centre in the camera frame, mm.
+    pub fruit_centre: Point3<f64>,
+    /// The fruit's equal-volume radius, mm (FORMATS.md's `radius_mm`).
+    pub fruit_radius_mm: f64,
+    /// Fraction of the fruit's silhouette hidden by leaves and branches, as built.
+    pub occlusion: f64,
+}
+
+/// How to build an orchard scene. `Default`: a 35-45 mm apple, slightly
+/// ellipsoidal, 0.6-1.2 m away, no occlusion.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OrchardOptions {
+    /// Range of the fruit's distance from the camera, mm.
+    pub depth_mm: (f64, f64),
+    /// Range of the fruit's equal-volume radius, mm.
+    pub radius_mm: (f64, f64),
+    /// Largest relative deviation of a semi-axis from the mean radius (0 = sphere).
+    pub max_ellipticity: f64,
+    /// Fraction of the fruit's silhouette to hide behind leaves (0 to 1).
+    pub occlusion: f64,
+    /// Leaves around the fruit that do not hide it (clutter).
+    pub clutter_leaves: usize,
+    /// Branches crossing the scene.
+    pub branches: usize,
+    /// Distance of the background foliage behind the fruit, mm.
+    pub background_behind_mm: f64,
+    /// Largest angle of the fruit's direction from the optical axis, degrees.
+    pub max_off_axis_deg: f64,
+    /// Seed: same seed, same scene.
+    pub seed: u64,
+}
+
+impl Default for OrchardOptions {
+    fn default() -> Self {
+        Self {
+            depth_mm: (600.0, 1200.0),
+            radius_mm: (35.0, 45.0),
+            max_ellipticity: 0.08,
+            occlusion: 0.0,
+            clutter_leaves: 12,
+            branches: 2,
+            background_behind_mm: 400.0,
+            max_off_axis_deg: 6.0,
+            seed: 0,
+        }
+    }
+}
+
+/// Rays per side of the grid that measures how much of the fruit is hidden.
+const OCCLUSION_GRID: usize = 48;
+/// Leaves tried before the requested occlusion counts as unreachable.
+const MAX_OCCLUDING_LEAVES: usize = 200;
+
+impl Shape {
+    /// Ray parameter and outward normal of the nearest hit with t > `t_min`.
+    pub fn intersect(&self, ray: &Ray, t_min: f64) -> Option<(f64, Vector3<f64>)> {
+        match self {
+            Shape::Ellipsoid { centre, rotation, semi_axes_mm } => {
+                // In the body frame scaled to the unit sphere: |o + t d|^2 = 1.
+                let o = (rotation.inverse() * (ray.origin - centre)).component_div(semi_axes_mm);
+                let d = (rotation.inverse() * ray.direction).component_div(semi_axes_mm);
+                let (a, b, c) = (d.dot(&d), o.dot(&d), o.dot(&o) - 1.0);
+                let disc = b * b - a * c;
+                if disc < 0.0 || a <= 0.0 {
+                    return None;
+                }
+                let root = disc.sqrt();
+                let t = [(-b - root) / a, (-b + root) / a].into_iter().find(|&t| t > t_min)?;
+                let local = o + d * t; // on the unit sphere
+                let gradient = local.component_div(semi_axes_mm);
+                Some((t, (rotation * gradient).normalize()))
+            }
+            Shape::Leaf { centre, normal, along, half_length_mm, half_width_mm } => {
+                let t = plane_hit(ray, centre, normal, t_min)?;
+                let offset = ray.at(t) - centre;
+                let across = normal.cross(along);
+                let (s, w) =
+                    (offset.dot(along) / half_length_mm, offset.dot(&across) / half_width_mm);
+                (s * s + w * w <= 1.0).then_some((t, normal.into_inner()))
+            }
+            Shape::Branch { start, end, radius_mm } => {
+                let axis = end - start;
+                let length = axis.norm();
+                if length <= 0.0 {
+                    return None;
+                }
+                let axis = axis / length;
+                // Components perpendicular to the axis: |o_perp + t d_perp| = r.
+                let o = ray.origin - start;
+                let o_perp = o - axis * o.dot(&axis);
+                let d_perp = ray.direction - axis * ray.direction.dot(&axis);
+                let (a, b, c) = (
+                    d_perp.dot(&d_perp),
+                    o_perp.dot(&d_perp),
+                    o_perp.dot(&o_perp) - radius_mm * radius_mm,
+                );
+                let disc = b * b - a * c;
+                if disc < 0.0 || a <= 0.0 {
+                    return None;
+                }
+                let root = disc.sqrt();
+                [(-b - root) / a, (-b + root) / a].into_iter().find_map(|t| {
+                    let along = (ray.at(t) - start).dot(&axis);
+                    (t > t_min && (0.0..=length).contains(&along)).then(|| {
+                        let radial = ray.at(t) - (start + axis * along);
+                        (t, radial.normalize())
+                    })
+                })
+            }
+            Shape::Wall { point, normal } => {
+                plane_hit(ray, point, normal, t_min).map(|t| (t, normal.into_inner()))
+            }
+        }
+    }
+}
+
+impl Shape {
+    /// A sphere (centre, radius in mm) that contains the shape, or `None` for
+    /// an unbounded shape.
+    pub fn bounding_sphere(&self) -> Option<(Point3<f64>, f64)> {
+        match self {
+            Shape::Ellipsoid { centre, semi_axes_mm, .. } => Some((*centre, semi_axes_mm.max())),
+            Shape::Leaf { centre, half_length_mm, half_width_mm, .. } => {
+                Some((*centre, half_length_mm.max(*half_width_mm)))
+            }
+            Shape::Branch { start, end, radius_mm } => {
+                Some((nalgebra::center(start, end), (end - start).norm() / 2.0 + radius_mm))
+            }
+            Shape::Wall { .. } => None,
+        }
+    }
+}
+
+/// An object's index and its (x_n, y_n) ranges on the normalized image plane.
+type ObjectBox = (usize, (f64, f64), (f64, f64));
+
+/// Cells per side of [`CameraRayGrid`].
+const GRID_CELLS: usize = 96;
+
+/// A grid over the normalized image plane listing, per cell, the objects a
+/// camera ray through that cell can hit: rays from the optical centre test a
+/// few objects instead of all of them. Built from each object's bounding
+/// sphere, so it never drops a hit.
+#[derive(Debug, Clone)]
+pub struct CameraRayGrid {
+    min: (f64, f64),
+    cell: (f64, f64),
+    cells: Vec<Vec<usize>>,
+    always: Vec<usize>,
+}
+
+impl CameraRayGrid {
+    /// The grid of `scene`'s objects.
+    pub fn new(scene: &OrchardScene) -> Self {
+        // Conservative normalized-coordinate boxes of the bounding spheres.
+        let mut boxes = Vec::new();
+        let mut always = Vec::new();
+        for (index, object) in scene.objects.iter().enumerate() {
+            match object.shape.bounding_sphere() {
+                Some((c, r)) if c.z - r > 1e-6 => {
+                    let (near, far) = (c.z - r, c.z + r);
+                    let range = |low: f64, high: f64| {
+                        let candidates = [low / near, low / far, high / near, high / far];
+                        let min = candidates.iter().copied().fold(f64::INFINITY, f64::min);
+                        let max = candidates.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                        (min, max)
+                    };
+                    let (x, y) = (range(c.x - r, c.x + r), range(c.y - r, c.y + r));
+                    boxes.push((index, x, y));
+                }
+                _ => always.push(index),
+            }
+        }
+        let bound = |f: fn(&ObjectBox) -> (f64, f64)| {
+            boxes
+                .iter()
+                .map(f)
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), (a, b)| (lo.min(a), hi.max(b)))
+        };
+        let (x_range, y_range) = if boxes.is_empty() {
+            ((0.0, 1.0), (0.0, 1.0))
+        } else {
+            (bound(|b| b.1), bound(|b| b.2))
+        };
+        let cell = (
+            ((x_range.1 - x_range.0) / GRID_CELLS as f64).max(1e-9),
+            ((y_range.1 - y_range.0) / GRID_CELLS as f64).max(1e-9),
+        );
+        let mut cells = vec![Vec::new(); GRID_CELLS * GRID_CELLS];
+        let to_cell = |value: f64, min: f64, size: f64| {
+            (((value - min) / size).floor().max(0.0) as usize).min(GRID_CELLS - 1)
+        };
+        for (index, (x0, x1), (y0, y1)) in boxes {
+            for j in to_cell(y0, y_range.0, cell.1)..=to_cell(y1, y_range.0, cell.1) {
+                for i in to_cell(x0, x_range.0, cell.0)..=to_cell(x1, x_range.0, cell.0) {
+                    cells[j * GRID_CELLS + i].push(index);
+                }
+            }
+        }
+        Self { min: (x_range.0, y_range.0), cell, cells, always }
+    }
+
+    /// The objects a camera ray through normalized (x_n, y_n) can hit.
+    pub fn candidates(&self, x_n: f64, y_n: f64) -> impl Iterator<Item = usize> + '_ {
+        let i = (x_n - self.min.0) / self.cell.0;
+        let j = (y_n - self.min.1) / self.cell.1;
+        let inside = (0.0..GRID_CELLS as f64).contains(&i) && (0.0..GRID_CELLS as f64).contains(&j);
+        let cell: &[usize] =
+            if inside { &self.cells[j as usize * GRID_CELLS + i as usize] } else { &[] };
+        cell.iter().chain(&self.always).copied()
+    }
+}
+
+/// Ray parameter where `ray` meets the plane through `point` with `normal`.
+fn plane_hit(
+    ray: &Ray,
+    point: &Point3<f64>,
+    normal: &Unit<Vector3<f64>>,
+    t_min: f64,
+) -> Option<f64> {
+    let along = normal.dot(&ray.direction);
+    if along.abs() < 1e-12 {
+        return None;
+    }
+    let t = (point - ray.origin).dot(normal) / along;
+    (t > t_min).then_some(t)
+}
+
+/// Smooth value noise in 0..1 over 3-D points (mm), with features of about
+/// `scale_mm`; deterministic in `seed`. Trilinear interpolation (with
+/// smoothstep weights) of hashed values on an integer lattice.
+pub fn value_noise(point: &Point3<f64>, scale_mm: f64, seed: u64) -> f64 {
+    let p = point.coords / scale_mm;
+    let (fx, fy, fz) = (p.x.floor(), p.y.floor(), p.z.floor());
+    let (ix, iy, iz) = (fx as i64, fy as i64, fz as i64);
+    let smooth = |f: f64| f * f * (3.0 - 2.0 * f);
+    let (sx, sy, sz) = (smooth(p.x - fx), smooth(p.y - fy), smooth(p.z - fz));
+    let corner = |dx: i64, dy: i64, dz: i64| lattice_value(ix + dx, iy + dy, iz + dz, seed);
+    let lerp = |a: f64, b: f64, t: f64| a + (b - a) * t;
+    let x00 = lerp(corner(0, 0, 0), corner(1, 0, 0), sx);
+    let x10 = lerp(corner(0, 1, 0), corner(1, 1, 0), sx);
+    let x01 = lerp(corner(0, 0, 1), corner(1, 0, 1), sx);
+    let x11 = lerp(corner(0, 1, 1), corner(1, 1, 1), sx);
+    lerp(lerp(x00, x10, sy), lerp(x01, x11, sy), sz)
+}
+
+/// [`value_noise`] over the x-y plane only (half the work), for surfaces
+/// that face the camera such as the background wall.
+pub fn value_noise_xy(point: &Point3<f64>, scale_mm: f64, seed: u64) -> f64 {
+    let (x, y) = (point.x / scale_mm, point.y / scale_mm);
+    let (fx, fy) = (x.floor(), y.floor());
+    let (ix, iy) = (fx as i64, fy as i64);
+    let smooth = |f: f64| f * f * (3.0 - 2.0 * f);
+    let (sx, sy) = (smooth(x - fx), smooth(y - fy));
+    let corner = |dx: i64, dy: i64| lattice_value(ix + dx, iy + dy, 0, seed);
+    let lerp = |a: f64, b: f64, t: f64| a + (b - a) * t;
+    lerp(lerp(corner(0, 0), corner(1, 0), sx), lerp(corner(0, 1), corner(1, 1), sx), sy)
+}
+
+/// A hash of an integer lattice point to 0..1: the coordinates mixed with
+/// large odd constants, then a 64-bit finalizer (from SplitMix64).
+fn lattice_value(x: i64, y: i64, z: i64, seed: u64) -> f64 {
+    let mut h = (x as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        ^ (y as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
+        ^ (z as u64).wrapping_mul(0x1656_67B1_9E37_79F9)
+        ^ seed;
+    h = (h ^ (h >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    h = (h ^ (h >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    h ^= h >> 31;
+    (h >> 11) as f64 / (1u64 << 53) as f64
+}
+
+impl Object {
+    /// The material at `point` on this object.
+    pub fn material_at(&self, point: &Point3<f64>) -> Material {
+        match self.kind {
+            Kind::Fruit => {
+                // Red blush over green-yellow ground colour, in patches of a few cm.
+                let blush =
+                    (value_noise(point, 18.0, self.texture_seed) * 1.6 - 0.3).clamp(0.0, 1.0);
+                let speckle = value_noise(point, 2.5, self.texture_seed ^ 1) * 0.1;
+                let red = [0.55, 0.06, 0.05];
+                let green = [0.42, 0.55, 0.12];
+                let mix = |i: usize| (blush * red[i] + (1.0 - blush) * green[i]) * (0.95 + speckle);
+                Material {
+                    albedo_rgb: [mix(0), mix(1), mix(2)],
+                    laser_reflectance: mix(0),
+                    specular: 0.25,
+                    shininess: 40.0,
+                }
+            }
+            Kind::Leaf => {
+                let shade = 0.75 + 0.5 * value_noise(point, 8.0, self.texture_seed);
+                Material {
+                    albedo_rgb: [0.06 * shade, 0.22 * shade, 0.05 * shade],
+                    laser_reflectance: 0.08 * shade,
+                    specular: 0.08,
+                    shininess: 15.0,
+                }
+            }
+            Kind::Branch => {
+                let shade = 0.8 + 0.4 * value_noise(point, 6.0, self.texture_seed);
+                Material {
+                    albedo_rgb: [0.22 * shade, 0.16 * shade, 0.10 * shade],
+                    laser_reflectance: 0.3 * shade,
+                    specular: 0.0,
+                    shininess: 1.0,
+                }
+            }
+            Kind::Background => {
+                // Out-of-focus foliage: leaf-sized patches of light and shade.
+                let patches = value_noise_xy(point, 25.0, self.texture_seed);
+                let shade = 0.25 + 1.1 * patches * patches;
+                Material {
+                    albedo_rgb: [0.07 * shade, 0.2 * shade, 0.06 * shade],
+                    laser_reflectance: 0.07 * shade,
+                    specular: 0.0,
+                    shininess: 1.0,
+                }
+            }
+        }
+    }
+}
+
+impl OrchardScene {
+    /// The nearest hit along `ray` beyond `t_min`.
+    pub fn first_hit(&self, ray: &Ray, t_min: f64) -> Option<Hit> {
+        self.first_hit_among(ray, t_min, 0..self.objects.len())
+    }
+
+    /// [`Self::first_hit`] among the objects `candidates` only.
+    pub fn first_hit_among(
+        &self,
+        ray: &Ray,
+        t_min: f64,
+        candidates: impl Iterator<Item = usize>,
+    ) -> Option<Hit> {
+        let mut best: Option<(f64, Vector3<f64>, usize)> = None;
+        for index in candidates {
+            let object = &self.objects[index];
+            if let Some((t, normal)) = object.shape.intersect(ray, t_min)
+                && best.is_none_or(|(best_t, _, _)| t < best_t)
+            {
+                best = Some((t, normal, index));
+            }
+        }
+        let (t, normal, object) = best?;
+        let point = ray.at(t);
+        let normal = if normal.dot(&ray.direction) > 0.0 { -normal } else { normal };
+        Some(Hit { t, point, normal, material: self.objects[object].material_at(&point), object })
+    }
+
+    /// Whether the straight segment from `from` to `to` is blocked by any
+    /// object (a shadow test; the ends themselves do not count).
+    pub fn segment_blocked(&self, from: &Point3<f64>, to: &Point3<f64>) -> bool {
+        let direction = to - from;
+        let ray = Ray { origin: *from, direction };
+        // t runs 0..1 along the segment; a small margin keeps the end surfaces out.
+        const MARGIN: f64 = 1e-6;
+        self.objects.iter().any(|object| {
+            object.shape.intersect(&ray, MARGIN).is_some_and(|(t, _)| t < 1.0 - MARGIN)
+        })
+    }
+
+    /// Fraction of the fruit's silhouette, seen from the camera centre,
+    /// hidden by other objects (a grid of rays over its bounding disc).
+    pub fn fruit_occlusion(&self) -> f64 {
+        let (mut on_fruit, mut hidden) = (0usize, 0usize);
+        let Some(fruit) = self.objects.first() else { return 0.0 };
+        let centre = self.fruit_centre;
+        let extent = self.fruit_radius_mm * 1.2 / centre.z;
+        for i in 0..OCCLUSION_GRID {
+            for j in 0..OCCLUSION_GRID {
+                let s = (i as f64 + 0.5) / OCCLUSION_GRID as f64 * 2.0 - 1.0;
+                let r = (j as f64 + 0.5) / OCCLUSION_GRID as f64 * 2.0 - 1.0;
+                let ray = Ray::through_normalized(
+                    centre.x / centre.z + s * extent,
+                    centre.y / centre.z + r * extent,
+                );
+                if fruit.shape.intersect(&ray, 0.0).is_some() {
+                    on_fruit += 1;
+                    if self.first_hit(&ray, 0.0).is_some_and(|hit| hit.object != 0) {
+                        hidden += 1;
+                    }
+                }
+            }
+        }
+        if on_fruit == 0 { 0.0 } else { hidden as f64 / on_fruit as f64 }
+    }
+}
+
+/// Builds an orchard scene per `options`.
+pub fn orchard_scene(options: &OrchardOptions) -> Result<OrchardScene> {
+    check_options(options)?;
+    let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
+    // The fruit: a direction within the field of view and a depth.
+    let depth = rng.random_range(options.depth_mm.0..=options.depth_mm.1);
+    let off_axis = options.max_off_axis_deg.to_radians();
+    let (x_n, y_n) = (
+        rng.random_range(-off_axis..=off_axis).tan(),
+        rng.random_range(-off_axis..=off_axis).tan(),
+    );
+    let fruit_centre = Point3::new(x_n * depth, y_n * depth, depth);
+    let radius = rng.random_range(options.radius_mm.0..=options.radius_mm.1);
+    let e = options.max_ellipticity;
+    let mut semi_axes = Vector3::new(
+        radius * (1.0 + rng.random_range(-e..=e)),
+        radius * (1.0 + rng.random_range(-e..=e)),
+        radius * (1.0 + rng.random_range(-e..=e)),
+    );
+    // Rescale to the drawn equal-volume radius.
+    semi_axes *= radius / (semi_axes.x * semi_axes.y * semi_axes.z).cbrt();
+    let rotation = random_rotation(&mut rng);
+    let mut objects = vec![Object {
+        shape: Shape::Ellipsoid { centre: fruit_centre, rotation, semi_axes_mm: semi_axes },
+        kind: Kind::Fruit,
+        texture_seed: rng.random(),
+    }];
+
+    // Background foliage behind the fruit, facing the camera.
+    objects.push(Object {
+        shape: Shape::Wall {
+            point: Point3::new(0.0, 0.0, depth + options.background_behind_mm),
+            normal: Vector3::z_axis(),
+        },
+        kind: Kind::Background,
+        texture_seed: rng.random(),
+    });
+
+    // Branches: long cylinders passing near the fruit, behind or beside it.
+    for _ in 0..options.branches {
+        let through = fruit_centre
+            + Vector3::new(
+                rng.random_range(-150.0..=150.0),
+                rng.random_range(-150.0..=150.0),
+                rng.random_range(radius + 30.0..=radius + 200.0),
+            );
+        let heading: f64 = rng.random_range(0.0..std::f64::consts::PI);
+        let direction = Vector3::new(heading.cos(), heading.sin(), rng.random_range(-0.3..=0.3));
+        objects.push(Object {
+            shape: Shape::Branch {
+                start: through - direction * 400.0,
+                end: through + direction * 400.0,
+                radius_mm: rng.random_range(6.0..=15.0),
+            },
+            kind: Kind::Branch,
+            texture_seed: rng.random(),
+        });
+    }
+
+    // Clutter leaves around the fruit, placed so that they do not cover it.
+    let mut scene = OrchardScene { objects, fruit_centre, fruit_radius_mm: radius, occlusion: 0.0 };
+    let mut placed = 0;
+    for _ in 0..options.clutter_leaves * 20 {
+        if placed == options.clutter_leaves {
+            break;
+        }
+        let leaf = random_leaf(&mut rng, &fruit_centre, radius, 60.0..=220.0);
+        scene.objects.push(leaf);
+        if scene.fruit_occlusion() > 0.0 {
+            scene.objects.pop();
+        } else {
+            placed += 1;
+        }
+    }
+
+    // Occluding leaves in front of the fruit until the requested fraction is hidden.
+    let mut tries = 0;
+    while scene.fruit_occlusion() < options.occlusion {
+        tries += 1;
+        if tries > MAX_OCCLUDING_LEAVES {
+            return Err(Error::Infeasible(format!(
+                "could not hide {:.0} % of the fruit with {MAX_OCCLUDING_LEAVES} leaves",
+                options.occlusion * 100.0
+            )));
+        }
+        let before = scene.fruit_occlusion();
+        let leaf = random_leaf(&mut rng, &fruit_centre, radius, 0.0..=radius * 1.1);
+        scene.objects.push(leaf);
+        let after = scene.fruit_occlusion();
+        // Keep leaves that add cover without overshooting the target by much.
+        if after <= before || after > options.occlusion + 0.1 {
+            scene.objects.pop();
+        }
+    }
+    scene.occlusion = scene.fruit_occlusion();
+    Ok(scene)
+}
+
+/// A leaf 30-120 mm in front of the fruit's front surface, its centre
+/// `lateral_mm` from the fruit's line of sight.
+fn random_leaf(
+    rng: &mut ChaCha8Rng,
+    fruit_centre: &Point3<f64>,
+    radius: f64,
+    lateral_mm: std::ops::RangeInclusive<f64>,
+) -> Object {
+    let angle: f64 = rng.random_range(0.0..std::f64::consts::TAU);
+    let lateral = rng.random_range(lateral_mm);
+    let in_front = rng.random_range(radius + 30.0..=radius + 120.0);
+    let toward_camera = -fruit_centre.coords.normalize();
+    let centre = fruit_centre
+        + toward_camera * in_front
+        + Vector3::new(angle.cos() * lateral, angle.sin() * lateral, 0.0);
+    // Mostly facing the camera, tilted up to 60 deg.
+    let tilt = random_rotation_limited(rng, 60f64.to_radians());
+    let normal = Unit::new_normalize(tilt * toward_camera);
+    let reference = if normal.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
+    let along = Unit::new_normalize(normal.cross(&reference));
+    let spin = Rotation3::from_axis_angle(&normal, rng.random_range(0.0..std::f64::consts::PI));
+    Object {
+        shape: Shape::Leaf {
+            centre,
+            normal,
+            along: Unit::new_normalize(spin * along.into_inner()),
+            half_length_mm: rng.random_range(30.0..=45.0),
+            half_width_mm: rng.random_range(14.0..=22.0),
+        },
+        kind: Kind::Leaf,
+        texture_seed: rng.random(),
+    }
+}
+
+/// A uniformly random rotation.
+fn random_rotation(rng: &mut ChaCha8Rng) -> Rotation3<f64> {
+    random_rotation_limited(rng, std::f64::consts::PI)
+}
+
+/// A rotation by up to `max_angle_rad` about a random axis.
+fn random_rotation_limited(rng: &mut ChaCha8Rng, max_angle_rad: f64) -> Rotation3<f64> {
+    let axis = loop {
+        let v = Vector3::new(
+            rng.random_range(-1.0..=1.0),
+            rng.random_range(-1.0..=1.0),
+            rng.random_range(-1.0..=1.0),
+        );
+        let norm = v.norm();
+        if norm > 1e-3 && norm <= 1.0 {
+            break Unit::new_normalize(v);
+        }
+    };
+    Rotation3::from_axis_angle(&axis, rng.random_range(0.0..=max_angle_rad))
+}
+
+fn check_options(options: &OrchardOptions) -> Result<()> {
+    let invalid = |m: String| Err(Error::InvalidOptions(m));
+    let (near, far) = options.depth_mm;
+    if !(near > 0.0 && far >= near && far.is_finite()) {
+        return invalid(format!("fruit depth range {near}..{far} mm must be positive and ordered"));
+    }
+    let (small, large) = options.radius_mm;
+    if !(small > 0.0 && large >= small && large.is_finite()) {
+        return invalid(format!(
+            "fruit radius range {small}..{large} mm must be positive and ordered"
+        ));
+    }
+    if !(0.0..=0.5).contains(&options.max_ellipticity) {
+        return invalid(format!("ellipticity {} must lie in 0..0.5", options.max_ellipticity));
+    }
+    if !(0.0..=1.0).contains(&options.occlusion) {
+        return invalid(format!("occlusion {} must lie in 0..1", options.occlusion));
+    }
+    if !(0.0..45.0).contains(&options.max_off_axis_deg) {
+        return invalid(format!(
+            "off-axis angle {} deg must lie in 0..45",
+            options.max_off_axis_deg
+        ));
+    }
+    if !(options.background_behind_mm > 0.0 && options.background_behind_mm.is_finite()) {
+        return invalid("background distance must be positive".into());
+    }
+    Ok(())
+}

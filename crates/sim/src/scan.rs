@@ -1,0 +1,354 @@
+//! Orchard scans (FORMATS.md): five frames of a target apple with the laser
+//! line stepping across it, as the seed paper's scanner takes them, with
+//! scan.yaml, camera.yaml, laser.yaml and the ground truth in truth.json.
+//!
+//! The rough position the scanner starts from is the true fruit centre with
+//! RGB-D-like error: up to 2 % of the depth along the line of sight (the
+//! RealSense D435i's datasheet accuracy the paper quotes) and a couple of
+//! millimetres across it. The slide positions follow the seed's strategy
+//! ([`ScanStrategy`]): the first frame puts the laser on the left half of the
+//! fruit, then 4 steps of 10 mm, shifted into the 0-200 mm stroke.
+
+use std::path::Path;
+
+use alacs_model::{Camera, LaserModel, Ray, ScanPlan, ScanStrategy};
+use image::RgbImage;
+use nalgebra::{Point3, Vector3};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+use serde_json::json;
+
+use crate::error::{io_error, save_image};
+use crate::orchard::{CameraRayGrid, Hit, OrchardOptions, OrchardScene, orchard_scene};
+use crate::render::{
+    LaserLight, LaserStripe, Lighting, RayMap, RenderOptions, Scene, SurfaceHit, mix_seed,
+};
+use crate::{Error, Result, camera_to_json, laser_to_json};
+
+/// How to simulate a scan. `Default`: an unoccluded apple at 0.6-1.2 m in
+/// diffuse light, the seed's 5-frame strategy, full resolution, PNG.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScanOptions {
+    /// The fruit and its surroundings (depth, radius, occlusion, clutter).
+    pub orchard: OrchardOptions,
+    /// Frames, step and stroke of the scan.
+    pub strategy: ScanStrategy,
+    /// Largest error of the rough position along the line of sight, as a
+    /// fraction of the depth (uniform; the paper's RGB-D camera: 2 %).
+    pub rough_depth_error: f64,
+    /// Standard deviation of the rough position's error across the line of sight, mm.
+    pub rough_lateral_sigma_mm: f64,
+    /// Direct sunlight (a strong directional light) instead of diffuse shade.
+    pub sun: bool,
+    /// Also render each frame with the laser off (`frameN_off.png`).
+    pub laser_off: bool,
+    /// Render the camera resized by this factor ([`Camera::scaled`]).
+    pub scale: f64,
+    /// Supersampling, laser look and sensor; the lighting is set by `sun`.
+    pub render: RenderOptions,
+    /// Write JPEG frames of this quality (1-100) instead of PNG.
+    pub jpeg_quality: Option<u8>,
+    /// Seed: same seed, same scene and same bytes.
+    pub seed: u64,
+}
+
+impl Default for ScanOptions {
+    fn default() -> Self {
+        Self {
+            orchard: OrchardOptions::default(),
+            strategy: ScanStrategy::default(),
+            rough_depth_error: 0.02,
+            rough_lateral_sigma_mm: 2.0,
+            sun: false,
+            laser_off: false,
+            scale: 1.0,
+            render: RenderOptions {
+                supersampling: SCAN_SUPERSAMPLING,
+                laser: LaserLight { power: SCAN_LASER_POWER, ..LaserLight::default() },
+                ..RenderOptions::default()
+            },
+            jpeg_quality: None,
+            seed: 0,
+        }
+    }
+}
+
+/// Laser power for scans: 2.5 times the calibration sessions' (a scan
+/// exposes for a fruit in daylight, so the line must stand out against it),
+/// peaking near 0.55 on a red apple, as bright as the apple itself in shade.
+const SCAN_LASER_POWER: f64 = 1.0;
+
+/// Rays per pixel along each axis for scans: 2 x 2 (n-rooks) resolves the
+/// stripe's sub-pixel centre; the 3 x 3 of sessions is for board corners
+/// to 0.1 px, which a scan has none of.
+const SCAN_SUPERSAMPLING: usize = 2;
+
+/// Diffuse light in the shade of the canopy.
+fn shade_lighting() -> Lighting {
+    Lighting {
+        ambient: 0.6,
+        directional: 0.2,
+        to_light_in_camera: Vector3::new(-0.2, -0.9, -0.4).normalize(),
+        background: 0.3,
+    }
+}
+
+/// Direct sun from above and behind the camera: a sunlit red apple plus the
+/// laser saturates the red channel, the hard case for a red laser.
+fn sun_lighting(rng: &mut ChaCha8Rng) -> Lighting {
+    let heading: f64 = rng.random_range(-0.8..=0.8);
+    let to_light = Vector3::new(heading.sin() * 0.6, -0.7, -0.5 - 0.3 * heading.cos()).normalize();
+    Lighting { ambient: 0.35, directional: 1.3, to_light_in_camera: to_light, background: 0.9 }
+}
+
+/// One frame of a scan.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScanFrame {
+    /// File name of the laser-on image.
+    pub image: String,
+    /// File name of the laser-off image, if rendered.
+    pub image_laser_off: Option<String>,
+    /// Slide travel d, mm.
+    pub slide_mm: f64,
+}
+
+/// A simulated scan: the scene, the plan, and how to render its frames.
+#[derive(Debug)]
+pub struct SimulatedScan {
+    /// The camera rendered (scaled).
+    pub camera: Camera,
+    /// The true laser.
+    pub laser: LaserModel,
+    /// The orchard scene; the fruit is `scene.objects[0]`.
+    pub scene: OrchardScene,
+    /// The rough fruit position the scan started from (camera frame, mm).
+    pub rough_position_mm: Point3<f64>,
+    /// The slide plan.
+    pub plan: ScanPlan,
+    /// The frames.
+    pub frames: Vec<ScanFrame>,
+    /// The lighting used.
+    pub lighting: Lighting,
+    render: RenderOptions,
+    ray_map: RayMap,
+    grid: CameraRayGrid,
+    jpeg_quality: Option<u8>,
+    seed: u64,
+}
+
+/// An orchard scene with its [`CameraRayGrid`]: what the renderer draws.
+struct GriddedScene<'a> {
+    scene: &'a OrchardScene,
+    grid: &'a CameraRayGrid,
+}
+
+fn surface_hit(hit: Hit) -> SurfaceHit {
+    SurfaceHit {
+        point: hit.point,
+        normal: hit.normal,
+        albedo_rgb: hit.material.albedo_rgb,
+        laser_reflectance: hit.material.laser_reflectance,
+        specular: hit.material.specular,
+        shininess: hit.material.shininess,
+    }
+}
+
+impl Scene for GriddedScene<'_> {
+    fn intersect(&self, ray: &Ray) -> Option<SurfaceHit> {
+        self.scene.first_hit(ray, 0.0).map(surface_hit)
+    }
+
+    fn intersect_camera_ray(&self, x_n: f64, y_n: f64) -> Option<SurfaceHit> {
+        let ray = Ray::through_normalized(x_n, y_n);
+        self.scene.first_hit_among(&ray, 0.0, self.grid.candidates(x_n, y_n)).map(surface_hit)
+    }
+
+    fn blocked(&self, from: &Point3<f64>, to: &Point3<f64>) -> bool {
+        self.scene.segment_blocked(from, to)
+    }
+}
+
+/// Simulates a scan of a fruit in an orchard scene per `options`.
+pub fn simulate_scan(
+    camera: &Camera,
+    laser: &LaserModel,
+    options: &ScanOptions,
+) -> Result<SimulatedScan> {
+    check_options(options)?;
+    laser.validate()?;
+    let camera = camera.scaled(options.scale);
+    camera.validate()?;
+    options.render.validate()?;
+    let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
+    let scene = orchard_scene(&OrchardOptions { seed: rng.random(), ..options.orchard.clone() })?;
+
+    // The rough position: RGB-D-like error along and across the line of sight.
+    let truth = scene.fruit_centre;
+    let line_of_sight = truth.coords.normalize();
+    let along = rng.random_range(-options.rough_depth_error..=options.rough_depth_error) * truth.z;
+    let lateral = Normal::new(0.0, options.rough_lateral_sigma_mm)
+        .map_err(|e| Error::InvalidOptions(format!("rough lateral error: {e}")))?;
+    let across = Vector3::new(lateral.sample(&mut rng), lateral.sample(&mut rng), 0.0);
+    let across = across - line_of_sight * across.dot(&line_of_sight);
+    let rough_position_mm = truth + line_of_sight * along + across;
+
+    // The scanner knows the radius prior, not the fruit's true radius.
+    let plan = options.strategy.plan(laser, &rough_position_mm, FRUIT_RADIUS_PRIOR_MM);
+    let extension = if options.jpeg_quality.is_some() { "jpg" } else { "png" };
+    let frames = plan
+        .slides_mm
+        .iter()
+        .enumerate()
+        .map(|(k, &slide_mm)| ScanFrame {
+            image: format!("frame{k}.{extension}"),
+            image_laser_off: options.laser_off.then(|| format!("frame{k}_off.{extension}")),
+            slide_mm,
+        })
+        .collect();
+    let lighting = if options.sun { sun_lighting(&mut rng) } else { shade_lighting() };
+    let ray_map = RayMap::new(&camera, options.render.supersampling)?;
+    let grid = CameraRayGrid::new(&scene);
+    Ok(SimulatedScan {
+        camera,
+        laser: *laser,
+        scene,
+        rough_position_mm,
+        plan,
+        frames,
+        lighting,
+        render: options.render,
+        ray_map,
+        grid,
+        jpeg_quality: options.jpeg_quality,
+        seed: options.seed,
+    })
+}
+
+fn check_options(options: &ScanOptions) -> Result<()> {
+    let invalid = |m: String| Err(Error::InvalidOptions(m));
+    if !(options.scale > 0.0 && options.scale.is_finite()) {
+        return invalid(format!("scale {} must be positive", options.scale));
+    }
+    if !(0.0..0.5).contains(&options.rough_depth_error) {
+        return invalid(format!(
+            "rough depth error {} must lie in 0..0.5",
+            options.rough_depth_error
+        ));
+    }
+    if !(options.rough_lateral_sigma_mm >= 0.0 && options.rough_lateral_sigma_mm.is_finite()) {
+        return invalid("rough lateral error must be non-negative".into());
+    }
+    if options.strategy.frames == 0 || !(options.strategy.step_mm.is_finite()) {
+        return invalid("a scan needs at least one frame and a finite step".into());
+    }
+    if options.jpeg_quality.is_some_and(|q| !(1..=100).contains(&q)) {
+        return invalid("JPEG quality must lie in 1..100".into());
+    }
+    Ok(())
+}
+
+/// The radius prior written to scan.yaml: the middle of the seed's 35-45 mm
+/// apples (the scanner does not know the true radius).
+const FRUIT_RADIUS_PRIOR_MM: f64 = 40.0;
+
+/// Noise stream of laser-off frames (laser-on frames use their index).
+const LASER_OFF_STREAM: u64 = 1 << 32;
+
+impl SimulatedScan {
+    /// Renders frame `index` with the laser on (`laser = true`) or off.
+    pub fn render_frame(&self, index: usize, laser: bool) -> Result<RgbImage> {
+        let frame = self.frames.get(index).ok_or_else(|| {
+            Error::InvalidOptions(format!(
+                "frame {index} does not exist ({} frames)",
+                self.frames.len()
+            ))
+        })?;
+        let stripe =
+            LaserStripe::new(&self.laser, frame.slide_mm, &self.render.laser, self.camera.fx_px);
+        let stream = if laser { index as u64 } else { LASER_OFF_STREAM + index as u64 };
+        Ok(self.ray_map.render(
+            &GriddedScene { scene: &self.scene, grid: &self.grid },
+            &self.lighting,
+            laser.then_some(&stripe),
+            &self.render.sensor,
+            mix_seed(self.seed, stream),
+        ))
+    }
+
+    /// The render options (supersampling, laser look, sensor).
+    pub fn render_options(&self) -> &RenderOptions {
+        &self.render
+    }
+
+    /// scan.yaml (FORMATS.md).
+    pub fn scan_yaml(&self) -> String {
+        let r = &self.rough_position_mm;
+        let mut text = format!(
+            "# Simulated by alacs-sim (seed {}); ground truth in truth.json.\n\
+             rough_position_mm: [{:?}, {:?}, {:?}]\nfruit_radius_mm: {FRUIT_RADIUS_PRIOR_MM:?}\nframes:\n",
+            self.seed, r.x, r.y, r.z
+        );
+        for frame in &self.frames {
+            text.push_str(&format!(
+                "  - image: {}\n    slide_mm: {:?}\n",
+                frame.image, frame.slide_mm
+            ));
+            if let Some(off) = &frame.image_laser_off {
+                text.push_str(&format!("    image_laser_off: {off}\n"));
+            }
+        }
+        text
+    }
+
+    /// truth.json (FORMATS.md): camera, laser, the fruit's centre and
+    /// equal-volume radius, plus how the scene was built.
+    pub fn truth_json(&self) -> serde_json::Value {
+        let c = &self.scene.fruit_centre;
+        json!({
+            "camera": camera_to_json(&self.camera),
+            "laser": laser_to_json(&self.laser),
+            "fruit": {"position_mm": [c.x, c.y, c.z], "radius_mm": self.scene.fruit_radius_mm},
+            "occlusion": self.scene.occlusion,
+            "rough_position_mm": [self.rough_position_mm.x, self.rough_position_mm.y, self.rough_position_mm.z],
+            "slides_mm": self.plan.slides_mm,
+            "plan_shifted_into_stroke": self.plan.shifted,
+            "sun": self.lighting.directional > 1.0,
+            "seed": self.seed,
+        })
+    }
+
+    /// Writes scan.yaml, camera.yaml, laser.yaml, truth.json and every frame
+    /// into `dir`, creating it; `progress(done, total)` after each image.
+    pub fn write(&self, dir: &Path, mut progress: impl FnMut(usize, usize)) -> Result<()> {
+        std::fs::create_dir_all(dir).map_err(io_error(dir))?;
+        let total = self.frames.len()
+            * if self.frames.iter().any(|f| f.image_laser_off.is_some()) { 2 } else { 1 };
+        let mut done = 0;
+        for (index, frame) in self.frames.iter().enumerate() {
+            save_image(
+                &self.render_frame(index, true)?,
+                &dir.join(&frame.image),
+                self.jpeg_quality,
+            )?;
+            done += 1;
+            progress(done, total);
+            if let Some(off) = &frame.image_laser_off {
+                save_image(&self.render_frame(index, false)?, &dir.join(off), self.jpeg_quality)?;
+                done += 1;
+                progress(done, total);
+            }
+        }
+        let write_text = |name: &str, text: String| {
+            let path = dir.join(name);
+            std::fs::write(&path, text).map_err(io_error(&path))
+        };
+        write_text("scan.yaml", self.scan_yaml())?;
+        self.camera.to_yaml_file(&dir.join("camera.yaml"))?;
+        self.laser.to_yaml_file(&dir.join("laser.yaml"), "true laser of the simulated scan")?;
+        write_text(
+            "truth.json",
+            serde_json::to_string_pretty(&self.truth_json()).unwrap_or_default() + "\n",
+        )
+    }
+}

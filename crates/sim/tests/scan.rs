@@ -1,0 +1,161 @@
+//! Orchard scans: the files of FORMATS.md, the seed's scan strategy, the
+//! rough position's error, and a laser line that lands on the fruit where
+//! the model puts it.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use alacs_model::{Camera, Fidelity, LaserModel};
+use alacs_sim::{OrchardOptions, ScanOptions, simulate_scan};
+use nalgebra::{Point2, Vector3};
+
+fn laser() -> LaserModel {
+    LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98)
+}
+
+/// A fifth of the 5 MP camera keeps the tests fast; the geometry is the same.
+fn small(seed: u64, occlusion: f64, sun: bool) -> ScanOptions {
+    let orchard = OrchardOptions { occlusion, ..OrchardOptions::default() };
+    ScanOptions { orchard, sun, scale: 0.2, seed, ..ScanOptions::default() }
+}
+
+#[test]
+fn scans_follow_the_seed_strategy_from_a_rough_position() {
+    for seed in 0..5 {
+        let scan =
+            simulate_scan(&Camera::blackfly_s_5mp(), &laser(), &small(seed, 0.0, false)).unwrap();
+        let truth = scan.scene.fruit_centre;
+        // RGB-D-like error: at most 2 % of the depth along the line of sight,
+        // plus a few mm across (2 mm sigma; 5 sigma bound).
+        let error = scan.rough_position_mm - truth;
+        let along = error.dot(&truth.coords.normalize());
+        assert!(along.abs() <= 0.02 * truth.z + 1e-9, "seed {seed}: {along}");
+        // 2 mm sigma per axis across: 15 mm is far beyond 5 sigma of the 2-D norm.
+        assert!((error - truth.coords.normalize() * along).norm() < 15.0);
+        // Five frames 10 mm apart within the stroke, the first on the left
+        // half of the fruit as the rough position puts it.
+        let slides = &scan.plan.slides_mm;
+        assert_eq!(slides.len(), 5);
+        assert!(slides.windows(2).all(|w| (w[1] - w[0] - 10.0).abs() < 1e-9));
+        assert!(slides.iter().all(|d| (0.0..=200.0).contains(d)));
+        if !scan.plan.shifted {
+            let start = scan.rough_position_mm - Vector3::x() * 20.0;
+            assert!(laser().signed_distance_mm(&start, slides[0]).abs() < 1e-9);
+        }
+    }
+}
+
+#[test]
+fn the_laser_lights_the_fruit_where_the_model_puts_it() {
+    let scan = simulate_scan(&Camera::blackfly_s_5mp(), &laser(), &small(3, 0.0, false)).unwrap();
+    let camera = &scan.camera;
+    let sigma_px = scan.render_options().laser.stripe_sigma_px;
+    let mut on_fruit = 0;
+    for (k, frame) in scan.frames.iter().enumerate() {
+        let on = scan.render_frame(k, true).unwrap();
+        let off = scan.render_frame(k, false).unwrap();
+        let plane = laser().plane_in_camera(frame.slide_mm);
+        for (u, v, pixel) in on.enumerate_pixels() {
+            let lit = i32::from(pixel[0]) - i32::from(off.get_pixel(u, v)[0]);
+            if lit < 40 {
+                continue;
+            }
+            // What the pixel's centre ray sees lies in the laser sheet: within
+            // 3 stripe sigmas of the plane plus the pixel's own footprint
+            // (its 2 x 2 sub-rays spread over one pixel), both in mm at that depth.
+            let normalized =
+                camera.undistort_pixel(&Point2::new(f64::from(u), f64::from(v))).unwrap();
+            let ray = alacs_model::Ray::through_normalized(normalized.x, normalized.y);
+            let hit = scan.scene.first_hit(&ray, 0.0).unwrap();
+            let mm_per_px = hit.point.z / camera.fx_px;
+            let off_plane = plane.signed_distance_mm(&hit.point).abs();
+            // A pixel's footprint on a surface seen obliquely is longer: the
+            // cosine between the ray and the normal stretches it.
+            let cosine = hit.normal.dot(&ray.direction.normalize()).abs().max(0.2);
+            assert!(
+                off_plane < 3.0 * sigma_px * mm_per_px + mm_per_px / cosine,
+                "lit pixel ({u}, {v}) sees a point {off_plane:.2} mm off the laser plane"
+            );
+            on_fruit += usize::from(hit.object == 0);
+        }
+    }
+    assert!(on_fruit > 20, "only {on_fruit} lit pixels on the fruit");
+}
+
+#[test]
+fn written_scans_follow_formats_md() {
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("scan_formats");
+    let _ = std::fs::remove_dir_all(&dir);
+    let options = ScanOptions { laser_off: true, jpeg_quality: Some(90), ..small(8, 0.3, true) };
+    let scan = simulate_scan(&Camera::blackfly_s_5mp(), &laser(), &options).unwrap();
+    scan.write(&dir, |_, _| {}).unwrap();
+    #[derive(serde::Deserialize)]
+    struct Frame {
+        image: String,
+        slide_mm: f64,
+        image_laser_off: Option<String>,
+    }
+    #[derive(serde::Deserialize)]
+    struct ScanYaml {
+        rough_position_mm: [f64; 3],
+        fruit_radius_mm: f64,
+        frames: Vec<Frame>,
+    }
+    let yaml: ScanYaml =
+        serde_saphyr::from_str(&std::fs::read_to_string(dir.join("scan.yaml")).unwrap()).unwrap();
+    assert_eq!(yaml.frames.len(), 5);
+    assert_eq!(yaml.fruit_radius_mm, 40.0);
+    assert_eq!(yaml.rough_position_mm[2], scan.rough_position_mm.z);
+    for frame in &yaml.frames {
+        for name in [Some(&frame.image), frame.image_laser_off.as_ref()].into_iter().flatten() {
+            let image = image::open(dir.join(name)).unwrap();
+            assert_eq!(
+                (image.width(), image.height()),
+                (scan.camera.width_px, scan.camera.height_px)
+            );
+        }
+        assert!(frame.image.ends_with(".jpg"));
+        assert!((0.0..=200.0).contains(&frame.slide_mm));
+    }
+    let truth: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("truth.json")).unwrap()).unwrap();
+    assert_eq!(truth["fruit"]["radius_mm"], scan.scene.fruit_radius_mm);
+    assert_eq!(truth["fruit"]["position_mm"][2], scan.scene.fruit_centre.z);
+    assert!(truth["camera"]["camera_matrix"].is_object() && truth["laser"]["l0_mm"].is_number());
+    assert_eq!(Camera::from_yaml_file(&dir.join("camera.yaml")).unwrap(), scan.camera);
+    assert_eq!(LaserModel::from_yaml_file(&dir.join("laser.yaml")).unwrap().l0_mm, 381.98);
+}
+
+#[test]
+fn same_seed_same_bytes() {
+    let a = simulate_scan(&Camera::blackfly_s_5mp(), &laser(), &small(5, 0.2, true)).unwrap();
+    let b = simulate_scan(&Camera::blackfly_s_5mp(), &laser(), &small(5, 0.2, true)).unwrap();
+    assert_eq!(a.render_frame(1, true).unwrap(), b.render_frame(1, true).unwrap());
+    let c = simulate_scan(&Camera::blackfly_s_5mp(), &laser(), &small(6, 0.2, true)).unwrap();
+    assert_ne!(a.scene.fruit_centre, c.scene.fruit_centre);
+}
+
+#[test]
+fn sun_brightens_the_scene() {
+    let mean = |sun: bool| {
+        let scan = simulate_scan(&Camera::blackfly_s_5mp(), &laser(), &small(9, 0.0, sun)).unwrap();
+        let image = scan.render_frame(0, false).unwrap();
+        image.pixels().map(|p| f64::from(p[1])).sum::<f64>()
+            / f64::from(image.width() * image.height())
+    };
+    assert!(mean(true) > 1.3 * mean(false));
+}
+
+#[test]
+fn invalid_scan_options_are_errors() {
+    for options in [
+        ScanOptions { scale: 0.0, ..ScanOptions::default() },
+        ScanOptions { rough_depth_error: -0.1, ..ScanOptions::default() },
+        ScanOptions { jpeg_quality: Some(0), ..ScanOptions::default() },
+        ScanOptions {
+            orchard: OrchardOptions { occlusion: 1.5, ..OrchardOptions::default() },
+            ..ScanOptions::default()
+        },
+    ] {
+        assert!(simulate_scan(&Camera::blackfly_s_5mp(), &laser(), &options).is_err());
+    }
+}
