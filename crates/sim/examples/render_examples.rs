@@ -16,10 +16,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     let session = SessionOptions { n_views: 1, scale: 0.25, seed: 3, ..SessionOptions::default() };
     let session = simulate_session(&camera, &laser, &session)?;
-    session.render_view(0)?.save(out.join("session_view.png"))?;
+    session.render_view(0)?.save(out.join("session_view.jpg"))?;
 
     for (name, sun, occlusion, seed) in
-        [("scan_shade.png", false, 0.0, 11), ("scan_sun_occluded.png", true, 0.3, 12)]
+        [("scan_shade.jpg", false, 0.0, 11), ("scan_sun_occluded.jpg", true, 0.3, 12)]
     {
         let orchard =
             OrchardOptions { occlusion, depth_mm: (700.0, 800.0), ..OrchardOptions::default() };
