@@ -24,6 +24,7 @@ use crate::orchard::{CameraRayGrid, Hit, OrchardOptions, OrchardScene, orchard_s
 use crate::render::{
     LaserLight, LaserStripe, Lighting, RayMap, RenderOptions, Scene, SurfaceHit, mix_seed,
 };
+use crate::truth::image_entry_yaml;
 use crate::{Error, Result, camera_to_json, laser_to_json};
 
 /// How to simulate a scan. `Default`: an unoccluded apple at 0.6-1.2 m in
@@ -290,13 +291,11 @@ impl SimulatedScan {
             self.seed, r.x, r.y, r.z
         );
         for frame in &self.frames {
-            text.push_str(&format!(
-                "  - image: {}\n    slide_mm: {:?}\n",
-                frame.image, frame.slide_mm
+            text.push_str(&image_entry_yaml(
+                &frame.image,
+                frame.slide_mm,
+                frame.image_laser_off.as_deref(),
             ));
-            if let Some(off) = &frame.image_laser_off {
-                text.push_str(&format!("    image_laser_off: {off}\n"));
-            }
         }
         text
     }

@@ -16,6 +16,7 @@ use serde_json::{Value, json};
 use crate::board::{BoardScene, Checkerboard};
 use crate::error::{io_error, save_image};
 use crate::render::{LaserStripe, RayMap, RenderOptions, mix_seed};
+use crate::truth::image_entry_yaml;
 use crate::{Error, Result, camera_to_json, laser_to_json};
 
 /// How to generate a calibration session. `Default`: 10 poses at 0.6-1.2 m,
@@ -422,13 +423,11 @@ impl SimulatedSession {
             self.seed
         );
         for view in &self.views {
-            text.push_str(&format!(
-                "  - image: {}\n    slide_mm: {:?}\n",
-                view.image, view.slide_mm
+            text.push_str(&image_entry_yaml(
+                &view.image,
+                view.slide_mm,
+                view.image_laser_off.as_deref(),
             ));
-            if let Some(off) = &view.image_laser_off {
-                text.push_str(&format!("    image_laser_off: {off}\n"));
-            }
         }
         text
     }
