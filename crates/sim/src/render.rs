@@ -22,6 +22,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use rayon::prelude::*;
 
+use crate::orchard::value_noise;
 use crate::{Error, Result};
 
 /// Where a camera ray meets a surface of a [`Scene`], and how the surface
@@ -253,32 +254,60 @@ impl RayMap {
         let scale_dn = sensor.exposure_dn / per_pixel as f64;
         let noisy = sensor.gain_dn_per_electron > 0.0 || sensor.read_noise_dn > 0.0;
         let read_variance = sensor.read_noise_dn * sensor.read_noise_dn;
-        let mut image = RgbImage::new(width, height);
         let row_rays = width as usize * per_pixel;
-        image.par_chunks_mut(width as usize * 3).enumerate().for_each(|(v, row)| {
-            let rays = &self.rays[v * row_rays..(v + 1) * row_rays];
-            let mut rng = ChaCha8Rng::seed_from_u64(mix_seed(noise_seed, v as u64));
-            for (pixel, out) in rays.chunks_exact(per_pixel).zip(row.chunks_exact_mut(3)) {
-                let mut sum = [0.0; 3];
-                for &[x, y] in pixel {
-                    let radiance = shade(scene, lighting, laser, f64::from(x), f64::from(y));
-                    sum[0] += radiance[0];
-                    sum[1] += radiance[1];
-                    sum[2] += radiance[2];
-                }
-                for (value, channel) in out.iter_mut().zip(sum) {
-                    let mut signal_dn = channel * scale_dn;
-                    if noisy {
-                        // Shot noise (Poisson, Gaussian approximation) plus read noise.
-                        let variance =
-                            sensor.gain_dn_per_electron * signal_dn.max(0.0) + read_variance;
-                        let normal: f64 = StandardNormal.sample(&mut rng);
-                        signal_dn += variance.sqrt() * normal;
-                    }
-                    *value = quantize(signal_dn);
+        // The light on a pixel, in DN before noise: the mean of its sub-pixel rays.
+        let pixel_light = |rays: &[[f32; 2]]| {
+            let mut sum = [0.0; 3];
+            for &[x, y] in rays {
+                let radiance = shade(scene, lighting, laser, f64::from(x), f64::from(y));
+                for (channel, value) in sum.iter_mut().zip(radiance) {
+                    *channel += value * scale_dn;
                 }
             }
-        });
+            sum
+        };
+        // Shot noise (Poisson, Gaussian approximation) plus read noise, then 8 bits.
+        let record = |light_dn: [f64; 3], out: &mut [u8], rng: &mut ChaCha8Rng| {
+            for (value, signal_dn) in out.iter_mut().zip(light_dn) {
+                let mut signal_dn = signal_dn;
+                if noisy {
+                    let variance = sensor.gain_dn_per_electron * signal_dn.max(0.0) + read_variance;
+                    let normal: f64 = StandardNormal.sample(rng);
+                    signal_dn += variance.sqrt() * normal;
+                }
+                *value = quantize(signal_dn);
+            }
+        };
+        let mut image = RgbImage::new(width, height);
+        let rows = image.par_chunks_mut(width as usize * 3).enumerate();
+        if sensor.blur_sigma_px > 0.0 {
+            // The lens blurs the light before the sensor records it: light
+            // first, then the blur, then the noise.
+            let mut light = vec![[0.0f32; 3]; width as usize * height as usize];
+            light.par_chunks_mut(width as usize).enumerate().for_each(|(v, row)| {
+                let rays = &self.rays[v * row_rays..(v + 1) * row_rays];
+                for (pixel, out) in rays.chunks_exact(per_pixel).zip(row.iter_mut()) {
+                    *out = pixel_light(pixel).map(|c| c as f32);
+                }
+            });
+            let light = gaussian_blur(light, width as usize, sensor.blur_sigma_px);
+            rows.for_each(|(v, row)| {
+                let mut rng = ChaCha8Rng::seed_from_u64(mix_seed(noise_seed, v as u64));
+                let light_row = &light[v * width as usize..(v + 1) * width as usize];
+                for (pixel, out) in light_row.iter().zip(row.chunks_exact_mut(3)) {
+                    record(pixel.map(f64::from), out, &mut rng);
+                }
+            });
+        } else {
+            // No blur: shade and record each row in one pass.
+            rows.for_each(|(v, row)| {
+                let mut rng = ChaCha8Rng::seed_from_u64(mix_seed(noise_seed, v as u64));
+                let rays = &self.rays[v * row_rays..(v + 1) * row_rays];
+                for (pixel, out) in rays.chunks_exact(per_pixel).zip(row.chunks_exact_mut(3)) {
+                    record(pixel_light(pixel), out, &mut rng);
+                }
+            });
+        }
         image
     }
 }
@@ -379,6 +408,44 @@ impl<'a> RowMarch<'a> {
     }
 }
 
+/// A separable Gaussian blur of a row-major image `width` pixels wide
+/// (edges clamped): each row in place, then each column into a new image,
+/// rows in parallel.
+fn gaussian_blur(mut image: Vec<[f32; 3]>, width: usize, sigma_px: f64) -> Vec<[f32; 3]> {
+    let radius = (3.0 * sigma_px).ceil() as isize;
+    let weights: Vec<f32> =
+        (-radius..=radius).map(|k| (-0.5 * (k as f64 / sigma_px).powi(2)).exp() as f32).collect();
+    let total: f32 = weights.iter().sum();
+    let weights: Vec<f32> = weights.iter().map(|w| w / total).collect();
+    let height = image.len() / width.max(1);
+    let clamp = |i: isize, n: usize| i.clamp(0, n as isize - 1) as usize;
+    image.par_chunks_mut(width).for_each(|row| {
+        let source = row.to_vec();
+        for (u, pixel) in row.iter_mut().enumerate() {
+            let mut sum = [0.0f32; 3];
+            for (k, w) in (-radius..=radius).zip(&weights) {
+                let s = source[clamp(u as isize + k, width)];
+                for c in 0..3 {
+                    sum[c] += w * s[c];
+                }
+            }
+            *pixel = sum;
+        }
+    });
+    let mut blurred = vec![[0.0f32; 3]; image.len()];
+    blurred.par_chunks_mut(width).enumerate().for_each(|(v, out)| {
+        for (k, w) in (-radius..=radius).zip(&weights) {
+            let source = &image[clamp(v as isize + k, height) * width..][..width];
+            for (pixel, s) in out.iter_mut().zip(source) {
+                for c in 0..3 {
+                    pixel[c] += w * s[c];
+                }
+            }
+        }
+    });
+    blurred
+}
+
 /// 8-bit quantization: round to the nearest digital number, saturate at 0 and 255.
 fn quantize(signal_dn: f64) -> u8 {
     // Clamped first, so adding 0.5 and truncating rounds half up without a
@@ -417,7 +484,12 @@ fn shade(
     if let Some(laser) = laser {
         let irradiance = laser.irradiance(scene, &hit);
         if irradiance > 0.0 {
-            let laser_radiance = irradiance * hit.laser_reflectance;
+            let mut laser_radiance = irradiance * hit.laser_reflectance;
+            if laser.speckle_contrast > 0.0 {
+                let grain_mm = laser.grain_per_depth * hit.point.z.abs();
+                let n = value_noise(&hit.point, grain_mm, SPECKLE_SEED);
+                laser_radiance *= (1.0 + laser.speckle_contrast * (2.0 * n - 1.0)).max(0.0);
+            }
             for (channel, weight) in radiance.iter_mut().zip(laser.rgb) {
                 *channel += weight * laser_radiance;
             }
@@ -464,6 +536,10 @@ pub struct LaserLight {
     /// Standard deviation of the Gaussian cross-section, in pixels of the
     /// rendered image (converted to mm at each point's depth).
     pub stripe_sigma_px: f64,
+    /// Amplitude of laser speckle: the laser's radiance is multiplied by
+    /// 1 + c (2 n - 1) for a pixel-sized granular pattern n in 0..1 fixed on
+    /// the surface. 0 turns it off.
+    pub speckle_contrast: f64,
 }
 
 impl Default for LaserLight {
@@ -473,9 +549,13 @@ impl Default for LaserLight {
     /// channel peaks near 220 DN without saturating; on a black square
     /// (albedo 0.05) it adds only about 5 DN.
     fn default() -> Self {
-        Self { power: 0.4, rgb: [1.0, 0.08, 0.05], stripe_sigma_px: 1.5 }
+        Self { power: 0.4, rgb: [1.0, 0.08, 0.05], stripe_sigma_px: 1.5, speckle_contrast: 0.0 }
     }
 }
+
+/// Seed of the speckle pattern (fixed: speckle belongs to the surface and
+/// the laser, not to the frame's noise).
+const SPECKLE_SEED: u64 = 0x5EC1_E000;
 
 /// Gaussian cross-sections beyond this many sigmas contribute nothing (e^-18).
 const STRIPE_CUTOFF_SIGMAS: f64 = 6.0;
@@ -494,6 +574,10 @@ pub struct LaserStripe {
     pub rgb: [f64; 3],
     /// Stripe sigma in mm per mm of depth: sigma_mm = this * z.
     pub sigma_per_depth: f64,
+    /// Speckle amplitude (see [`LaserLight::speckle_contrast`]).
+    pub speckle_contrast: f64,
+    /// Size of a speckle grain in mm per mm of depth: one pixel, 1 / fx.
+    pub grain_per_depth: f64,
 }
 
 impl LaserStripe {
@@ -508,6 +592,8 @@ impl LaserStripe {
             power: look.power,
             rgb: look.rgb,
             sigma_per_depth: look.stripe_sigma_px / fx_px,
+            speckle_contrast: look.speckle_contrast,
+            grain_per_depth: 1.0 / fx_px,
         }
     }
 
@@ -545,14 +631,23 @@ pub struct Sensor {
     pub gain_dn_per_electron: f64,
     /// Standard deviation of the Gaussian read noise, DN. 0 turns it off.
     pub read_noise_dn: f64,
+    /// Standard deviation of the lens's Gaussian blur, pixels, applied to
+    /// the light before the sensor's noise. 0 turns it off.
+    pub blur_sigma_px: f64,
 }
 
 impl Default for Sensor {
     /// Exposure 255 DN per unit radiance (a white square, albedo 0.85, at
     /// about 140 DN under the default light), 0.025 DN per electron (a 10,000-electron
-    /// full well over 255 DN: 2 DN shot noise at 160 DN) and 0.5 DN read noise.
+    /// full well over 255 DN: 2 DN shot noise at 160 DN) and 0.5 DN read
+    /// noise; no blur (the supersampled pixels are sharp).
     fn default() -> Self {
-        Self { exposure_dn: 255.0, gain_dn_per_electron: 0.025, read_noise_dn: 0.5 }
+        Self {
+            exposure_dn: 255.0,
+            gain_dn_per_electron: 0.025,
+            read_noise_dn: 0.5,
+            blur_sigma_px: 0.0,
+        }
     }
 }
 
@@ -609,6 +704,8 @@ impl RenderOptions {
             ("exposure_dn", self.sensor.exposure_dn),
             ("gain_dn_per_electron", self.sensor.gain_dn_per_electron),
             ("read_noise_dn", self.sensor.read_noise_dn),
+            ("blur_sigma_px", self.sensor.blur_sigma_px),
+            ("speckle contrast", self.laser.speckle_contrast),
         ];
         let laser_rgb = self.laser.rgb.iter().map(|&c| ("laser colour", c));
         if let Some((name, value)) = non_negative

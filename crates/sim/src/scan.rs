@@ -22,7 +22,7 @@ use serde_json::json;
 use crate::error::{io_error, save_image};
 use crate::orchard::{CameraRayGrid, Hit, OrchardOptions, OrchardScene, orchard_scene};
 use crate::render::{
-    LaserLight, LaserStripe, Lighting, RayMap, RenderOptions, Scene, SurfaceHit, mix_seed,
+    LaserLight, LaserStripe, Lighting, RayMap, RenderOptions, Scene, Sensor, SurfaceHit, mix_seed,
 };
 use crate::truth::image_entry_yaml;
 use crate::{Error, Result, camera_to_json, laser_to_json};
@@ -66,7 +66,12 @@ impl Default for ScanOptions {
             scale: 1.0,
             render: RenderOptions {
                 supersampling: SCAN_SUPERSAMPLING,
-                laser: LaserLight { power: SCAN_LASER_POWER, ..LaserLight::default() },
+                laser: LaserLight {
+                    power: SCAN_LASER_POWER,
+                    speckle_contrast: SCAN_SPECKLE_CONTRAST,
+                    ..LaserLight::default()
+                },
+                sensor: Sensor { blur_sigma_px: SCAN_BLUR_SIGMA_PX, ..Sensor::default() },
                 ..RenderOptions::default()
             },
             jpeg_quality: None,
@@ -84,6 +89,13 @@ const SCAN_LASER_POWER: f64 = 1.0;
 /// stripe's sub-pixel centre; the 3 x 3 of sessions is for board corners
 /// to 0.1 px, which a scan has none of.
 const SCAN_SUPERSAMPLING: usize = 2;
+
+/// Laser speckle on the fruit and leaves: +-30 % grain, pixel-sized.
+const SCAN_SPECKLE_CONTRAST: f64 = 0.3;
+
+/// The lens's slight blur on orchard frames (sigma, pixels): a camera
+/// focused on the fruit, with leaves and foliage at other depths.
+const SCAN_BLUR_SIGMA_PX: f64 = 0.5;
 
 /// Diffuse light in the shade of the canopy.
 fn shade_lighting() -> Lighting {

@@ -159,3 +159,75 @@ fn invalid_scan_options_are_errors() {
         assert!(simulate_scan(&Camera::blackfly_s_5mp(), &laser(), &options).is_err());
     }
 }
+
+#[test]
+fn blur_spreads_edges_and_keeps_the_light() {
+    use alacs_sim::{RenderOptions, Sensor, SessionOptions, simulate_session};
+    let render = |blur_sigma_px: f64| {
+        let sensor = Sensor { blur_sigma_px, ..Sensor::noiseless() };
+        let options = SessionOptions {
+            n_views: 1,
+            scale: 0.2,
+            seed: 4,
+            render: RenderOptions { sensor, ..RenderOptions::default() },
+            ..SessionOptions::default()
+        };
+        simulate_session(&Camera::blackfly_s_5mp(), &laser(), &options)
+            .unwrap()
+            .render_view(0)
+            .unwrap()
+    };
+    let (sharp, blurred) = (render(0.0), render(1.0));
+    let total = |image: &image::RgbImage| image.pixels().map(|p| f64::from(p[1])).sum::<f64>();
+    let n = f64::from(sharp.width() * sharp.height());
+    // The blur moves light, it does not make or lose it: the means agree to
+    // 8-bit rounding (the uniform background sits at exactly 25.5 DN, which
+    // the blurred path's f32 light buffer may round up where the sharp path
+    // rounds down).
+    let (mean_sharp, mean_blurred) = (total(&sharp) / n, total(&blurred) / n);
+    assert!((mean_sharp - mean_blurred).abs() < 1.0, "{mean_sharp} vs {mean_blurred}");
+    // The checkerboard's steepest step between neighbours shrinks.
+    let steepest = |image: &image::RgbImage| {
+        (1..image.width())
+            .flat_map(|u| (0..image.height()).map(move |v| (u, v)))
+            .map(|(u, v)| {
+                (i32::from(image.get_pixel(u, v)[1]) - i32::from(image.get_pixel(u - 1, v)[1]))
+                    .abs()
+            })
+            .max()
+            .unwrap()
+    };
+    assert!(f64::from(steepest(&blurred)) < 0.7 * f64::from(steepest(&sharp)));
+}
+
+#[test]
+fn speckle_makes_the_stripe_grainy() {
+    // On a white board, the lit pixels' laser light varies with speckle on.
+    use alacs_sim::{LaserLight, RenderOptions, Sensor, SessionOptions, simulate_session};
+    let lit = |speckle_contrast: f64| {
+        let options = SessionOptions {
+            n_views: 1,
+            scale: 0.3,
+            seed: 5,
+            laser_off: true,
+            render: RenderOptions {
+                laser: LaserLight { speckle_contrast, ..LaserLight::default() },
+                sensor: Sensor::noiseless(),
+                ..RenderOptions::default()
+            },
+            ..SessionOptions::default()
+        };
+        let session = simulate_session(&Camera::blackfly_s_5mp(), &laser(), &options).unwrap();
+        let (on, off) = (session.render_view(0).unwrap(), session.render_laser_off(0).unwrap());
+        on.pixels()
+            .zip(off.pixels())
+            .map(|(a, b)| f64::from(a[0]) - f64::from(b[0]))
+            .filter(|d| *d > 0.0)
+            .collect::<Vec<f64>>()
+    };
+    let (plain, grainy) = (lit(0.0), lit(0.5));
+    let total = |v: &[f64]| v.iter().sum::<f64>();
+    assert_ne!(plain, grainy);
+    // Speckle redistributes the light: the total changes by far less than its amplitude.
+    assert!((total(&grainy) / total(&plain) - 1.0).abs() < 0.2);
+}
