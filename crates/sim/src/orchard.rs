@@ -160,6 +160,11 @@ impl Default for OrchardOptions {
     }
 }
 
+/// A branch is built of this many collinear cylinders ...
+const BRANCH_PIECES: usize = 8;
+/// ... each this long (with the direction's z slope, a bit longer): 800 mm in all.
+const BRANCH_PIECE_MM: f64 = 100.0;
+
 /// Rays per side of the grid that measures how much of the fruit is hidden.
 const OCCLUSION_GRID: usize = 48;
 /// Leaves tried before the requested occlusion counts as unreachable.
@@ -551,15 +556,23 @@ pub fn orchard_scene(options: &OrchardOptions) -> Result<OrchardScene> {
             );
         let heading: f64 = rng.random_range(0.0..std::f64::consts::PI);
         let direction = Vector3::new(heading.cos(), heading.sin(), rng.random_range(-0.3..=0.3));
-        objects.push(Object {
-            shape: Shape::Branch {
-                start: through - direction * 400.0,
-                end: through + direction * 400.0,
-                radius_mm: rng.random_range(6.0..=15.0),
-            },
-            kind: Kind::Branch,
-            texture_seed: rng.random(),
-        });
+        let radius_mm = rng.random_range(6.0..=15.0);
+        let texture_seed = rng.random();
+        // One straight branch as collinear pieces: the same surface, but
+        // small bounding spheres keep the camera-ray grid's cells short.
+        let start = through - direction * (BRANCH_PIECES as f64 / 2.0 * BRANCH_PIECE_MM);
+        for piece in 0..BRANCH_PIECES {
+            let from = start + direction * (piece as f64 * BRANCH_PIECE_MM);
+            objects.push(Object {
+                shape: Shape::Branch {
+                    start: from,
+                    end: from + direction * BRANCH_PIECE_MM,
+                    radius_mm,
+                },
+                kind: Kind::Branch,
+                texture_seed,
+            });
+        }
     }
 
     // Clutter leaves around the fruit, placed so that they do not cover it.
