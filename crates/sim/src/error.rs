@@ -39,6 +39,25 @@ pub enum Error {
     Calib(#[from] alacs_calib::Error),
 }
 
+/// Checks that `range` (mm) is positive, finite and ordered; `what` names it.
+pub(crate) fn check_positive_range(what: &str, (low, high): (f64, f64)) -> Result<()> {
+    if low > 0.0 && high >= low && high.is_finite() {
+        Ok(())
+    } else {
+        Err(Error::InvalidOptions(format!("{what} {low}..{high} mm must be positive and ordered")))
+    }
+}
+
+/// Checks that there is at least one slide position and all are finite.
+pub(crate) fn check_slides(slides_mm: &[f64]) -> Result<()> {
+    if slides_mm.is_empty() || slides_mm.iter().any(|d| !d.is_finite()) {
+        return Err(Error::InvalidOptions(
+            "slide positions must be finite and at least one".into(),
+        ));
+    }
+    Ok(())
+}
+
 /// Maps an I/O error on `path` to [`Error::Io`].
 pub(crate) fn io_error(path: &Path) -> impl FnOnce(std::io::Error) -> Error {
     let path = path.to_path_buf();

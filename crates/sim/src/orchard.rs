@@ -8,6 +8,7 @@ use nalgebra::{Point3, Rotation3, Unit, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+use crate::error::check_positive_range;
 use crate::{Error, Result};
 
 /// How a surface reflects light: Lambertian albedo per channel plus a Phong
@@ -176,8 +177,9 @@ impl Shape {
         match self {
             Shape::Ellipsoid { centre, rotation, semi_axes_mm } => {
                 // In the body frame scaled to the unit sphere: |o + t d|^2 = 1.
-                let o = (rotation.inverse() * (ray.origin - centre)).component_div(semi_axes_mm);
-                let d = (rotation.inverse() * ray.direction).component_div(semi_axes_mm);
+                let body_from_camera = rotation.inverse();
+                let o = (body_from_camera * (ray.origin - centre)).component_div(semi_axes_mm);
+                let d = (body_from_camera * ray.direction).component_div(semi_axes_mm);
                 let (a, b, c) = (d.dot(&d), o.dot(&d), o.dot(&o) - 1.0);
                 let disc = b * b - a * c;
                 if disc < 0.0 || a <= 0.0 {
@@ -593,7 +595,8 @@ pub fn orchard_scene(options: &OrchardOptions) -> Result<OrchardScene> {
 
     // Occluding leaves in front of the fruit until the requested fraction is hidden.
     let mut tries = 0;
-    while scene.fruit_occlusion() < options.occlusion {
+    let mut occlusion = scene.fruit_occlusion();
+    while occlusion < options.occlusion {
         tries += 1;
         if tries > MAX_OCCLUDING_LEAVES {
             return Err(Error::Infeasible(format!(
@@ -601,16 +604,17 @@ pub fn orchard_scene(options: &OrchardOptions) -> Result<OrchardScene> {
                 options.occlusion * 100.0
             )));
         }
-        let before = scene.fruit_occlusion();
         let leaf = random_leaf(&mut rng, &fruit_centre, radius, 0.0..=radius * 1.1);
         scene.objects.push(leaf);
         let after = scene.fruit_occlusion();
         // Keep leaves that add cover without overshooting the target by much.
-        if after <= before || after > options.occlusion + 0.1 {
+        if after <= occlusion || after > options.occlusion + 0.1 {
             scene.objects.pop();
+        } else {
+            occlusion = after;
         }
     }
-    scene.occlusion = scene.fruit_occlusion();
+    scene.occlusion = occlusion;
     Ok(scene)
 }
 
@@ -671,16 +675,8 @@ fn random_rotation_limited(rng: &mut ChaCha8Rng, max_angle_rad: f64) -> Rotation
 
 fn check_options(options: &OrchardOptions) -> Result<()> {
     let invalid = |m: String| Err(Error::InvalidOptions(m));
-    let (near, far) = options.depth_mm;
-    if !(near > 0.0 && far >= near && far.is_finite()) {
-        return invalid(format!("fruit depth range {near}..{far} mm must be positive and ordered"));
-    }
-    let (small, large) = options.radius_mm;
-    if !(small > 0.0 && large >= small && large.is_finite()) {
-        return invalid(format!(
-            "fruit radius range {small}..{large} mm must be positive and ordered"
-        ));
-    }
+    check_positive_range("fruit depth range", options.depth_mm)?;
+    check_positive_range("fruit radius range", options.radius_mm)?;
     if !(0.0..=0.5).contains(&options.max_ellipticity) {
         return invalid(format!("ellipticity {} must lie in 0..0.5", options.max_ellipticity));
     }

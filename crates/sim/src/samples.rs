@@ -10,7 +10,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 
-use crate::error::io_error;
+use crate::error::{check_positive_range, check_slides, io_error};
 use crate::{Error, Result, camera_to_json, laser_to_json};
 
 /// How to generate samples. `Default` is the seed paper's experiment:
@@ -151,10 +151,7 @@ pub fn simulate_samples(
 
 fn check_options(options: &SampleOptions) -> Result<()> {
     let invalid = |m: String| Err(Error::InvalidOptions(m));
-    let (near, far) = options.depth_mm;
-    if !(near > 0.0 && far >= near && far.is_finite()) {
-        return invalid(format!("depth range {near}..{far} mm must be positive and ordered"));
-    }
+    check_positive_range("depth range", options.depth_mm)?;
     if options.n_views == 0 || options.points_per_view == 0 {
         return invalid("need at least one view and one point per view".into());
     }
@@ -170,9 +167,7 @@ fn check_options(options: &SampleOptions) -> Result<()> {
     if !(options.depth_noise_mm >= 0.0 && options.depth_noise_mm.is_finite()) {
         return invalid(format!("depth noise {} mm must be non-negative", options.depth_noise_mm));
     }
-    if options.slides_mm.is_empty() || options.slides_mm.iter().any(|d| !d.is_finite()) {
-        return invalid("slide positions must be finite and at least one".into());
-    }
+    check_slides(&options.slides_mm)?;
     if !(0.0..90.0).contains(&options.max_tilt_deg) {
         return invalid(format!("tilt {} deg must lie in 0..90", options.max_tilt_deg));
     }
@@ -180,7 +175,7 @@ fn check_options(options: &SampleOptions) -> Result<()> {
 }
 
 /// A rotation by a random angle up to `max_tilt_deg` about a random axis in the image plane.
-fn random_tilt(rng: &mut ChaCha8Rng, max_tilt_deg: f64) -> Rotation3<f64> {
+pub(crate) fn random_tilt(rng: &mut ChaCha8Rng, max_tilt_deg: f64) -> Rotation3<f64> {
     let heading: f64 = rng.random_range(0.0..std::f64::consts::TAU);
     let tilt = rng.random_range(0.0..=max_tilt_deg.to_radians());
     let axis = Unit::new_normalize(Vector3::new(heading.cos(), heading.sin(), 0.0));

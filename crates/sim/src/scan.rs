@@ -329,12 +329,16 @@ impl SimulatedScan {
         })
     }
 
+    /// How many images [`SimulatedScan::write`] renders and writes.
+    pub fn image_count(&self) -> usize {
+        self.frames.iter().map(|f| 1 + usize::from(f.image_laser_off.is_some())).sum()
+    }
+
     /// Writes scan.yaml, camera.yaml, laser.yaml, truth.json and every frame
     /// into `dir`, creating it; `progress(done, total)` after each image.
     pub fn write(&self, dir: &Path, mut progress: impl FnMut(usize, usize)) -> Result<()> {
         std::fs::create_dir_all(dir).map_err(io_error(dir))?;
-        let total = self.frames.len()
-            * if self.frames.iter().any(|f| f.image_laser_off.is_some()) { 2 } else { 1 };
+        let total = self.image_count();
         let mut done = 0;
         for (index, frame) in self.frames.iter().enumerate() {
             save_image(

@@ -8,14 +8,15 @@ use std::sync::Arc;
 
 use alacs_model::{Camera, LaserModel};
 use image::RgbImage;
-use nalgebra::{Isometry3, Point2, Point3, Rotation3, Translation3, Unit, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Point2, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde_json::{Value, json};
 
 use crate::board::{BoardScene, Checkerboard};
-use crate::error::{io_error, save_image};
+use crate::error::{check_positive_range, check_slides, io_error, save_image};
 use crate::render::{LaserStripe, RayMap, RenderOptions, mix_seed};
+use crate::samples::random_tilt;
 use crate::truth::image_entry_yaml;
 use crate::{Error, Result, camera_to_json, laser_to_json};
 
@@ -72,13 +73,8 @@ impl SessionOptions {
         if self.n_views == 0 {
             return invalid("need at least one view".into());
         }
-        let (near, far) = self.depth_mm;
-        if !(near > 0.0 && far >= near && far.is_finite()) {
-            return invalid(format!("depth range {near}..{far} mm must be positive and ordered"));
-        }
-        if self.slides_mm.is_empty() || self.slides_mm.iter().any(|d| !d.is_finite()) {
-            return invalid("slide positions must be finite and at least one".into());
-        }
+        check_positive_range("depth range", self.depth_mm)?;
+        check_slides(&self.slides_mm)?;
         if !(0.0..90.0).contains(&self.max_tilt_deg) {
             return invalid(format!("tilt {} deg must lie in 0..90", self.max_tilt_deg));
         }
@@ -350,14 +346,6 @@ fn clip_line_to_rectangle(a: f64, b: f64, e: f64, w: f64, h: f64) -> f64 {
         t1 = t1.min(ta.max(tb));
     }
     (t1 - t0).max(0.0)
-}
-
-/// A rotation by a random angle up to `max_tilt_deg` about a random axis in the image plane.
-fn random_tilt(rng: &mut ChaCha8Rng, max_tilt_deg: f64) -> Rotation3<f64> {
-    let heading: f64 = rng.random_range(0.0..std::f64::consts::TAU);
-    let tilt = rng.random_range(0.0..=max_tilt_deg.to_radians());
-    let axis = Unit::new_normalize(Vector3::new(heading.cos(), heading.sin(), 0.0));
-    Rotation3::from_axis_angle(&axis, tilt)
 }
 
 /// Noise stream of the laser-off image of a pose (laser-on images use their view index).
