@@ -2,6 +2,8 @@
 
 use std::fmt::Write as _;
 
+use indicatif::{ProgressBar, ProgressStyle};
+
 use alacs::LaserCalibration;
 use alacs::model::Fidelity;
 use serde_json::{Value, json};
@@ -106,4 +108,21 @@ pub fn summary(c: &LaserCalibration, threshold_mm: f64) -> String {
         c.residual.as_str()
     );
     out
+}
+
+/// A progress bar on standard error (hidden under `--json`, so standard
+/// output holds only the JSON), spinning with `message` until its length is known.
+pub fn progress_bar(json: bool, message: &'static str) -> ProgressBar {
+    let bar = if json { ProgressBar::hidden() } else { ProgressBar::new_spinner() };
+    bar.set_message(message);
+    bar
+}
+
+/// Turns a spinner into a bar of `len` steps, showing `message`.
+pub fn start_progress(bar: &ProgressBar, len: usize, message: &'static str) {
+    bar.set_length(len as u64);
+    if let Ok(style) = ProgressStyle::with_template("{spinner} [{bar:30}] {pos}/{len} {msg}") {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar.set_message(message);
 }

@@ -9,7 +9,6 @@
 
 use alacs::sim::{SampleOptions, simulate_samples};
 use alacs::{CalibrationOptions, Camera, Fidelity, LaserCalibration, LaserModel, Method};
-use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{Value, json};
 
 use crate::args::DemoArgs;
@@ -31,17 +30,6 @@ struct AxisErrors {
     max_mm: [f64; 3],
     mean_mm: [f64; 3],
     n: usize,
-}
-
-fn progress(len: u64, json: bool) -> ProgressBar {
-    if json {
-        return ProgressBar::hidden();
-    }
-    let bar = ProgressBar::new(len);
-    if let Ok(style) = ProgressStyle::with_template("{spinner} [{bar:30}] {pos}/{len} {msg}") {
-        bar.set_style(style.progress_chars("=> "));
-    }
-    bar
 }
 
 /// Triangulates noise-free laser points at `slide_mm` with `fitted` and
@@ -80,7 +68,8 @@ fn accuracy_at(
 pub fn run(args: &DemoArgs) -> CmdResult {
     let camera = Camera::blackfly_s_5mp();
     let truth = LaserModel::from_degrees(Fidelity::High, TRUE_ALPHA_DEG, TRUE_BETA_DEG, TRUE_L0_MM);
-    let bar = progress(1 + ACCURACY_SLIDES_MM.len() as u64, args.json);
+    let bar = output::progress_bar(args.json, "calibrating");
+    output::start_progress(&bar, 1 + ACCURACY_SLIDES_MM.len(), "calibrating");
 
     bar.set_message("calibrating: four methods on simulated samples with 30 % outliers");
     let sample_options =

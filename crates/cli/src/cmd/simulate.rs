@@ -6,7 +6,6 @@ use alacs::sim::{
 };
 use alacs::{Camera, Fidelity, LaserModel};
 use anyhow::anyhow;
-use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
 use crate::args::{
@@ -64,23 +63,6 @@ impl RenderArgs {
     }
 }
 
-/// A progress bar on standard error (hidden under `--json`), spinning until
-/// its length is known.
-fn progress_bar(json: bool, message: &'static str) -> ProgressBar {
-    let bar = if json { ProgressBar::hidden() } else { ProgressBar::new_spinner() };
-    bar.set_message(message);
-    bar
-}
-
-/// Turns a spinner into a bar of `len` images.
-fn start_rendering(bar: &ProgressBar, len: usize) {
-    bar.set_length(len as u64);
-    if let Ok(style) = ProgressStyle::with_template("{spinner} [{bar:30}] {pos}/{len} {msg}") {
-        bar.set_style(style.progress_chars("=> "));
-    }
-    bar.set_message("rendering");
-}
-
 /// Runs `alacs simulate samples`.
 pub fn samples(args: &SimulateSamplesArgs) -> CmdResult {
     let (camera, laser) = args.truth.camera_and_laser()?;
@@ -128,9 +110,9 @@ pub fn session(args: &SimulateSessionArgs) -> CmdResult {
         seed: args.seed,
         ..SessionOptions::default()
     };
-    let bar = progress_bar(args.json, "computing the camera's rays");
+    let bar = output::progress_bar(args.json, "computing the camera's rays");
     let session = simulate_session(&camera, &laser, &options)?;
-    start_rendering(&bar, session.image_count());
+    output::start_progress(&bar, session.image_count(), "rendering");
     session.write_with_progress(&args.out, |done, _| bar.set_position(done as u64))?;
     bar.finish_and_clear();
     let images: Vec<&str> = session.views.iter().map(|view| view.image.as_str()).collect();
@@ -176,12 +158,9 @@ pub fn scan(args: &SimulateScanArgs) -> CmdResult {
         seed: args.seed,
         ..defaults
     };
-    let bar = progress_bar(args.json, "building the scene and the camera's rays");
+    let bar = output::progress_bar(args.json, "building the scene and the camera's rays");
     let scan = simulate_scan(&camera, &laser, &options)?;
-    start_rendering(
-        &bar,
-        scan.frames.iter().map(|f| 1 + usize::from(f.image_laser_off.is_some())).sum(),
-    );
+    output::start_progress(&bar, scan.image_count(), "rendering");
     scan.write(&args.out, |done, _| bar.set_position(done as u64))?;
     bar.finish_and_clear();
     let c = scan.scene.fruit_centre;
