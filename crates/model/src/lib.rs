@@ -37,9 +37,11 @@ mod error;
 mod geometry;
 mod laser;
 mod scan_plan;
+mod session;
 
 pub use camera::*;
 pub use error::{Error, Result};
 pub use geometry::{Plane, Ray};
 pub use laser::{Fidelity, LaserModel, PreparedLaser, SLIDE_STROKE_MM, SlideTarget};
 pub use scan_plan::{ScanPlan, ScanStrategy};
+pub use session::{BoardSpec, SESSION_FILE, Session, SessionView};

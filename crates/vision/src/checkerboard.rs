@@ -1,0 +1,247 @@
+//! Checkerboard inner corners with sub-pixel positions, labelled in OpenCV's
+//! order.
+//!
+//! Corner finding and grid labelling are the `calib-targets` crate's ChESS
+//! detector (its three-configuration sweep); this module fits its labelled
+//! grid to the board of session.yaml:
+//! - the grid must span exactly `cols x rows` corners (or `rows x cols` for a
+//!   board turned by 90 deg); a stray corner outside that window is dropped,
+//!   and a few corners missing inside it (a bright laser line over a corner)
+//!   are allowed, since the window still fixes every label;
+//! - labels follow FORMATS.md's board frame: row-major, x along a row, y down
+//!   a column, z into the board, i.e. seen from the camera the x axis turns
+//!   clockwise onto the y axis. Of the two labellings that satisfy this (a
+//!   board and the board turned by 180 deg look alike; four for a square
+//!   grid), the one whose first corner lies nearest the image's top-left
+//!   corner is chosen, as OpenCV usually does.
+//!
+//! Colour images are searched on their green channel: a red laser line
+//! barely shows there, so it cannot break the corner pattern.
+
+use alacs_model::BoardSpec;
+use calib_targets::chessboard::ChessboardParams;
+use calib_targets::detect;
+use image::{DynamicImage, GrayImage};
+use nalgebra::{Point2, Vector2};
+
+use crate::{Error, Result};
+
+/// Largest fraction of a board's corners that may be missing inside the
+/// detected window; beyond it the view is refused.
+pub const MAX_MISSING_FRACTION: f64 = 0.1;
+
+/// A board found in an image: every inner corner in OpenCV's order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BoardCorners {
+    /// Inner corners per row.
+    pub cols: usize,
+    /// Inner corners per column.
+    pub rows: usize,
+    /// Corner `row * cols + col` in pixels, `None` where the detector missed it.
+    pub corners_px: Vec<Option<Point2<f64>>>,
+}
+
+impl BoardCorners {
+    /// The found corners with their OpenCV indices.
+    pub fn found(&self) -> impl Iterator<Item = (usize, Point2<f64>)> + '_ {
+        self.corners_px.iter().enumerate().filter_map(|(i, c)| c.map(|c| (i, c)))
+    }
+
+    /// Number of corners found.
+    pub fn found_count(&self) -> usize {
+        self.corners_px.iter().filter(|c| c.is_some()).count()
+    }
+
+    /// The outline of the corner grid in the image (the four outer corners,
+    /// extrapolated where one is missing), in order around the board.
+    pub fn outline_px(&self) -> Option<[Point2<f64>; 4]> {
+        let (c, r) = (self.cols - 1, self.rows - 1);
+        let at = |col: usize, row: usize| self.corners_px[row * self.cols + col];
+        Some([at(0, 0)?, at(c, 0)?, at(c, r)?, at(0, r)?])
+    }
+}
+
+/// The image a board is searched in: the green channel of a colour image
+/// (the red laser hardly shows in it), the luminance of a grey one.
+pub fn board_gray(image: &DynamicImage) -> GrayImage {
+    if !image.color().has_color() {
+        return image.to_luma8();
+    }
+    let rgb = image.to_rgb8();
+    GrayImage::from_fn(rgb.width(), rgb.height(), |u, v| image::Luma([rgb.get_pixel(u, v)[1]]))
+}
+
+/// Finds the `board.cols x board.rows` inner corners in a grey image.
+pub fn detect_checkerboard(gray: &GrayImage, board: &BoardSpec) -> Result<BoardCorners> {
+    let no_board = |reason: String| Error::NoBoard { cols: board.cols, rows: board.rows, reason };
+    let configs = ChessboardParams::sweep_default();
+    let detection = detect::detect_chessboard_best(gray, &detect::default_chess_config(), &configs)
+        .map_err(|e| no_board(format!("no corner grid ({e})")))?;
+    let grid: Vec<((i64, i64), Point2<f64>)> = detection
+        .corners
+        .iter()
+        .map(|c| {
+            (
+                (i64::from(c.grid.u), i64::from(c.grid.v)),
+                Point2::new(f64::from(c.position.x), f64::from(c.position.y)),
+            )
+        })
+        .filter(|(_, p)| p.x.is_finite() && p.y.is_finite())
+        .collect();
+    label_grid(&grid, board, gray.width(), gray.height()).map_err(no_board)
+}
+
+/// Fits a labelled corner grid (grid coordinates, pixel) to the board:
+/// chooses the window and the labelling (see the module docs).
+fn label_grid(
+    grid: &[((i64, i64), Point2<f64>)],
+    board: &BoardSpec,
+    width: u32,
+    height: u32,
+) -> std::result::Result<BoardCorners, String> {
+    let (cols, rows) = (board.cols as i64, board.rows as i64);
+    let needed = board.corner_count();
+    let allowed_missing = (needed as f64 * MAX_MISSING_FRACTION).floor() as usize;
+    if grid.len() + allowed_missing < needed {
+        return Err(format!("only {} of {} corners found", grid.len(), needed));
+    }
+    let (min_i, max_i) = min_max(grid.iter().map(|g| g.0.0));
+    let (min_j, max_j) = min_max(grid.iter().map(|g| g.0.1));
+    // Candidate windows (origin, width along i, height along j) of the board's size.
+    let mut best: Option<(usize, i64, i64, i64, i64)> = None;
+    let mut tie = false;
+    for (w, h) in [(cols, rows), (rows, cols)] {
+        if cols == rows && w != cols {
+            continue;
+        }
+        for i0 in min_i..=(max_i - w + 1).max(min_i) {
+            for j0 in min_j..=(max_j - h + 1).max(min_j) {
+                let inside = grid
+                    .iter()
+                    .filter(|((i, j), _)| (i0..i0 + w).contains(i) && (j0..j0 + h).contains(j))
+                    .count();
+                match best {
+                    Some((n, ..)) if n > inside => {}
+                    Some((n, ..)) if n == inside => tie = true,
+                    _ => {
+                        best = Some((inside, i0, j0, w, h));
+                        tie = false;
+                    }
+                }
+            }
+        }
+    }
+    let Some((inside, i0, j0, w, h)) = best else {
+        return Err("no corners".into());
+    };
+    if inside + allowed_missing < needed {
+        return Err(format!(
+            "the largest {}-corner window of the detected {} x {} grid holds only {inside} corners",
+            needed,
+            max_i - min_i + 1,
+            max_j - min_j + 1
+        ));
+    }
+    if tie {
+        return Err(format!(
+            "the detected {} x {} grid fits the board in more than one place",
+            max_i - min_i + 1,
+            max_j - min_j + 1
+        ));
+    }
+    // Corners of the window by window coordinates (a, b), a along i, b along j.
+    let mut window = vec![None; needed];
+    for ((i, j), p) in grid {
+        let (a, b) = (i - i0, j - j0);
+        if (0..w).contains(&a) && (0..h).contains(&b) {
+            window[(b * w + a) as usize] = Some(*p);
+        }
+    }
+    // A labelling maps (col, row) to window coordinates (a, b): rows and
+    // columns swapped or not, then either axis reversed or not.
+    let labellings = (0..8u8).map(|bits| (bits & 1 != 0, bits & 2 != 0, bits & 4 != 0));
+    let labellings: Vec<(bool, bool, bool)> =
+        labellings.filter(|&(swap, _, _)| if swap { (w, h) == (rows, cols) } else { (w, h) == (cols, rows) }).collect();
+    let corner = |&(swap, flip_a, flip_b): &(bool, bool, bool), c: i64, r: i64| {
+        let (a, b) = if swap { (r, c) } else { (c, r) };
+        let a = if flip_a { w - 1 - a } else { a };
+        let b = if flip_b { h - 1 - b } else { b };
+        window[(b * w + a) as usize]
+    };
+    let mut chosen: Option<(f64, Vec<Option<Point2<f64>>>)> = None;
+    for label in &labellings {
+        let corners: Vec<Option<Point2<f64>>> = (0..rows)
+            .flat_map(|r| (0..cols).map(move |c| (c, r)))
+            .map(|(c, r)| corner(label, c, r))
+            .collect();
+        let Some((step_x, step_y)) = board_steps(&corners, board.cols, board.rows) else {
+            continue;
+        };
+        // Seen from the camera (image u right, v down), x turns clockwise onto y.
+        if step_x.perp(&step_y) <= 0.0 {
+            continue;
+        }
+        let origin = first_corner_estimate(&corners, board.cols, step_x, step_y);
+        let distance = origin.coords.norm();
+        if chosen.as_ref().is_none_or(|(d, _)| distance < *d) {
+            chosen = Some((distance, corners));
+        }
+    }
+    let (_, corners_px) = chosen.ok_or("the corner grid is degenerate (no board axes)")?;
+    if let Some((i, p)) = corners_px
+        .iter()
+        .enumerate()
+        .find_map(|(i, p)| p.filter(|p| p.x < -0.5 || p.y < -0.5 || p.x > width as f64 - 0.5 || p.y > height as f64 - 0.5).map(|p| (i, p)))
+    {
+        return Err(format!("corner {i} at ({:.1}, {:.1}) lies outside the image", p.x, p.y));
+    }
+    Ok(BoardCorners { cols: cols as usize, rows: rows as usize, corners_px })
+}
+
+/// Mean image step from one corner to the next along the board's x axis
+/// (along a row) and y axis (down a column).
+fn board_steps(
+    corners: &[Option<Point2<f64>>],
+    cols: usize,
+    rows: usize,
+) -> Option<(Vector2<f64>, Vector2<f64>)> {
+    let (mut step_x, mut n_x) = (Vector2::zeros(), 0.0);
+    let (mut step_y, mut n_y) = (Vector2::zeros(), 0.0);
+    for r in 0..rows {
+        for c in 0..cols {
+            let Some(p) = corners[r * cols + c] else { continue };
+            if let Some(q) = corners.get(r * cols + c + 1).copied().flatten().filter(|_| c + 1 < cols) {
+                step_x += q - p;
+                n_x += 1.0;
+            }
+            if let Some(q) = corners.get((r + 1) * cols + c).copied().flatten() {
+                step_y += q - p;
+                n_y += 1.0;
+            }
+        }
+    }
+    (n_x > 0.0 && n_y > 0.0).then(|| (step_x / n_x, step_y / n_y))
+}
+
+/// Where the first corner lies, from every found corner and the mean steps
+/// (so it is known even when the detector missed that corner).
+fn first_corner_estimate(
+    corners: &[Option<Point2<f64>>],
+    cols: usize,
+    step_x: Vector2<f64>,
+    step_y: Vector2<f64>,
+) -> Point2<f64> {
+    let (mut sum, mut n) = (Vector2::zeros(), 0.0_f64);
+    for (i, p) in corners.iter().enumerate() {
+        if let Some(p) = p {
+            let (c, r) = ((i % cols) as f64, (i / cols) as f64);
+            sum += p.coords - step_x * c - step_y * r;
+            n += 1.0;
+        }
+    }
+    Point2::from(sum / n.max(1.0))
+}
+
+fn min_max(values: impl Iterator<Item = i64>) -> (i64, i64) {
+    values.fold((i64::MAX, i64::MIN), |(lo, hi), v| (lo.min(v), hi.max(v)))
+}

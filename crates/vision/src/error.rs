@@ -1,0 +1,36 @@
+//! The one error type of `alacs-vision`.
+
+use std::path::PathBuf;
+
+/// Result with this crate's [`Error`].
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// Everything that can go wrong reading images and finding boards and stripes.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// An image file could not be opened or decoded.
+    #[error("{path}: {message}")]
+    Image {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong (missing, not an image, truncated, ...).
+        message: String,
+    },
+    /// No checkerboard of the requested size was found in an image.
+    #[error("no {cols} x {rows} checkerboard found: {reason}")]
+    NoBoard {
+        /// Inner corners per row the search was for.
+        cols: usize,
+        /// Inner corners per column the search was for.
+        rows: usize,
+        /// Why the detection was refused.
+        reason: String,
+    },
+    /// Two images that must match (a view and its laser-off image) do not.
+    #[error("{message}")]
+    Mismatch {
+        /// What differs.
+        message: String,
+    },
+}
