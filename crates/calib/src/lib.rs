@@ -36,6 +36,7 @@
 
 mod calibrate;
 mod error;
+mod intrinsics;
 mod linear;
 pub mod ransac;
 mod refine;
@@ -46,6 +47,9 @@ pub use calibrate::{
     compare, depth_error_mm,
 };
 pub use error::{Error, Result};
+pub use intrinsics::{
+    BoardObservation, IntrinsicsFit, IntrinsicsOptions, ViewFit, board_pose, calibrate_intrinsics,
+};
 pub use refine::Residual;
 pub use samples::{
     LaserSample, parse_samples_csv, read_samples_csv, samples_csv_string, validate_samples,
