@@ -63,6 +63,9 @@ pub enum Error {
         /// Inliers needed.
         need: usize,
     },
+    /// An image could not be read, or images of a session do not match.
+    #[error(transparent)]
+    Vision(#[from] alacs_vision::Error),
     /// The nonlinear refinement ended in parameters that describe no laser.
     #[error("the least-squares fit failed: {0}")]
     FitFailed(String),
@@ -72,6 +75,12 @@ impl Error {
     /// Whether the error is about unreadable or invalid input (exit code 2 in
     /// FORMATS.md) rather than a calibration that failed on readable data (1).
     pub fn is_bad_input(&self) -> bool {
-        matches!(self, Error::Io { .. } | Error::Csv { .. } | Error::InvalidSample { .. })
+        matches!(
+            self,
+            Error::Io { .. }
+                | Error::Csv { .. }
+                | Error::InvalidSample { .. }
+                | Error::Vision(alacs_vision::Error::Image { .. } | alacs_vision::Error::Mismatch { .. })
+        )
     }
 }

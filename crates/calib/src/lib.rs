@@ -41,6 +41,7 @@ mod linear;
 pub mod ransac;
 mod refine;
 mod samples;
+mod session;
 
 pub use calibrate::{
     CalibrationOptions, DEFAULT_THRESHOLD_MM, LaserCalibration, Method, ParameterStdDev, calibrate,
@@ -54,4 +55,8 @@ pub use refine::Residual;
 pub use samples::{
     LaserSample, parse_samples_csv, read_samples_csv, samples_csv_string, validate_samples,
     write_samples_csv,
+};
+pub use session::{
+    LaserSessionCalibration, LaserSessionOptions, ViewBoard, ViewSamples, calibrate_camera_session,
+    calibrate_laser_session, detect_session_boards, view_samples,
 };

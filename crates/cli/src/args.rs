@@ -33,8 +33,25 @@ pub enum Command {
 /// `alacs calibrate ...`
 #[derive(Debug, Subcommand)]
 pub enum CalibrateCommand {
-    /// Fit (alpha, L0, beta) to samples u_n,v_n,z_mm[,slide_mm] (the seed paper's eq. (9)).
+    /// Fit (alpha, L0, beta) (the seed paper's eq. (9)) to samples u_n,v_n,z_mm[,slide_mm],
+    /// or to dense samples from a session's images with a calibrated camera.
     Laser(CalibrateLaserArgs),
+    /// Calibrate the camera (intrinsics, plumb_bob distortion) from a session's board views.
+    Camera(CalibrateCameraArgs),
+}
+
+/// `alacs calibrate camera`
+#[derive(Debug, Args)]
+pub struct CalibrateCameraArgs {
+    /// Session folder (session.yaml beside the images).
+    #[arg(long, value_name = "DIR")]
+    pub session: PathBuf,
+    /// Write the calibrated camera.yaml here.
+    #[arg(short, long, value_name = "FILE")]
+    pub output: Option<PathBuf>,
+    /// Print one JSON object (FORMATS.md) on standard output instead of text.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// The residual minimized by the least-squares step.
@@ -50,8 +67,18 @@ pub enum ResidualArg {
 #[derive(Debug, Args)]
 pub struct CalibrateLaserArgs {
     /// Samples CSV: header u_n,v_n,z_mm and optionally slide_mm.
-    #[arg(long, value_name = "FILE")]
-    pub samples: PathBuf,
+    #[arg(long, value_name = "FILE", required_unless_present = "session", conflicts_with = "session")]
+    pub samples: Option<PathBuf>,
+    /// Session folder: laser samples from its images (board pose per view,
+    /// every stripe pixel on the board); needs --camera.
+    #[arg(long, value_name = "DIR", requires = "camera")]
+    pub session: Option<PathBuf>,
+    /// The calibrated camera.yaml of the session's camera.
+    #[arg(long, value_name = "FILE", requires = "session")]
+    pub camera: Option<PathBuf>,
+    /// Write the session's laser samples to this CSV (u_n,v_n,z_mm,slide_mm).
+    #[arg(long, value_name = "FILE", requires = "session")]
+    pub export_samples: Option<PathBuf>,
     /// The seed paper's method: 1 low fidelity, 2 low fidelity + RANSAC,
     /// 3 high fidelity, 4 high fidelity + RANSAC.
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(1..=4))]

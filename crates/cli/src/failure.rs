@@ -34,6 +34,12 @@ impl From<alacs::calib::Error> for Failure {
     }
 }
 
+impl From<alacs::vision::Error> for Failure {
+    fn from(error: alacs::vision::Error) -> Self {
+        alacs::calib::Error::from(error).into()
+    }
+}
+
 impl From<alacs::model::Error> for Failure {
     fn from(error: alacs::model::Error) -> Self {
         use alacs::model::Error as E;

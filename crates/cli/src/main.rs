@@ -17,6 +17,7 @@ fn main() -> ExitCode {
     let cli = args::Cli::parse();
     let result = match cli.command {
         args::Command::Calibrate(args::CalibrateCommand::Laser(a)) => cmd::calibrate::laser(&a),
+        args::Command::Calibrate(args::CalibrateCommand::Camera(a)) => cmd::calibrate::camera(&a),
         args::Command::Triangulate(a) => cmd::triangulate::run(&a),
         args::Command::Simulate(args::SimulateCommand::Samples(a)) => cmd::simulate::samples(&a),
         args::Command::Simulate(args::SimulateCommand::Session(a)) => cmd::simulate::session(&a),

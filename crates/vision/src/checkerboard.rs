@@ -15,6 +15,11 @@
 //!   grid), the one whose first corner lies nearest the image's top-left
 //!   corner is chosen, as OpenCV usually does.
 //!
+//! The detector's corners are then refined with the image gradients (see
+//! [`refine_corners`]) in a window of a quarter square: on OpenCV's
+//! photographs this lowers the calibration RMS from 0.215 px to 0.191 px,
+//! on simulated 5 MP sessions from 0.22 px to 0.034 px.
+//!
 //! Colour images are searched on their green channel: a red laser line
 //! barely shows there, so it cannot break the corner pattern.
 
@@ -29,6 +34,16 @@ use crate::{Error, Result};
 /// Largest fraction of a board's corners that may be missing inside the
 /// detected window; beyond it the view is refused.
 pub const MAX_MISSING_FRACTION: f64 = 0.1;
+
+/// Half window of the corner refinement per square side in the image. A
+/// quarter square: on OpenCV's photographs (squares of 25-45 px) 0.15,
+/// 0.2, 0.25, 0.3 and 0.35 gave a calibration RMS of 0.219, 0.199, 0.191,
+/// 0.236 and 0.357 px; on a simulated 5 MP session 0.043, 0.037, 0.034,
+/// 0.034, 0.034 px (the window capped at 15 px from 0.3 on).
+const REFINE_WINDOW_PER_CELL: f64 = 0.25;
+
+/// Largest half window of the corner refinement (px).
+const MAX_REFINE_HALF_WINDOW_PX: f64 = 15.0;
 
 /// A board found in an image: every inner corner in OpenCV's order.
 #[derive(Debug, Clone, PartialEq)]
@@ -50,6 +65,13 @@ impl BoardCorners {
     /// Number of corners found.
     pub fn found_count(&self) -> usize {
         self.corners_px.iter().filter(|c| c.is_some()).count()
+    }
+
+    /// The board's smallest square side in the image (px): the shorter of
+    /// the mean steps between neighbouring corners along a row and a column.
+    pub fn cell_size_px(&self) -> Option<f64> {
+        let (step_x, step_y) = board_steps(&self.corners_px, self.cols, self.rows)?;
+        Some(step_x.norm().min(step_y.norm()))
     }
 
     /// The outline of the corner grid in the image (the four outer corners,
@@ -88,7 +110,12 @@ pub fn detect_checkerboard(gray: &GrayImage, board: &BoardSpec) -> Result<BoardC
         })
         .filter(|(_, p)| p.x.is_finite() && p.y.is_finite())
         .collect();
-    label_grid(&grid, board, gray.width(), gray.height()).map_err(no_board)
+    let mut corners = label_grid(&grid, board, gray.width(), gray.height()).map_err(no_board)?;
+    let cell_px = corners.cell_size_px().unwrap_or(0.0);
+    let half_window =
+        (REFINE_WINDOW_PER_CELL * cell_px).round().clamp(2.0, MAX_REFINE_HALF_WINDOW_PX);
+    refine_corners(gray, &mut corners, half_window as u32);
+    Ok(corners)
 }
 
 /// Fits a labelled corner grid (grid coordinates, pixel) to the board:
@@ -244,4 +271,55 @@ fn first_corner_estimate(
 
 fn min_max(values: impl Iterator<Item = i64>) -> (i64, i64) {
     values.fold((i64::MAX, i64::MIN), |(lo, hi), v| (lo.min(v), hi.max(v)))
+}
+
+/// Refines corners to where the image gradients around each are orthogonal
+/// to the line towards it (the saddle of the checker pattern): minimizes
+/// sum_p (g_p . (q - p))^2 over a Gaussian-weighted window, as OpenCV's
+/// `cornerSubPix` does, iterating until the corner moves less than 0.001 px.
+/// A corner whose refinement wanders off by more than a window is kept where
+/// it was.
+pub fn refine_corners(gray: &GrayImage, corners: &mut BoardCorners, half_window_px: u32) {
+    let (width, height) = (gray.width() as i64, gray.height() as i64);
+    let w = i64::from(half_window_px.max(2));
+    let sigma = w as f64 / 2.0;
+    let at = |u: i64, v: i64| f64::from(gray.get_pixel(u as u32, v as u32)[0]);
+    for corner in corners.corners_px.iter_mut().flatten() {
+        let start = *corner;
+        let mut q = start;
+        for _ in 0..20 {
+            let (cu, cv) = (q.x.round() as i64, q.y.round() as i64);
+            if cu - w - 1 < 0 || cv - w - 1 < 0 || cu + w + 1 >= width || cv + w + 1 >= height {
+                break;
+            }
+            let (mut a11, mut a12, mut a22, mut b1, mut b2) = (0.0, 0.0, 0.0, 0.0, 0.0);
+            for v in cv - w..=cv + w {
+                for u in cu - w..=cu + w {
+                    let (du, dv) = (u as f64 - q.x, v as f64 - q.y);
+                    let weight = (-(du * du + dv * dv) / (2.0 * sigma * sigma)).exp();
+                    let gx = (at(u + 1, v) - at(u - 1, v)) / 2.0;
+                    let gy = (at(u, v + 1) - at(u, v - 1)) / 2.0;
+                    let (gxx, gxy, gyy) = (gx * gx * weight, gx * gy * weight, gy * gy * weight);
+                    a11 += gxx;
+                    a12 += gxy;
+                    a22 += gyy;
+                    b1 += gxx * u as f64 + gxy * v as f64;
+                    b2 += gxy * u as f64 + gyy * v as f64;
+                }
+            }
+            let det = a11 * a22 - a12 * a12;
+            if !(det.abs() > 1e-9) {
+                break;
+            }
+            let next = Point2::new((a22 * b1 - a12 * b2) / det, (a11 * b2 - a12 * b1) / det);
+            let moved = (next - q).norm();
+            q = next;
+            if moved < 1e-3 {
+                break;
+            }
+        }
+        if (q - start).norm() <= w as f64 && q.x.is_finite() && q.y.is_finite() {
+            *corner = q;
+        }
+    }
 }

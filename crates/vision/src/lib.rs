@@ -7,7 +7,13 @@
 mod checkerboard;
 mod error;
 mod image_io;
+mod stripe;
 
-pub use checkerboard::{BoardCorners, MAX_MISSING_FRACTION, board_gray, detect_checkerboard};
+pub use checkerboard::{
+    BoardCorners, MAX_MISSING_FRACTION, board_gray, detect_checkerboard, refine_corners,
+};
 pub use error::{Error, Result};
 pub use image_io::read_image;
+pub use stripe::{
+    PeakMethod, Region, ScoreImage, StripeOptions, StripePoint, extract_stripe, laser_score,
+};

@@ -1,10 +1,16 @@
-//! `alacs calibrate laser`.
+//! `alacs calibrate laser` and `alacs calibrate camera`.
 
-use alacs::calib::{CalibrationOptions, Method, Residual, read_samples_csv};
+use std::path::Path;
+
+use alacs::calib::{
+    CalibrationOptions, IntrinsicsOptions, LaserSessionOptions, Method, Residual,
+    calibrate_camera_session, calibrate_laser_session, read_samples_csv, write_samples_csv,
+};
+use alacs::{Camera, Session};
 use anyhow::anyhow;
 use serde_json::json;
 
-use crate::args::{CalibrateLaserArgs, ResidualArg};
+use crate::args::{CalibrateCameraArgs, CalibrateLaserArgs, ResidualArg};
 use crate::failure::{CmdResult, Failure};
 use crate::output;
 
@@ -36,10 +42,16 @@ pub fn laser(args: &CalibrateLaserArgs) -> CmdResult {
     let options = options(args)?;
     let method = Method::from_number(args.method)
         .ok_or_else(|| Failure::bad_input(anyhow!("--method must be 1, 2, 3 or 4")))?;
-    let samples = read_samples_csv(&args.samples)?;
+    let (samples, source) = match (&args.samples, &args.session, &args.camera) {
+        (Some(path), _, _) => (read_samples_csv(path)?, path.display().to_string()),
+        (None, Some(dir), Some(camera)) => {
+            (session_samples(args, dir, camera, &options)?, dir.display().to_string())
+        }
+        _ => return Err(Failure::bad_input(anyhow!("give --samples FILE or --session DIR --camera FILE"))),
+    };
     let context = |e: alacs::calib::Error| {
         let code = Failure::from(e);
-        Failure { error: code.error.context(format!("{}", args.samples.display())), ..code }
+        Failure { error: code.error.context(source.clone()), ..code }
     };
 
     let (chosen, results) = if args.compare {
@@ -59,7 +71,7 @@ pub fn laser(args: &CalibrateLaserArgs) -> CmdResult {
             fit.method.name(),
             fit.inliers.len(),
             fit.n_samples,
-            args.samples.display(),
+            source,
             fit.mean_abs_error_mm
         );
         fit.laser.to_yaml_file(path, &header)?;
@@ -78,6 +90,110 @@ pub fn laser(args: &CalibrateLaserArgs) -> CmdResult {
             println!();
         }
         print!("{}", output::summary(fit, options.threshold_mm));
+        if let Some(path) = &args.output {
+            println!("wrote {}", path.display());
+        }
+    }
+    Ok(())
+}
+
+/// The dense laser samples of a session (with the quality gate's warnings on
+/// standard error), exported where asked.
+fn session_samples(
+    args: &CalibrateLaserArgs,
+    dir: &Path,
+    camera_path: &Path,
+    calibration: &CalibrationOptions,
+) -> CmdResult<Vec<alacs::LaserSample>> {
+    let session = Session::read(dir)?;
+    let camera = Camera::from_yaml_file(camera_path)?;
+    let method = Method::from_number(args.method).unwrap_or(Method::HighFidelityRansac);
+    let options = LaserSessionOptions {
+        calibration: calibration.clone(),
+        method: Some(method),
+        ..LaserSessionOptions::default()
+    };
+    let bar = output::progress_bar(args.json, "laser samples");
+    output::start_progress(&bar, session.views.len(), "views: board pose and laser stripe");
+    let result = calibrate_laser_session(&session, &camera, &options, &|| bar.inc(1));
+    bar.finish_and_clear();
+    let result = result.map_err(|e| {
+        let code = Failure::from(e);
+        Failure { error: code.error.context(dir.display().to_string()), ..code }
+    })?;
+    for view in &result.views {
+        match &view.rejected {
+            Some(reason) => eprintln!("warning: {}: not used: {reason}", view.image),
+            None if !args.json => eprintln!(
+                "{}: slide {:.1} mm, {} samples, board pose RMS {:.3} px",
+                view.image,
+                view.slide_mm,
+                view.n_samples,
+                view.pose_rms_px.unwrap_or(f64::NAN)
+            ),
+            None => {}
+        }
+    }
+    for warning in &result.warnings {
+        eprintln!("warning: {warning}");
+    }
+    if let Some(path) = &args.export_samples {
+        write_samples_csv(path, &result.samples)?;
+    }
+    Ok(result.samples)
+}
+
+/// Runs `alacs calibrate camera`.
+pub fn camera(args: &CalibrateCameraArgs) -> CmdResult {
+    let session = Session::read(&args.session)?;
+    let bar = output::progress_bar(args.json, "board corners");
+    output::start_progress(&bar, session.views.len(), "views: board corners");
+    let fit = calibrate_camera_session(&session, &IntrinsicsOptions::default(), &|| bar.inc(1));
+    bar.finish_and_clear();
+    let mut fit = fit.map_err(|e| {
+        let code = Failure::from(e);
+        Failure { error: code.error.context(args.session.display().to_string()), ..code }
+    })?;
+    fit.camera.name = session
+        .dir
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "camera".into());
+    let rejected: Vec<&str> =
+        fit.views.iter().filter(|v| v.rejected.is_some()).map(|v| v.name.as_str()).collect();
+    if let Some(path) = &args.output {
+        fit.camera.to_yaml_file(path)?;
+    }
+    let c = &fit.camera;
+    let (model, dist) = c.distortion.ros_model();
+    if args.json {
+        output::print_json(&json!({
+            "fx_px": c.fx_px, "fy_px": c.fy_px, "cx_px": c.cx_px, "cy_px": c.cy_px,
+            "distortion_model": model, "dist": dist,
+            "rms_px": fit.rms_px, "views_used": fit.views_used(), "views_rejected": rejected,
+            "width_px": c.width_px, "height_px": c.height_px,
+            "std_dev": fit.std_dev.map(|s| json!({
+                "fx_px": s[0], "fy_px": s[1], "cx_px": s[2], "cy_px": s[3],
+                "k1": s[4], "k2": s[5], "p1": s[6], "p2": s[7], "k3": s[8],
+            })),
+            "views": fit.views.iter().map(|v| json!({
+                "image": v.name, "rms_px": v.rms_px, "rejected": v.rejected,
+            })).collect::<Vec<_>>(),
+        }));
+    } else {
+        let sd = |i: usize| fit.std_dev.map(|s| format!(" +- {:.2}", s[i])).unwrap_or_default();
+        println!("camera {} x {} px from {} of {} views", c.width_px, c.height_px, fit.views_used(), fit.views.len());
+        println!("  fx {:.2}{} px, fy {:.2}{} px", c.fx_px, sd(0), c.fy_px, sd(1));
+        println!("  cx {:.2}{} px, cy {:.2}{} px", c.cx_px, sd(2), c.cy_px, sd(3));
+        println!("  {model} {:?}", dist.iter().map(|d| (d * 1e5).round() / 1e5).collect::<Vec<_>>());
+        println!("  reprojection RMS {:.3} px", fit.rms_px);
+        for view in &fit.views {
+            let rms = view.rms_px.map(|r| format!("{r:.3} px")).unwrap_or_else(|| "-".into());
+            match &view.rejected {
+                None => println!("  {:<24} {rms}", view.name),
+                Some(reason) => println!("  {:<24} {rms} rejected: {reason}", view.name),
+            }
+        }
         if let Some(path) = &args.output {
             println!("wrote {}", path.display());
         }

@@ -1,0 +1,355 @@
+//! Laser-stripe extraction: a red-laser score per pixel, one peak per image
+//! row inside a region, and its sub-pixel centre across the stripe.
+//!
+//! The ALACS laser plane contains (nearly) the camera's y axis, so its line
+//! runs down the image: one peak per row finds it, and the centre is found
+//! across the line along the row.
+//!
+//! Score (DN, 0-255 scale):
+//! - with a laser-off image of the same pose: `R_on - R_off`, clamped at 0;
+//!   the scene cancels, only the laser's added light remains;
+//! - without: `R - max(G, B)`, clamped at 0: zero on grey and white surfaces
+//!   (a checkerboard), positive where red light dominates.
+
+use image::{ImageBuffer, Luma, RgbImage};
+use nalgebra::Point2;
+
+use crate::{Error, Result};
+
+/// A laser score per pixel (DN).
+pub type ScoreImage = ImageBuffer<Luma<f32>, Vec<f32>>;
+
+/// How the sub-pixel centre across the stripe is found from the scores
+/// around a row's peak.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PeakMethod {
+    /// Centre of gravity of the background-subtracted scores over the stripe
+    /// (its half-maximum extent, widened each side by its width).
+    #[default]
+    CentreOfGravity,
+    /// A Gaussian through the peak and its two neighbours (a parabola
+    /// through their logarithms).
+    Gaussian,
+    /// A parabola through the peak and its two neighbours.
+    Parabola,
+}
+
+/// Settings of [`extract_stripe`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct StripeOptions {
+    /// Smallest peak score that counts as laser (DN).
+    pub min_strength: f32,
+    /// Widest stripe accepted at half maximum (px): a wider peak is a
+    /// saturated blob or a red surface, not a line.
+    pub max_width_px: f64,
+    /// A row is ambiguous, and skipped, when a second peak away from the
+    /// first reaches this fraction of it.
+    pub ambiguity_ratio: f32,
+    /// The sub-pixel method.
+    pub method: PeakMethod,
+}
+
+impl Default for StripeOptions {
+    fn default() -> Self {
+        StripeOptions {
+            min_strength: 12.0,
+            max_width_px: 12.0,
+            ambiguity_ratio: 0.5,
+            method: PeakMethod::CentreOfGravity,
+        }
+    }
+}
+
+/// One point of the stripe: its centre on an image row.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StripePoint {
+    /// Sub-pixel column of the centre.
+    pub u_px: f64,
+    /// The row.
+    pub v_px: f64,
+    /// Peak score (DN).
+    pub strength: f32,
+    /// Width at half maximum (px).
+    pub width_px: f64,
+}
+
+/// The pixels a search covers: an inclusive column span per row.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Region {
+    /// (row, first column, last column), rows increasing.
+    spans: Vec<(u32, u32, u32)>,
+}
+
+impl Region {
+    /// The whole image.
+    pub fn full(width: u32, height: u32) -> Region {
+        Region::rect(0, 0, width.saturating_sub(1), height.saturating_sub(1), width, height)
+    }
+
+    /// The rectangle u0..=u1, v0..=v1, clipped to the image.
+    pub fn rect(u0: u32, v0: u32, u1: u32, v1: u32, width: u32, height: u32) -> Region {
+        let (u1, v1) = (u1.min(width.saturating_sub(1)), v1.min(height.saturating_sub(1)));
+        let spans = if width == 0 || height == 0 || u0 > u1 || v0 > v1 {
+            Vec::new()
+        } else {
+            (v0..=v1).map(|v| (v, u0, u1)).collect()
+        };
+        Region { spans }
+    }
+
+    /// The pixels whose centres lie inside a convex polygon (vertices in
+    /// order, either direction), shrunk by `margin_px`, clipped to the image.
+    pub fn convex_polygon(vertices: &[Point2<f64>], margin_px: f64, width: u32, height: u32) -> Region {
+        if vertices.len() < 3 || vertices.iter().any(|p| !(p.x.is_finite() && p.y.is_finite())) {
+            return Region { spans: Vec::new() };
+        }
+        let (v_min, v_max) = vertices.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p.y), hi.max(p.y))
+        });
+        let first = v_min.ceil().max(0.0) as u32;
+        let last = (v_max.floor().min(f64::from(height) - 1.0)).max(-1.0);
+        let mut spans = Vec::new();
+        if last < 0.0 {
+            return Region { spans };
+        }
+        for v in first..=last as u32 {
+            let y = f64::from(v);
+            let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
+            let mut inside = true;
+            let n = vertices.len();
+            // Orientation: the polygon's signed area.
+            let area: f64 = (0..n)
+                .map(|i| {
+                    let (a, b) = (vertices[i], vertices[(i + 1) % n]);
+                    a.x * b.y - b.x * a.y
+                })
+                .sum();
+            let sign = if area >= 0.0 { 1.0 } else { -1.0 };
+            for i in 0..n {
+                let (a, b) = (vertices[i], vertices[(i + 1) % n]);
+                // Inside: sign * cross(b - a, p - a) >= margin * |b - a|, linear in x.
+                let (ex, ey) = (b.x - a.x, b.y - a.y);
+                let length = (ex * ex + ey * ey).sqrt();
+                if length == 0.0 {
+                    continue;
+                }
+                // cross = ex * (y - a.y) - ey * (x - a.x) = c0 - ey * x
+                let c0 = ex * (y - a.y) + ey * a.x;
+                let (slope, offset) = (-ey * sign, c0 * sign - margin_px * length);
+                // slope * x + offset >= 0
+                if slope.abs() < 1e-12 {
+                    if offset < 0.0 {
+                        inside = false;
+                    }
+                } else if slope > 0.0 {
+                    lo = lo.max(-offset / slope);
+                } else {
+                    hi = hi.min(-offset / slope);
+                }
+            }
+            let lo = lo.ceil().max(0.0);
+            let hi = hi.floor().min(f64::from(width) - 1.0);
+            if inside && lo <= hi {
+                spans.push((v, lo as u32, hi as u32));
+            }
+        }
+        Region { spans }
+    }
+
+    /// Number of pixels covered.
+    pub fn pixel_count(&self) -> usize {
+        self.spans.iter().map(|&(_, a, b)| (b - a + 1) as usize).sum()
+    }
+
+    /// Whether pixel (u, v) (rounded) lies in the region.
+    pub fn contains(&self, u: f64, v: f64) -> bool {
+        let (u, v) = (u.round(), v.round());
+        self.spans.iter().any(|&(row, a, b)| f64::from(row) == v && f64::from(a) <= u && u <= f64::from(b))
+    }
+}
+
+/// The laser score of a frame (see the module docs), optionally against a
+/// laser-off image of the same pose.
+pub fn laser_score(on: &RgbImage, off: Option<&RgbImage>) -> Result<ScoreImage> {
+    let (width, height) = on.dimensions();
+    match off {
+        Some(off) => {
+            if off.dimensions() != (width, height) {
+                return Err(Error::Mismatch {
+                    message: format!(
+                        "the laser-off image is {} x {} px, the laser image {width} x {height} px",
+                        off.width(),
+                        off.height()
+                    ),
+                });
+            }
+            let data = on
+                .pixels()
+                .zip(off.pixels())
+                .map(|(a, b)| (f32::from(a[0]) - f32::from(b[0])).max(0.0))
+                .collect();
+            Ok(ScoreImage::from_raw(width, height, data).unwrap_or_else(|| ScoreImage::new(width, height)))
+        }
+        None => {
+            let data = on
+                .pixels()
+                .map(|p| (f32::from(p[0]) - f32::from(p[1].max(p[2]))).max(0.0))
+                .collect();
+            Ok(ScoreImage::from_raw(width, height, data).unwrap_or_else(|| ScoreImage::new(width, height)))
+        }
+    }
+}
+
+/// The stripe: at most one point per row of the region (see
+/// [`StripeOptions`] for what is skipped).
+pub fn extract_stripe(score: &ScoreImage, region: &Region, options: &StripeOptions) -> Vec<StripePoint> {
+    let width = score.width() as usize;
+    let data = score.as_raw();
+    let mut points = Vec::new();
+    for &(v, u0, u1) in &region.spans {
+        let row_start = v as usize * width;
+        let Some(row) = data.get(row_start + u0 as usize..=row_start + u1 as usize) else {
+            continue;
+        };
+        if let Some((u, strength, width_px)) = row_peak(row, options) {
+            points.push(StripePoint { u_px: f64::from(u0) + u, v_px: f64::from(v), strength, width_px });
+        }
+    }
+    points
+}
+
+/// The sub-pixel peak of one row's scores: (column within the row, peak
+/// score, width at half maximum).
+fn row_peak(row: &[f32], options: &StripeOptions) -> Option<(f64, f32, f64)> {
+    let (k, &peak) = row.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1))?;
+    if !(peak >= options.min_strength) {
+        return None;
+    }
+    let half = peak / 2.0;
+    let mut left = k;
+    while left > 0 && row[left - 1] > half {
+        left -= 1;
+    }
+    let mut right = k;
+    while right + 1 < row.len() && row[right + 1] > half {
+        right += 1;
+    }
+    // Width at half maximum, interpolated at both flanks.
+    let flank = |inside: usize, outside: Option<usize>| -> f64 {
+        match outside {
+            Some(o) => {
+                let (a, b) = (row[inside], row[o]);
+                if a > b { f64::from((a - half) / (a - b)) } else { 0.5 }
+            }
+            None => 0.5,
+        }
+    };
+    let width_px = (right - left) as f64
+        + flank(left, left.checked_sub(1))
+        + flank(right, (right + 1 < row.len()).then_some(right + 1));
+    if width_px > options.max_width_px {
+        return None;
+    }
+    // A second peak clear of this one's flanks makes the row ambiguous.
+    let guard = (2.0 * width_px).ceil() as usize + 2;
+    let rival = row
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| *i + guard < k || *i > k + guard)
+        .map(|(_, s)| *s)
+        .fold(0.0_f32, f32::max);
+    if rival > options.ambiguity_ratio * peak {
+        return None;
+    }
+    let centre = match options.method {
+        PeakMethod::CentreOfGravity => {
+            let margin = (width_px.ceil() as usize).max(2);
+            let lo = left.saturating_sub(margin);
+            let hi = (right + margin).min(row.len() - 1);
+            let background = row[lo].min(row[hi]);
+            let (mut sum, mut weighted) = (0.0_f64, 0.0_f64);
+            for (i, s) in row.iter().enumerate().take(hi + 1).skip(lo) {
+                let w = f64::from((s - background).max(0.0));
+                sum += w;
+                weighted += w * i as f64;
+            }
+            if sum <= 0.0 {
+                return None;
+            }
+            weighted / sum
+        }
+        PeakMethod::Gaussian | PeakMethod::Parabola => {
+            if k == 0 || k + 1 >= row.len() {
+                return None;
+            }
+            let transform = |s: f32| match options.method {
+                PeakMethod::Gaussian => f64::from(s.max(1e-3)).ln(),
+                _ => f64::from(s),
+            };
+            let (a, b, c) = (transform(row[k - 1]), transform(row[k]), transform(row[k + 1]));
+            let denominator = a - 2.0 * b + c;
+            let offset = if denominator < 0.0 { 0.5 * (a - c) / denominator } else { 0.0 };
+            k as f64 + offset.clamp(-0.5, 0.5)
+        }
+    };
+    Some((centre, peak, width_px))
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    /// A row with a Gaussian stripe of sigma 1.5 px at `centre` over a background.
+    fn gaussian_row(centre: f64, n: usize) -> Vec<f32> {
+        (0..n)
+            .map(|i| (3.0 + 100.0 * (-((i as f64 - centre).powi(2)) / (2.0 * 1.5 * 1.5)).exp()) as f32)
+            .collect()
+    }
+
+    #[test]
+    fn every_method_finds_a_gaussian_peak() {
+        for method in [PeakMethod::CentreOfGravity, PeakMethod::Gaussian, PeakMethod::Parabola] {
+            let options = StripeOptions { method, ..StripeOptions::default() };
+            for centre in [20.0, 20.25, 20.5, 20.8] {
+                let (u, strength, width) = row_peak(&gaussian_row(centre, 41), &options).unwrap();
+                let tolerance = if method == PeakMethod::Parabola { 0.1 } else { 0.01 };
+                assert!((u - centre).abs() < tolerance, "{method:?}: {u} vs {centre}");
+                assert!(strength > 90.0);
+                assert!((width - 2.355 * 1.5).abs() < 0.3, "{width}");
+            }
+        }
+    }
+
+    #[test]
+    fn weak_wide_and_ambiguous_rows_are_skipped() {
+        let options = StripeOptions::default();
+        let weak: Vec<f32> = gaussian_row(20.0, 41).iter().map(|s| s / 20.0).collect();
+        assert!(row_peak(&weak, &options).is_none());
+        let wide: Vec<f32> = (0..41).map(|i| if (5..30).contains(&i) { 200.0 } else { 0.0 }).collect();
+        assert!(row_peak(&wide, &options).is_none());
+        let mut two = gaussian_row(10.0, 41);
+        for (s, t) in two.iter_mut().zip(gaussian_row(32.0, 41)) {
+            *s += t * 0.8;
+        }
+        assert!(row_peak(&two, &options).is_none());
+    }
+
+    #[test]
+    fn polygon_region_holds_the_inside_pixels() {
+        let square = [
+            Point2::new(10.0, 10.0),
+            Point2::new(20.0, 10.0),
+            Point2::new(20.0, 20.0),
+            Point2::new(10.0, 20.0),
+        ];
+        let region = Region::convex_polygon(&square, 0.0, 100, 100);
+        assert_eq!(region.pixel_count(), 121);
+        let reversed: Vec<_> = square.iter().rev().copied().collect();
+        assert_eq!(Region::convex_polygon(&reversed, 0.0, 100, 100), region);
+        let shrunk = Region::convex_polygon(&square, 2.0, 100, 100);
+        assert_eq!(shrunk.pixel_count(), 49);
+        assert!(region.contains(10.0, 20.0) && !shrunk.contains(11.0, 15.0));
+        assert_eq!(Region::convex_polygon(&square, 0.0, 15, 15).pixel_count(), 25);
+    }
+}
