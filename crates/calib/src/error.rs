@@ -80,7 +80,9 @@ impl Error {
             Error::Io { .. }
                 | Error::Csv { .. }
                 | Error::InvalidSample { .. }
-                | Error::Vision(alacs_vision::Error::Image { .. } | alacs_vision::Error::Mismatch { .. })
+                | Error::Vision(
+                    alacs_vision::Error::Image { .. } | alacs_vision::Error::Mismatch { .. }
+                )
         )
     }
 }

@@ -19,8 +19,8 @@
 use alacs_model::{Camera, Distortion};
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{
-    DMatrix, DVector, Dyn, Isometry3, Matrix3, Owned, Point2, Point3, Translation3,
-    UnitQuaternion, Vector3,
+    DMatrix, DVector, Dyn, Isometry3, Matrix3, Owned, Point2, Point3, Translation3, UnitQuaternion,
+    Vector3,
 };
 
 use crate::{Error, Result};
@@ -104,7 +104,12 @@ pub fn calibrate_intrinsics(
 ) -> Result<IntrinsicsFit> {
     let mut fits: Vec<ViewFit> = views
         .iter()
-        .map(|v| ViewFit { name: v.name.clone(), camera_from_board: None, rms_px: None, rejected: None })
+        .map(|v| ViewFit {
+            name: v.name.clone(),
+            camera_from_board: None,
+            rms_px: None,
+            rejected: None,
+        })
         .collect();
     for (view, fit) in views.iter().zip(&mut fits) {
         if let Err(reason) = check_view(view) {
@@ -151,11 +156,11 @@ pub fn calibrate_intrinsics(
         }
         // Rejected views: their RMS under the final camera, where a pose fits.
         for (view, fit) in views.iter().zip(&mut fits) {
-            if fit.rejected.is_some() && check_view(view).is_ok() {
-                if let Ok((pose, rms)) = board_pose(&camera, view) {
-                    let _ = pose;
-                    fit.rms_px = Some(rms);
-                }
+            if fit.rejected.is_some()
+                && check_view(view).is_ok()
+                && let Ok((_, rms)) = board_pose(&camera, view)
+            {
+                fit.rms_px = Some(rms);
             }
         }
         return Ok(IntrinsicsFit {
@@ -172,7 +177,11 @@ fn rejected_summary(fits: &[ViewFit]) -> String {
         .iter()
         .filter_map(|f| f.rejected.as_ref().map(|r| format!("{}: {r}", f.name)))
         .collect();
-    if rejected.is_empty() { String::new() } else { format!(" (rejected: {})", rejected.join("; ")) }
+    if rejected.is_empty() {
+        String::new()
+    } else {
+        format!(" (rejected: {})", rejected.join("; "))
+    }
 }
 
 /// Why a view cannot be used at all, if it cannot.
@@ -214,9 +223,10 @@ pub(crate) fn homography(from: &[Point2<f64>], to: &[Point2<f64>]) -> Option<Mat
         let q = t_to * q.to_homogeneous();
         let (x, y) = (p.x / p.z, p.y / p.z);
         let (u, v) = (q.x / q.z, q.y / q.z);
-        let rows = [[x, y, 1.0, 0.0, 0.0, 0.0, -u * x, -u * y, -u], [
-            0.0, 0.0, 0.0, x, y, 1.0, -v * x, -v * y, -v,
-        ]];
+        let rows = [
+            [x, y, 1.0, 0.0, 0.0, 0.0, -u * x, -u * y, -u],
+            [0.0, 0.0, 0.0, x, y, 1.0, -v * x, -v * y, -v],
+        ];
         for (r, row) in rows.iter().enumerate() {
             for (c, value) in row.iter().enumerate() {
                 a[(2 * k + r, c)] = *value;
@@ -260,7 +270,8 @@ fn initial_guess(
     // Work in pixel coordinates scaled to about unit size, for conditioning.
     let scale = f64::from(width_px.max(height_px)).max(1.0);
     let (cx0, cy0) = ((f64::from(width_px) - 1.0) / 2.0, (f64::from(height_px) - 1.0) / 2.0);
-    let to_unit = Matrix3::new(1.0 / scale, 0.0, -cx0 / scale, 0.0, 1.0 / scale, -cy0 / scale, 0.0, 0.0, 1.0);
+    let to_unit =
+        Matrix3::new(1.0 / scale, 0.0, -cx0 / scale, 0.0, 1.0 / scale, -cy0 / scale, 0.0, 0.0, 1.0);
     let unit_h: Vec<Matrix3<f64>> = homographies.iter().map(|h| to_unit * h).collect();
     let k_unit = zhang(&unit_h).or_else(|| centred(&unit_h)).ok_or_else(|| {
         Error::Degenerate(
@@ -340,7 +351,10 @@ fn centred(homographies: &[Matrix3<f64>]) -> Option<Matrix3<f64>> {
         let (h1, h2) = (h.column(0), h.column(1));
         let rows = [
             ([h1[0] * h2[0], h1[1] * h2[1]], -h1[2] * h2[2]),
-            ([h1[0] * h1[0] - h2[0] * h2[0], h1[1] * h1[1] - h2[1] * h2[1]], -(h1[2] * h1[2] - h2[2] * h2[2])),
+            (
+                [h1[0] * h1[0] - h2[0] * h2[0], h1[1] * h1[1] - h2[1] * h2[1]],
+                -(h1[2] * h1[2] - h2[2] * h2[2]),
+            ),
         ];
         for (a, b) in rows {
             let a = nalgebra::Vector2::new(a[0], a[1]);
@@ -561,13 +575,15 @@ fn so3_left_jacobian(w: &Vector3<f64>) -> Matrix3<f64> {
     Matrix3::identity() + wx * a + wx * wx * b
 }
 
-/// Runs Levenberg-Marquardt over intrinsics and poses; returns the refined
-/// camera, poses and intrinsics standard deviations.
+/// A refined camera, its board poses and its intrinsics' standard deviations.
+type Refined = (Camera, Vec<Isometry3<f64>>, Option<[f64; 9]>);
+
+/// Runs Levenberg-Marquardt over intrinsics and poses.
 fn refine(
     camera: Camera,
     poses: Vec<Isometry3<f64>>,
     views: &[&BoardObservation],
-) -> Result<(Camera, Vec<Isometry3<f64>>, Option<[f64; 9]>)> {
+) -> Result<Refined> {
     let problem = Reprojection {
         views,
         fixed: None,
@@ -579,9 +595,9 @@ fn refine(
         return Err(Error::FitFailed(format!("camera calibration: {:?}", report.termination)));
     }
     let camera = problem.camera();
-    camera
-        .validate()
-        .map_err(|e| Error::FitFailed(format!("camera calibration ended at an unusable camera: {e}")))?;
+    camera.validate().map_err(|e| {
+        Error::FitFailed(format!("camera calibration ended at an unusable camera: {e}"))
+    })?;
     let poses: Vec<Isometry3<f64>> = (0..views.len()).map(|v| problem.pose(v)).collect();
     let std_dev = intrinsics_std_dev(&problem);
     Ok((camera, poses, std_dev))
@@ -609,7 +625,10 @@ pub fn board_pose(camera: &Camera, view: &BoardObservation) -> Result<(Isometry3
     let mut normalized = Vec::with_capacity(view.pixels.len());
     for pixel in &view.pixels {
         let n = camera.undistort_pixel(pixel).map_err(|e| {
-            Error::Degenerate(format!("{}: corner ({:.1}, {:.1}): {e}", view.name, pixel.x, pixel.y))
+            Error::Degenerate(format!(
+                "{}: corner ({:.1}, {:.1}): {e}",
+                view.name, pixel.x, pixel.y
+            ))
         })?;
         normalized.push(n);
     }
@@ -656,7 +675,8 @@ mod tests {
     #[test]
     fn jacobian_matches_finite_differences() {
         let camera = Camera::blackfly_s_5mp();
-        let pose = Isometry3::new(Vector3::new(-150.0, -100.0, 800.0), Vector3::new(0.3, -0.4, 0.2));
+        let pose =
+            Isometry3::new(Vector3::new(-150.0, -100.0, 800.0), Vector3::new(0.3, -0.4, 0.2));
         let view = board_view(&camera, &pose);
         let views = [&view];
         let mut problem = Reprojection {

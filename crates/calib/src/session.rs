@@ -22,8 +22,9 @@ use nalgebra::{Isometry3, Vector3};
 use rayon::prelude::*;
 
 use crate::{
-    BoardObservation, CalibrationOptions, Error, IntrinsicsFit, IntrinsicsOptions, LaserCalibration,
-    LaserSample, Method, Result, ViewFit, board_pose, calibrate, calibrate_intrinsics,
+    BoardObservation, CalibrationOptions, Error, IntrinsicsFit, IntrinsicsOptions,
+    LaserCalibration, LaserSample, Method, Result, ViewFit, board_pose, calibrate,
+    calibrate_intrinsics,
 };
 
 /// Laser pixels closer than this to the board's corner polygon are not used:
@@ -254,7 +255,8 @@ pub fn view_samples(
         report.rejected = Some("an outer corner of the board was not found".into());
         return Ok((Vec::new(), report));
     };
-    let region = Region::convex_polygon(&outline, BOARD_MARGIN_PX, camera.width_px, camera.height_px);
+    let region =
+        Region::convex_polygon(&outline, BOARD_MARGIN_PX, camera.width_px, camera.height_px);
     let score = laser_score(&on.to_rgb8(), off.as_ref().map(|o| o.to_rgb8()).as_ref())?;
     let stripe_points = extract_stripe(&score, &region, stripe);
     // The board plane in the camera frame: normal n, through the board origin t.
@@ -273,7 +275,12 @@ pub fn view_samples(
         }
         let z_mm = offset / denominator;
         if z_mm.is_finite() && z_mm > 0.0 {
-            samples.push(LaserSample { u_n: normalized.x, v_n: normalized.y, z_mm, slide_mm: view.slide_mm });
+            samples.push(LaserSample {
+                u_n: normalized.x,
+                v_n: normalized.y,
+                z_mm,
+                slide_mm: view.slide_mm,
+            });
         }
     }
     report.n_samples = samples.len();
@@ -322,12 +329,8 @@ pub fn calibrate_laser_session(
     }
     let method = options.method.unwrap_or(Method::HighFidelityRansac);
     let calibration = calibrate(&samples, method, &options.calibration)?;
-    let warnings = quality_warnings(
-        &samples,
-        &calibration,
-        contributing,
-        options.calibration.threshold_mm,
-    );
+    let warnings =
+        quality_warnings(&samples, &calibration, contributing, options.calibration.threshold_mm);
     Ok(LaserSessionCalibration { calibration, samples, views, warnings })
 }
 

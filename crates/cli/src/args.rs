@@ -23,6 +23,8 @@ pub enum Command {
     Calibrate(CalibrateCommand),
     /// Map laser pixels to 3-D points in the camera frame (eqs. (3), (7), (8)).
     Triangulate(TriangulateArgs),
+    /// Extract the laser stripe of one frame (u_px,v_px,strength), to check exposure.
+    Stripe(StripeArgs),
     /// Generate simulated data with ground truth.
     #[command(subcommand)]
     Simulate(SimulateCommand),
@@ -67,7 +69,12 @@ pub enum ResidualArg {
 #[derive(Debug, Args)]
 pub struct CalibrateLaserArgs {
     /// Samples CSV: header u_n,v_n,z_mm and optionally slide_mm.
-    #[arg(long, value_name = "FILE", required_unless_present = "session", conflicts_with = "session")]
+    #[arg(
+        long,
+        value_name = "FILE",
+        required_unless_present = "session",
+        conflicts_with = "session"
+    )]
     pub samples: Option<PathBuf>,
     /// Session folder: laser samples from its images (board pose per view,
     /// every stripe pixel on the board); needs --camera.
@@ -104,6 +111,26 @@ pub struct CalibrateLaserArgs {
     /// Write the fitted laser.yaml here (the --method result; with --compare, Method 4 unless --method says otherwise).
     #[arg(short, long, value_name = "FILE")]
     pub output: Option<PathBuf>,
+}
+
+/// `alacs stripe`
+#[derive(Debug, Args)]
+pub struct StripeArgs {
+    /// The frame (PNG or JPEG, colour).
+    #[arg(long, value_name = "FILE")]
+    pub image: PathBuf,
+    /// The same view with the laser off: the score becomes red(on) - red(off).
+    #[arg(long, value_name = "FILE")]
+    pub laser_off: Option<PathBuf>,
+    /// Search only this rectangle: u0,v0,u1,v1 (pixels, inclusive).
+    #[arg(long, value_name = "U0,V0,U1,V1")]
+    pub roi: Option<String>,
+    /// Smallest peak score counted as laser (DN).
+    #[arg(long, value_name = "DN", default_value_t = alacs::vision::StripeOptions::default().min_strength)]
+    pub min_strength: f32,
+    /// Print one JSON object on standard output instead of CSV.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// `alacs triangulate`

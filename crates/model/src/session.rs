@@ -210,11 +210,20 @@ mod tests {
     #[test]
     fn bad_files_name_the_key() {
         for (text, key) in [
-            ("board: {inner_corners: [9], square_mm: 25}\nviews: [{image: a.png}]", "inner_corners"),
+            (
+                "board: {inner_corners: [9], square_mm: 25}\nviews: [{image: a.png}]",
+                "inner_corners",
+            ),
             ("board: {inner_corners: [9, 6], square_mm: -1}\nviews: [{image: a.png}]", "square_mm"),
-            ("board: {inner_corners: [9, 6], square_mm: [1, 2, 3]}\nviews: [{image: a}]", "square_mm"),
+            (
+                "board: {inner_corners: [9, 6], square_mm: [1, 2, 3]}\nviews: [{image: a}]",
+                "square_mm",
+            ),
             ("board: {inner_corners: [9, 6], square_mm: 25}\nviews: []", "views"),
-            ("board: {inner_corners: [9, 6], square_mm: 25}\nviews: [{image: a, slide_mm: .nan}]", "slide_mm"),
+            (
+                "board: {inner_corners: [9, 6], square_mm: 25}\nviews: [{image: a, slide_mm: .nan}]",
+                "slide_mm",
+            ),
             ("board: {inner_corners: [9, 6]}\nviews: [{image: a}]", "square_mm"),
         ] {
             let message = parse(text).unwrap_err().to_string();

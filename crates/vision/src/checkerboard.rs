@@ -187,8 +187,9 @@ fn label_grid(
     // A labelling maps (col, row) to window coordinates (a, b): rows and
     // columns swapped or not, then either axis reversed or not.
     let labellings = (0..8u8).map(|bits| (bits & 1 != 0, bits & 2 != 0, bits & 4 != 0));
-    let labellings: Vec<(bool, bool, bool)> =
-        labellings.filter(|&(swap, _, _)| if swap { (w, h) == (rows, cols) } else { (w, h) == (cols, rows) }).collect();
+    let labellings: Vec<(bool, bool, bool)> = labellings
+        .filter(|&(swap, _, _)| if swap { (w, h) == (rows, cols) } else { (w, h) == (cols, rows) })
+        .collect();
     let corner = |&(swap, flip_a, flip_b): &(bool, bool, bool), c: i64, r: i64| {
         let (a, b) = if swap { (r, c) } else { (c, r) };
         let a = if flip_a { w - 1 - a } else { a };
@@ -215,11 +216,12 @@ fn label_grid(
         }
     }
     let (_, corners_px) = chosen.ok_or("the corner grid is degenerate (no board axes)")?;
-    if let Some((i, p)) = corners_px
-        .iter()
-        .enumerate()
-        .find_map(|(i, p)| p.filter(|p| p.x < -0.5 || p.y < -0.5 || p.x > width as f64 - 0.5 || p.y > height as f64 - 0.5).map(|p| (i, p)))
-    {
+    if let Some((i, p)) = corners_px.iter().enumerate().find_map(|(i, p)| {
+        p.filter(|p| {
+            p.x < -0.5 || p.y < -0.5 || p.x > width as f64 - 0.5 || p.y > height as f64 - 0.5
+        })
+        .map(|p| (i, p))
+    }) {
         return Err(format!("corner {i} at ({:.1}, {:.1}) lies outside the image", p.x, p.y));
     }
     Ok(BoardCorners { cols: cols as usize, rows: rows as usize, corners_px })
@@ -237,7 +239,9 @@ fn board_steps(
     for r in 0..rows {
         for c in 0..cols {
             let Some(p) = corners[r * cols + c] else { continue };
-            if let Some(q) = corners.get(r * cols + c + 1).copied().flatten().filter(|_| c + 1 < cols) {
+            if let Some(q) =
+                corners.get(r * cols + c + 1).copied().flatten().filter(|_| c + 1 < cols)
+            {
                 step_x += q - p;
                 n_x += 1.0;
             }
@@ -308,7 +312,7 @@ pub fn refine_corners(gray: &GrayImage, corners: &mut BoardCorners, half_window_
                 }
             }
             let det = a11 * a22 - a12 * a12;
-            if !(det.abs() > 1e-9) {
+            if det.abs() <= 1e-9 || !det.is_finite() {
                 break;
             }
             let next = Point2::new((a22 * b1 - a12 * b2) / det, (a11 * b2 - a12 * b1) / det);

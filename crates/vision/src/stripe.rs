@@ -99,13 +99,18 @@ impl Region {
 
     /// The pixels whose centres lie inside a convex polygon (vertices in
     /// order, either direction), shrunk by `margin_px`, clipped to the image.
-    pub fn convex_polygon(vertices: &[Point2<f64>], margin_px: f64, width: u32, height: u32) -> Region {
+    pub fn convex_polygon(
+        vertices: &[Point2<f64>],
+        margin_px: f64,
+        width: u32,
+        height: u32,
+    ) -> Region {
         if vertices.len() < 3 || vertices.iter().any(|p| !(p.x.is_finite() && p.y.is_finite())) {
             return Region { spans: Vec::new() };
         }
-        let (v_min, v_max) = vertices.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
-            (lo.min(p.y), hi.max(p.y))
-        });
+        let (v_min, v_max) = vertices
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(p.y), hi.max(p.y)));
         let first = v_min.ceil().max(0.0) as u32;
         let last = (v_max.floor().min(f64::from(height) - 1.0)).max(-1.0);
         let mut spans = Vec::new();
@@ -164,7 +169,9 @@ impl Region {
     /// Whether pixel (u, v) (rounded) lies in the region.
     pub fn contains(&self, u: f64, v: f64) -> bool {
         let (u, v) = (u.round(), v.round());
-        self.spans.iter().any(|&(row, a, b)| f64::from(row) == v && f64::from(a) <= u && u <= f64::from(b))
+        self.spans
+            .iter()
+            .any(|&(row, a, b)| f64::from(row) == v && f64::from(a) <= u && u <= f64::from(b))
     }
 }
 
@@ -188,21 +195,27 @@ pub fn laser_score(on: &RgbImage, off: Option<&RgbImage>) -> Result<ScoreImage> 
                 .zip(off.pixels())
                 .map(|(a, b)| (f32::from(a[0]) - f32::from(b[0])).max(0.0))
                 .collect();
-            Ok(ScoreImage::from_raw(width, height, data).unwrap_or_else(|| ScoreImage::new(width, height)))
+            Ok(ScoreImage::from_raw(width, height, data)
+                .unwrap_or_else(|| ScoreImage::new(width, height)))
         }
         None => {
             let data = on
                 .pixels()
                 .map(|p| (f32::from(p[0]) - f32::from(p[1].max(p[2]))).max(0.0))
                 .collect();
-            Ok(ScoreImage::from_raw(width, height, data).unwrap_or_else(|| ScoreImage::new(width, height)))
+            Ok(ScoreImage::from_raw(width, height, data)
+                .unwrap_or_else(|| ScoreImage::new(width, height)))
         }
     }
 }
 
 /// The stripe: at most one point per row of the region (see
 /// [`StripeOptions`] for what is skipped).
-pub fn extract_stripe(score: &ScoreImage, region: &Region, options: &StripeOptions) -> Vec<StripePoint> {
+pub fn extract_stripe(
+    score: &ScoreImage,
+    region: &Region,
+    options: &StripeOptions,
+) -> Vec<StripePoint> {
     let width = score.width() as usize;
     let data = score.as_raw();
     let mut points = Vec::new();
@@ -212,7 +225,12 @@ pub fn extract_stripe(score: &ScoreImage, region: &Region, options: &StripeOptio
             continue;
         };
         if let Some((u, strength, width_px)) = row_peak(row, options) {
-            points.push(StripePoint { u_px: f64::from(u0) + u, v_px: f64::from(v), strength, width_px });
+            points.push(StripePoint {
+                u_px: f64::from(u0) + u,
+                v_px: f64::from(v),
+                strength,
+                width_px,
+            });
         }
     }
     points
@@ -222,7 +240,7 @@ pub fn extract_stripe(score: &ScoreImage, region: &Region, options: &StripeOptio
 /// score, width at half maximum).
 fn row_peak(row: &[f32], options: &StripeOptions) -> Option<(f64, f32, f64)> {
     let (k, &peak) = row.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1))?;
-    if !(peak >= options.min_strength) {
+    if peak.is_nan() || peak < options.min_strength {
         return None;
     }
     let half = peak / 2.0;
@@ -303,7 +321,9 @@ mod tests {
     /// A row with a Gaussian stripe of sigma 1.5 px at `centre` over a background.
     fn gaussian_row(centre: f64, n: usize) -> Vec<f32> {
         (0..n)
-            .map(|i| (3.0 + 100.0 * (-((i as f64 - centre).powi(2)) / (2.0 * 1.5 * 1.5)).exp()) as f32)
+            .map(|i| {
+                (3.0 + 100.0 * (-((i as f64 - centre).powi(2)) / (2.0 * 1.5 * 1.5)).exp()) as f32
+            })
             .collect()
     }
 
@@ -326,7 +346,8 @@ mod tests {
         let options = StripeOptions::default();
         let weak: Vec<f32> = gaussian_row(20.0, 41).iter().map(|s| s / 20.0).collect();
         assert!(row_peak(&weak, &options).is_none());
-        let wide: Vec<f32> = (0..41).map(|i| if (5..30).contains(&i) { 200.0 } else { 0.0 }).collect();
+        let wide: Vec<f32> =
+            (0..41).map(|i| if (5..30).contains(&i) { 200.0 } else { 0.0 }).collect();
         assert!(row_peak(&wide, &options).is_none());
         let mut two = gaussian_row(10.0, 41);
         for (s, t) in two.iter_mut().zip(gaussian_row(32.0, 41)) {

@@ -48,7 +48,8 @@ fn rms_to_reference(ours: &[Point2<f64>], theirs: &[Point2<f64>]) -> f64 {
 #[test]
 fn every_view_opencv_detects_is_detected_with_its_labels() {
     let session = Session::read(&opencv_right()).unwrap();
-    for reference_file in ["opencv_right_corners_sb.json", "opencv_right_corners_classic_win5.json"] {
+    for reference_file in ["opencv_right_corners_sb.json", "opencv_right_corners_classic_win5.json"]
+    {
         for (file, corners) in reference(reference_file) {
             let Some(theirs) = corners else { continue };
             let image = read_image(&opencv_right().join(&file)).unwrap();

@@ -47,7 +47,11 @@ pub fn laser(args: &CalibrateLaserArgs) -> CmdResult {
         (None, Some(dir), Some(camera)) => {
             (session_samples(args, dir, camera, &options)?, dir.display().to_string())
         }
-        _ => return Err(Failure::bad_input(anyhow!("give --samples FILE or --session DIR --camera FILE"))),
+        _ => {
+            return Err(Failure::bad_input(anyhow!(
+                "give --samples FILE or --session DIR --camera FILE"
+            )));
+        }
     };
     let context = |e: alacs::calib::Error| {
         let code = Failure::from(e);
@@ -109,7 +113,7 @@ fn session_samples(
     let camera = Camera::from_yaml_file(camera_path)?;
     let method = Method::from_number(args.method).unwrap_or(Method::HighFidelityRansac);
     let options = LaserSessionOptions {
-        calibration: calibration.clone(),
+        calibration: *calibration,
         method: Some(method),
         ..LaserSessionOptions::default()
     };
@@ -182,10 +186,19 @@ pub fn camera(args: &CalibrateCameraArgs) -> CmdResult {
         }));
     } else {
         let sd = |i: usize| fit.std_dev.map(|s| format!(" +- {:.2}", s[i])).unwrap_or_default();
-        println!("camera {} x {} px from {} of {} views", c.width_px, c.height_px, fit.views_used(), fit.views.len());
+        println!(
+            "camera {} x {} px from {} of {} views",
+            c.width_px,
+            c.height_px,
+            fit.views_used(),
+            fit.views.len()
+        );
         println!("  fx {:.2}{} px, fy {:.2}{} px", c.fx_px, sd(0), c.fy_px, sd(1));
         println!("  cx {:.2}{} px, cy {:.2}{} px", c.cx_px, sd(2), c.cy_px, sd(3));
-        println!("  {model} {:?}", dist.iter().map(|d| (d * 1e5).round() / 1e5).collect::<Vec<_>>());
+        println!(
+            "  {model} {:?}",
+            dist.iter().map(|d| (d * 1e5).round() / 1e5).collect::<Vec<_>>()
+        );
         println!("  reprojection RMS {:.3} px", fit.rms_px);
         for view in &fit.views {
             let rms = view.rms_px.map(|r| format!("{r:.3} px")).unwrap_or_else(|| "-".into());

@@ -3,4 +3,5 @@
 pub mod calibrate;
 pub mod demo;
 pub mod simulate;
+pub mod stripe;
 pub mod triangulate;

@@ -1,0 +1,141 @@
+//! Calibration from simulated session images against the simulator's truth:
+//! the camera, then the laser from dense stripe samples.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, missing_docs)]
+
+use std::path::PathBuf;
+
+use alacs_calib::{
+    Error, IntrinsicsOptions, LaserSessionOptions, calibrate_camera_session,
+    calibrate_laser_session,
+};
+use alacs_model::{Camera, Fidelity, LaserModel, Session};
+use alacs_sim::{SessionOptions, simulate_session};
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("alacs-calib-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+fn truth_laser() -> LaserModel {
+    LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98)
+}
+
+/// A half-scale (1224 x 1024 px) session of `views` poses at slides 0, 100, 200 mm.
+fn write_session(name: &str, views: usize, laser_off: bool, seed: u64) -> (PathBuf, Camera) {
+    let options = SessionOptions {
+        n_views: views,
+        slides_mm: vec![0.0, 100.0, 200.0],
+        laser_off,
+        scale: 0.5,
+        seed,
+        ..SessionOptions::default()
+    };
+    let session = simulate_session(&Camera::blackfly_s_5mp(), &truth_laser(), &options).unwrap();
+    let dir = temp_dir(name);
+    session.write(&dir).unwrap();
+    (dir, session.camera.clone())
+}
+
+#[test]
+fn simulated_session_calibrates_camera_and_laser_to_the_truth() {
+    let truth = truth_laser();
+    for (seed, laser_off) in [(1, false), (2, true)] {
+        let (dir, true_camera) = write_session(&format!("truth{seed}"), 10, laser_off, seed);
+        let session = Session::read(&dir).unwrap();
+        let fit =
+            calibrate_camera_session(&session, &IntrinsicsOptions::default(), &|| {}).unwrap();
+        let c = &fit.camera;
+        let relative = |a: f64, b: f64| (a - b).abs() / b;
+        eprintln!(
+            "seed {seed}: rms {:.3} px, fx {:.2} fy {:.2} cx {:.2} cy {:.2} (truth f {:.1}, c {:.1}, {:.1})",
+            fit.rms_px,
+            c.fx_px,
+            c.fy_px,
+            c.cx_px,
+            c.cy_px,
+            true_camera.fx_px,
+            true_camera.cx_px,
+            true_camera.cy_px
+        );
+        assert_eq!(fit.views_used(), fit.views.len());
+        // The bound: intrinsics within 0.5 %.
+        assert!(relative(c.fx_px, true_camera.fx_px) < 0.005);
+        assert!(relative(c.fy_px, true_camera.fy_px) < 0.005);
+        assert!(relative(c.cx_px, true_camera.cx_px) < 0.005);
+        assert!(relative(c.cy_px, true_camera.cy_px) < 0.005);
+        assert!(fit.rms_px < 0.1, "rms {}", fit.rms_px);
+
+        let laser =
+            calibrate_laser_session(&session, c, &LaserSessionOptions::default(), &|| {}).unwrap();
+        let l = &laser.calibration.laser;
+        eprintln!(
+            "seed {seed}: {} samples from {} views, alpha {:.4} beta {:.4} L0 {:.3}, warnings {:?}",
+            laser.samples.len(),
+            laser.views.iter().filter(|v| v.n_samples > 0).count(),
+            l.alpha_deg(),
+            l.beta_deg(),
+            l.l0_mm,
+            laser.warnings
+        );
+        // The bounds: a, b within 0.05 deg, L0 within 0.3 mm.
+        assert!((l.alpha_deg() - truth.alpha_deg()).abs() < 0.05);
+        assert!((l.beta_deg() - truth.beta_deg()).abs() < 0.05);
+        assert!((l.l0_mm - truth.l0_mm).abs() < 0.3);
+        assert!(laser.views.iter().all(|v| v.n_samples > 50), "{:?}", laser.views);
+        assert!(laser.warnings.is_empty(), "{:?}", laser.warnings);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
+
+#[test]
+fn a_view_without_a_board_is_rejected_with_its_reason() {
+    let (dir, _) = write_session("noboard", 4, false, 3);
+    // Replace one view by a plain grey image of the same size.
+    let session = Session::read(&dir).unwrap();
+    let victim = session.path_of(&session.views[1].image);
+    image::RgbImage::from_pixel(1224, 1024, image::Rgb([90, 90, 90])).save(&victim).unwrap();
+    let fit = calibrate_camera_session(&session, &IntrinsicsOptions::default(), &|| {}).unwrap();
+    let rejected: Vec<_> = fit.views.iter().filter(|v| v.rejected.is_some()).collect();
+    assert_eq!(rejected.len(), 1);
+    assert_eq!(rejected[0].name, session.views[1].image.display().to_string());
+    assert!(rejected[0].rejected.as_ref().unwrap().contains("no 11 x 8 checkerboard"));
+    let laser =
+        calibrate_laser_session(&session, &fit.camera, &LaserSessionOptions::default(), &|| {})
+            .unwrap();
+    assert_eq!(laser.views[1].n_samples, 0);
+    assert!(laser.views[1].rejected.is_some());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn unreadable_images_are_bad_input_naming_the_file() {
+    let (dir, _) = write_session("corrupt", 3, false, 4);
+    let session = Session::read(&dir).unwrap();
+    let victim = session.path_of(&session.views[0].image);
+    std::fs::write(&victim, b"\x89PNG\r\n\x1a\n truncated").unwrap();
+    let error =
+        calibrate_camera_session(&session, &IntrinsicsOptions::default(), &|| {}).unwrap_err();
+    assert!(error.is_bad_input(), "{error}");
+    assert!(error.to_string().contains(&victim.display().to_string()), "{error}");
+    std::fs::remove_file(&victim).unwrap();
+    let error =
+        calibrate_camera_session(&session, &IntrinsicsOptions::default(), &|| {}).unwrap_err();
+    assert!(matches!(error, Error::Vision(_)) && error.is_bad_input(), "{error}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn one_board_pose_is_too_degenerate_for_the_laser() {
+    let (dir, _) = write_session("onepose", 3, false, 5);
+    let session = Session::read(&dir).unwrap();
+    let camera =
+        calibrate_camera_session(&session, &IntrinsicsOptions::default(), &|| {}).unwrap().camera;
+    let mut single = session.clone();
+    single.views.truncate(1);
+    let error = calibrate_laser_session(&single, &camera, &LaserSessionOptions::default(), &|| {})
+        .unwrap_err();
+    assert!(!error.is_bad_input());
+    assert!(error.to_string().contains("at least 2 board views"), "{error}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -1,0 +1,71 @@
+//! `alacs stripe`: the laser stripe of one frame.
+
+use alacs::vision::{Region, StripeOptions, extract_stripe, laser_score, read_image};
+use anyhow::anyhow;
+use serde_json::json;
+
+use crate::args::StripeArgs;
+use crate::failure::{CmdResult, Failure};
+use crate::output;
+
+/// Parses `u0,v0,u1,v1`.
+fn parse_roi(text: &str) -> CmdResult<[u32; 4]> {
+    let values: Vec<u32> = text
+        .split(',')
+        .map(|v| v.trim().parse::<u32>())
+        .collect::<Result<_, _>>()
+        .map_err(|e| Failure::bad_input(anyhow!("--roi {text:?}: {e}")))?;
+    match values.as_slice() {
+        &[u0, v0, u1, v1] if u0 <= u1 && v0 <= v1 => Ok([u0, v0, u1, v1]),
+        _ => Err(Failure::bad_input(anyhow!(
+            "--roi must be u0,v0,u1,v1 with u0 <= u1 and v0 <= v1, got {text:?}"
+        ))),
+    }
+}
+
+/// Runs `alacs stripe`.
+pub fn run(args: &StripeArgs) -> CmdResult {
+    if !(args.min_strength.is_finite() && args.min_strength > 0.0) {
+        return Err(Failure::bad_input(anyhow!(
+            "--min-strength must be a positive number, got {}",
+            args.min_strength
+        )));
+    }
+    let on = read_image(&args.image)?.to_rgb8();
+    let off = match &args.laser_off {
+        Some(path) => Some(read_image(path)?.to_rgb8()),
+        None => None,
+    };
+    let score = laser_score(&on, off.as_ref())?;
+    let (width, height) = on.dimensions();
+    let region = match &args.roi {
+        Some(text) => {
+            let [u0, v0, u1, v1] = parse_roi(text)?;
+            if u0 >= width || v0 >= height {
+                return Err(Failure::bad_input(anyhow!(
+                    "--roi {text} starts outside the {width} x {height} px image"
+                )));
+            }
+            Region::rect(u0, v0, u1, v1, width, height)
+        }
+        None => Region::full(width, height),
+    };
+    let options = StripeOptions { min_strength: args.min_strength, ..StripeOptions::default() };
+    let points = extract_stripe(&score, &region, &options);
+    if args.json {
+        output::print_json(&json!({
+            "image": args.image.display().to_string(),
+            "width_px": width,
+            "height_px": height,
+            "points": points.iter().map(|p| json!({
+                "u_px": p.u_px, "v_px": p.v_px, "strength": p.strength, "width_px": p.width_px,
+            })).collect::<Vec<_>>(),
+        }));
+    } else {
+        println!("u_px,v_px,strength");
+        for p in &points {
+            println!("{:.3},{},{:.1}", p.u_px, p.v_px, p.strength);
+        }
+    }
+    Ok(())
+}
