@@ -287,3 +287,142 @@ fn simulate_session_writes_a_formats_md_session() {
     assert_eq!(output.status.code(), Some(2), "{}", stderr(&output));
     assert!(stderr(&output).contains("scale"), "{}", stderr(&output));
 }
+
+fn opencv_right() -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../testdata/opencv_right")
+        .to_str()
+        .unwrap()
+        .to_owned()
+}
+
+#[test]
+fn calibrate_camera_json_has_the_formats_md_keys() {
+    let dir = scratch("camera_opencv");
+    let yaml = dir.join("camera.yaml");
+    let output = alacs(&[
+        "calibrate",
+        "camera",
+        "--session",
+        &opencv_right(),
+        "--json",
+        "-o",
+        yaml.to_str().unwrap(),
+    ]);
+    let json = stdout_json(&output);
+    for key in ["fx_px", "fy_px", "cx_px", "cy_px", "rms_px", "views_used"] {
+        assert!(json[key].is_number(), "{key}: {json}");
+    }
+    assert_eq!(json["distortion_model"], "plumb_bob");
+    assert_eq!(json["dist"].as_array().unwrap().len(), 5);
+    assert_eq!(json["views_used"], 13);
+    assert_eq!(json["views_rejected"].as_array().unwrap().len(), 0);
+    // OpenCV on the same photographs: RMS 0.207-0.246 px, fx 534.6-542.4 px.
+    assert!(json["rms_px"].as_f64().unwrap() < 0.207);
+    // The written camera.yaml reads back with the same intrinsics.
+    let text = std::fs::read_to_string(&yaml).unwrap();
+    assert!(text.contains("camera_matrix") && text.contains("plumb_bob"), "{text}");
+    assert!(text.contains(&format!("{}", json["fx_px"].as_f64().unwrap())), "{text}");
+}
+
+#[test]
+fn calibrate_from_a_simulated_session_end_to_end() {
+    let dir = scratch("session_end_to_end");
+    let out = dir.to_str().unwrap();
+    let output = alacs(&[
+        "simulate",
+        "session",
+        "--out",
+        out,
+        "--seed",
+        "7",
+        "--views",
+        "6",
+        "--slides",
+        "0,100,200",
+        "--scale",
+        "0.4",
+        "--json",
+    ]);
+    stdout_json(&output);
+    let camera = dir.join("estimated_camera.yaml");
+    let camera = camera.to_str().unwrap();
+    stdout_json(&alacs(&["calibrate", "camera", "--session", out, "-o", camera, "--json"]));
+    let samples = dir.join("samples_out.csv");
+    let laser = dir.join("laser_out.yaml");
+    let json = stdout_json(&alacs(&[
+        "calibrate",
+        "laser",
+        "--session",
+        out,
+        "--camera",
+        camera,
+        "--export-samples",
+        samples.to_str().unwrap(),
+        "-o",
+        laser.to_str().unwrap(),
+        "--json",
+    ]));
+    assert_eq!(json["model"], "high-fidelity");
+    assert!((json["alpha_deg"].as_f64().unwrap() - 19.07).abs() < 0.1, "{json}");
+    assert!((json["l0_mm"].as_f64().unwrap() - 381.98).abs() < 1.0, "{json}");
+    let n = json["n_samples"].as_u64().unwrap();
+    assert!(n > 1000, "{n} samples");
+    let csv = std::fs::read_to_string(&samples).unwrap();
+    assert!(csv.starts_with("u_n,v_n,z_mm,slide_mm"));
+    assert_eq!(csv.lines().count() as u64, n + 1);
+    assert!(std::fs::read_to_string(&laser).unwrap().contains("alpha_deg"));
+    // The exported samples calibrate to the same laser.
+    let again = stdout_json(&alacs(&[
+        "calibrate",
+        "laser",
+        "--samples",
+        samples.to_str().unwrap(),
+        "--json",
+    ]));
+    assert_eq!(again["alpha_deg"], json["alpha_deg"]);
+    // Stripe of one view: CSV with a header, one row per stripe row.
+    let stripe = alacs(&["stripe", "--image", dir.join("view01_slide1.png").to_str().unwrap()]);
+    assert!(stripe.status.success(), "{}", stderr(&stripe));
+    let text = String::from_utf8(stripe.stdout).unwrap();
+    assert!(text.starts_with("u_px,v_px,strength\n") && text.lines().count() > 50, "{text}");
+}
+
+#[test]
+fn session_errors_name_the_input() {
+    let dir = scratch("session_errors");
+    // No session.yaml: bad input.
+    let output = alacs(&["calibrate", "camera", "--session", dir.to_str().unwrap()]);
+    assert_eq!(output.status.code(), Some(2));
+    assert!(stderr(&output).contains("session.yaml"), "{}", stderr(&output));
+    // A session whose images hold no board: the job fails (exit 1) with the reason.
+    std::fs::write(
+        dir.join("session.yaml"),
+        "board: {inner_corners: [9, 6], square_mm: 25}\nviews: [{image: a.png}, {image: b.png}, {image: c.png}]\n",
+    )
+    .unwrap();
+    for name in ["a.png", "b.png", "c.png"] {
+        image_like_grey(&dir.join(name));
+    }
+    let output = alacs(&["calibrate", "camera", "--session", dir.to_str().unwrap()]);
+    assert_eq!(output.status.code(), Some(1), "{}", stderr(&output));
+    assert!(stderr(&output).contains("no 9 x 6 checkerboard"), "{}", stderr(&output));
+    // A missing image: bad input naming it.
+    std::fs::remove_file(dir.join("b.png")).unwrap();
+    let output = alacs(&["calibrate", "camera", "--session", dir.to_str().unwrap()]);
+    assert_eq!(output.status.code(), Some(2));
+    assert!(stderr(&output).contains("b.png"), "{}", stderr(&output));
+    // --session without --camera for the laser: usage error.
+    let output = alacs(&["calibrate", "laser", "--session", dir.to_str().unwrap()]);
+    assert_eq!(output.status.code(), Some(2));
+    // A stripe --roi that makes no sense.
+    let output =
+        alacs(&["stripe", "--image", dir.join("a.png").to_str().unwrap(), "--roi", "5,5,1"]);
+    assert_eq!(output.status.code(), Some(2));
+    assert!(stderr(&output).contains("--roi"), "{}", stderr(&output));
+}
+
+/// A uniform grey PNG: a view without a board.
+fn image_like_grey(path: &Path) {
+    image::RgbImage::from_pixel(320, 240, image::Rgb([90, 90, 90])).save(path).unwrap();
+}
