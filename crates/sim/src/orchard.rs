@@ -456,6 +456,19 @@ impl OrchardScene {
         t_min: f64,
         candidates: impl Iterator<Item = usize>,
     ) -> Option<Hit> {
+        let (t, normal, object) = self.nearest_among(ray, t_min, candidates)?;
+        let point = ray.at(t);
+        Some(Hit { t, point, normal, material: self.objects[object].material_at(&point), object })
+    }
+
+    /// The geometry of [`Self::first_hit_among`] without the material: the
+    /// ray parameter, the unit normal facing the ray's origin, and the object.
+    pub(crate) fn nearest_among(
+        &self,
+        ray: &Ray,
+        t_min: f64,
+        candidates: impl Iterator<Item = usize>,
+    ) -> Option<(f64, Vector3<f64>, usize)> {
         let mut best: Option<(f64, Vector3<f64>, usize)> = None;
         for index in candidates {
             let object = &self.objects[index];
@@ -466,9 +479,8 @@ impl OrchardScene {
             }
         }
         let (t, normal, object) = best?;
-        let point = ray.at(t);
         let normal = if normal.dot(&ray.direction) > 0.0 { -normal } else { normal };
-        Some(Hit { t, point, normal, material: self.objects[object].material_at(&point), object })
+        Some((t, normal, object))
     }
 
     /// Whether the straight segment from `from` to `to` is blocked by any

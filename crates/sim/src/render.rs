@@ -58,6 +58,21 @@ pub trait Scene: Sync {
         self.intersect(&Ray::through_normalized(x_n, y_n))
     }
 
+    /// The hits of one pixel's sub-pixel camera rays, for scenes that can
+    /// find them faster together than one by one: `hits[k]` for the ray
+    /// through undistorted normalized coordinates `rays[k]`, as
+    /// [`Scene::intersect_camera_ray`] gives it (for instance sharing a
+    /// texture that is smooth at the scale of a pixel), and true. The
+    /// renderer draws rays that are not finite (sub-pixels the lens model
+    /// could not undistort) black, whatever their hit. The default returns
+    /// false and leaves `hits` alone: the renderer then calls
+    /// [`Scene::intersect_camera_ray`] for each ray.
+    #[inline]
+    fn intersect_camera_pixel(&self, rays: &[[f32; 2]], hits: &mut [Option<SurfaceHit>]) -> bool {
+        let _ = (rays, hits);
+        false
+    }
+
     /// Whether a surface lies strictly between `from` and `to` (both in the
     /// camera frame, mm). A surface through `to` itself (the shaded point)
     /// does not count.
@@ -256,12 +271,24 @@ impl RayMap {
         let read_variance = sensor.read_noise_dn * sensor.read_noise_dn;
         let row_rays = width as usize * per_pixel;
         // The light on a pixel, in DN before noise: the mean of its sub-pixel rays.
-        let pixel_light = |rays: &[[f32; 2]]| {
+        // `hits` is scratch space for the pixel's s x s hits.
+        let pixel_light = |rays: &[[f32; 2]], hits: &mut [Option<SurfaceHit>]| {
             let mut sum = [0.0; 3];
-            for &[x, y] in rays {
-                let radiance = shade(scene, lighting, laser, f64::from(x), f64::from(y));
+            let mut add = |radiance: [f64; 3]| {
                 for (channel, value) in sum.iter_mut().zip(radiance) {
                     *channel += value * scale_dn;
+                }
+            };
+            if scene.intersect_camera_pixel(rays, hits) {
+                for (&[x, y], hit) in rays.iter().zip(hits.iter()) {
+                    add(shade(lighting, laser, scene, f64::from(x), f64::from(y), hit.as_ref()));
+                }
+            } else {
+                for &[x, y] in rays {
+                    let (x_n, y_n) = (f64::from(x), f64::from(y));
+                    let finite = x_n.is_finite() && y_n.is_finite();
+                    let hit = if finite { scene.intersect_camera_ray(x_n, y_n) } else { None };
+                    add(shade(lighting, laser, scene, x_n, y_n, hit.as_ref()));
                 }
             }
             sum
@@ -286,8 +313,9 @@ impl RayMap {
             let mut light = vec![[0.0f32; 3]; width as usize * height as usize];
             light.par_chunks_mut(width as usize).enumerate().for_each(|(v, row)| {
                 let rays = &self.rays[v * row_rays..(v + 1) * row_rays];
+                let mut hits = vec![None; per_pixel];
                 for (pixel, out) in rays.chunks_exact(per_pixel).zip(row.iter_mut()) {
-                    *out = pixel_light(pixel).map(|c| c as f32);
+                    *out = pixel_light(pixel, &mut hits).map(|c| c as f32);
                 }
             });
             let light = gaussian_blur(light, width as usize, sensor.blur_sigma_px);
@@ -303,8 +331,9 @@ impl RayMap {
             rows.for_each(|(v, row)| {
                 let mut rng = ChaCha8Rng::seed_from_u64(mix_seed(noise_seed, v as u64));
                 let rays = &self.rays[v * row_rays..(v + 1) * row_rays];
+                let mut hits = vec![None; per_pixel];
                 for (pixel, out) in rays.chunks_exact(per_pixel).zip(row.chunks_exact_mut(3)) {
-                    record(pixel_light(pixel), out, &mut rng);
+                    record(pixel_light(pixel, &mut hits), out, &mut rng);
                 }
             });
         }
@@ -453,19 +482,21 @@ fn quantize(signal_dn: f64) -> u8 {
     (signal_dn.clamp(0.0, 255.0) + 0.5) as u8
 }
 
-/// The radiance seen along the camera ray through normalized (x_n, y_n).
+/// The radiance seen along the camera ray through normalized (x_n, y_n),
+/// which meets the scene at `hit`.
 #[inline]
 fn shade(
-    scene: &impl Scene,
     lighting: &Lighting,
     laser: Option<&LaserStripe>,
+    scene: &impl Scene,
     x_n: f64,
     y_n: f64,
+    hit: Option<&SurfaceHit>,
 ) -> [f64; 3] {
     if !(x_n.is_finite() && y_n.is_finite()) {
         return [0.0; 3];
     }
-    let Some(hit) = scene.intersect_camera_ray(x_n, y_n) else {
+    let Some(hit) = hit else {
         return [lighting.background; 3];
     };
     let facing = hit.normal.dot(&lighting.to_light_in_camera);
@@ -482,7 +513,7 @@ fn shade(
         radiance = radiance.map(|channel| channel + highlight);
     }
     if let Some(laser) = laser {
-        let irradiance = laser.irradiance(scene, &hit);
+        let irradiance = laser.irradiance(scene, hit);
         if irradiance > 0.0 {
             let mut laser_radiance = irradiance * hit.laser_reflectance;
             if laser.speckle_contrast > 0.0 {
@@ -601,6 +632,7 @@ impl LaserStripe {
     /// power * exp(-d^2 / (2 sigma^2)) * cos(incidence), d the point's
     /// distance from the laser plane; 0 where the lit side faces away from
     /// the laser origin or something in `scene` shadows the point.
+    #[inline]
     pub fn irradiance(&self, scene: &impl Scene, hit: &SurfaceHit) -> f64 {
         let sigma_mm = self.sigma_per_depth * hit.point.z.abs();
         let distance_mm = self.plane.normal.dot(&hit.point.coords) - self.plane.offset_mm;
