@@ -309,23 +309,32 @@ impl RayMap {
         let rows = image.par_chunks_mut(width as usize * 3).enumerate();
         if sensor.blur_sigma_px > 0.0 {
             // The lens blurs the light before the sensor records it: light
-            // first, then the blur, then the noise.
-            let mut light = vec![[0.0f32; 3]; width as usize * height as usize];
-            light.par_chunks_mut(width as usize).enumerate().for_each(|(v, row)| {
-                let rays = &self.rays[v * row_rays..(v + 1) * row_rays];
-                let mut hits = vec![None; per_pixel];
-                for (pixel, out) in rays.chunks_exact(per_pixel).zip(row.iter_mut()) {
-                    *out = pixel_light(pixel, &mut hits).map(|c| c as f32);
-                }
-            });
-            let light = gaussian_blur(light, width as usize, sensor.blur_sigma_px);
-            rows.for_each(|(v, row)| {
-                let mut rng = ChaCha8Rng::seed_from_u64(mix_seed(noise_seed, v as u64));
-                let light_row = &light[v * width as usize..(v + 1) * width as usize];
-                for (pixel, out) in light_row.iter().zip(row.chunks_exact_mut(3)) {
-                    record(pixel.map(f64::from), out, &mut rng);
-                }
-            });
+            // first, then the blur, then the noise. The blur is separable:
+            // each row is shaded and blurred along itself, then each output
+            // row is blurred down the columns, noised and quantized.
+            let width = width as usize;
+            let kernel = GaussianKernel::new(sensor.blur_sigma_px);
+            let mut light = vec![[0.0f32; 3]; width * height as usize];
+            light.par_chunks_mut(width).enumerate().for_each_init(
+                || (vec![None; per_pixel], vec![[0.0f32; 3]; width]),
+                |(hits, sharp), (v, out)| {
+                    let rays = &self.rays[v * row_rays..(v + 1) * row_rays];
+                    for (pixel, light) in rays.chunks_exact(per_pixel).zip(sharp.iter_mut()) {
+                        *light = pixel_light(pixel, hits).map(|c| c as f32);
+                    }
+                    kernel.blur_row(sharp, out);
+                },
+            );
+            rows.for_each_init(
+                || vec![[0.0f32; 3]; width],
+                |blurred, (v, row)| {
+                    kernel.blur_column_rows(&light, width, v, blurred);
+                    let mut rng = ChaCha8Rng::seed_from_u64(mix_seed(noise_seed, v as u64));
+                    for (pixel, out) in blurred.iter().zip(row.chunks_exact_mut(3)) {
+                        record(pixel.map(f64::from), out, &mut rng);
+                    }
+                },
+            );
         } else {
             // No blur: shade and record each row in one pass.
             rows.for_each(|(v, row)| {
@@ -437,42 +446,77 @@ impl<'a> RowMarch<'a> {
     }
 }
 
-/// A separable Gaussian blur of a row-major image `width` pixels wide
-/// (edges clamped): each row in place, then each column into a new image,
-/// rows in parallel.
-fn gaussian_blur(mut image: Vec<[f32; 3]>, width: usize, sigma_px: f64) -> Vec<[f32; 3]> {
-    let radius = (3.0 * sigma_px).ceil() as isize;
-    let weights: Vec<f32> =
-        (-radius..=radius).map(|k| (-0.5 * (k as f64 / sigma_px).powi(2)).exp() as f32).collect();
-    let total: f32 = weights.iter().sum();
-    let weights: Vec<f32> = weights.iter().map(|w| w / total).collect();
-    let height = image.len() / width.max(1);
-    let clamp = |i: isize, n: usize| i.clamp(0, n as isize - 1) as usize;
-    image.par_chunks_mut(width).for_each(|row| {
-        let source = row.to_vec();
-        for (u, pixel) in row.iter_mut().enumerate() {
+/// A normalized, sampled Gaussian for the lens blur, cut off at 3 sigma,
+/// applied separably (rows, then columns) with clamped edges.
+struct GaussianKernel {
+    radius: usize,
+    /// Weights of offsets -radius..=radius, summing to 1.
+    weights: Vec<f32>,
+}
+
+impl GaussianKernel {
+    fn new(sigma_px: f64) -> Self {
+        let radius = (3.0 * sigma_px).ceil() as isize;
+        let weights: Vec<f32> = (-radius..=radius)
+            .map(|k| (-0.5 * (k as f64 / sigma_px).powi(2)).exp() as f32)
+            .collect();
+        let total: f32 = weights.iter().sum();
+        let weights = weights.iter().map(|w| w / total).collect();
+        Self { radius: radius as usize, weights }
+    }
+
+    /// Blurs `row` along itself into `out` (same length).
+    fn blur_row(&self, row: &[[f32; 3]], out: &mut [[f32; 3]]) {
+        let (r, n) = (self.radius, row.len());
+        let tap = |u: usize| {
             let mut sum = [0.0f32; 3];
-            for (k, w) in (-radius..=radius).zip(&weights) {
-                let s = source[clamp(u as isize + k, width)];
+            for (k, w) in self.weights.iter().enumerate() {
+                let s = row[(u + k).saturating_sub(r).min(n - 1)];
+                for c in 0..3 {
+                    sum[c] += w * s[c];
+                }
+            }
+            sum
+        };
+        if n <= 2 * r {
+            for (u, pixel) in out.iter_mut().enumerate() {
+                *pixel = tap(u);
+            }
+            return;
+        }
+        // The interior needs no clamping: windows of 2 r + 1 pixels.
+        for (u, pixel) in out.iter_mut().enumerate().take(r) {
+            *pixel = tap(u);
+        }
+        for (pixel, window) in out[r..n - r].iter_mut().zip(row.windows(2 * r + 1)) {
+            let mut sum = [0.0f32; 3];
+            for (w, s) in self.weights.iter().zip(window) {
                 for c in 0..3 {
                     sum[c] += w * s[c];
                 }
             }
             *pixel = sum;
         }
-    });
-    let mut blurred = vec![[0.0f32; 3]; image.len()];
-    blurred.par_chunks_mut(width).enumerate().for_each(|(v, out)| {
-        for (k, w) in (-radius..=radius).zip(&weights) {
-            let source = &image[clamp(v as isize + k, height) * width..][..width];
+        for (u, pixel) in out.iter_mut().enumerate().skip(n - r) {
+            *pixel = tap(u);
+        }
+    }
+
+    /// Row `v` of the row-major `image` (`width` pixels wide) blurred down
+    /// its columns, into `out`.
+    fn blur_column_rows(&self, image: &[[f32; 3]], width: usize, v: usize, out: &mut [[f32; 3]]) {
+        let height = image.len() / width.max(1);
+        out.fill([0.0; 3]);
+        for (k, w) in self.weights.iter().enumerate() {
+            let source = (v + k).saturating_sub(self.radius).min(height - 1);
+            let source = &image[source * width..][..width];
             for (pixel, s) in out.iter_mut().zip(source) {
                 for c in 0..3 {
                     pixel[c] += w * s[c];
                 }
             }
         }
-    });
-    blurred
+    }
 }
 
 /// 8-bit quantization: round to the nearest digital number, saturate at 0 and 255.
