@@ -173,8 +173,10 @@ impl Scene for GriddedScene<'_> {
     }
 
     fn intersect_camera_ray(&self, x_n: f64, y_n: f64) -> Option<SurfaceHit> {
-        let ray = Ray::through_normalized(x_n, y_n);
-        self.scene.first_hit_among(&ray, 0.0, self.grid.candidates(x_n, y_n)).map(surface_hit)
+        let (t, normal, index) = self.grid.nearest(x_n, y_n)?;
+        let point = Ray::through_normalized(x_n, y_n).at(t);
+        let material = self.scene.objects[index].material_at(&point);
+        Some(surface_hit(Hit { t, point, normal, material, object: index }))
     }
 
     /// Where every ray of the pixel meets the same object, its texture is
@@ -190,19 +192,15 @@ impl Scene for GriddedScene<'_> {
         let mut sum = Vector3::zeros();
         for (&[x, y], hit) in rays.iter().zip(hits.iter_mut()) {
             let (x_n, y_n) = (f64::from(x), f64::from(y));
-            let ray = Ray::through_normalized(x_n, y_n);
-            let found = if x_n.is_finite() && y_n.is_finite() {
-                self.scene.nearest_among(&ray, 0.0, self.grid.candidates(x_n, y_n))
-            } else {
-                None
-            };
+            let found =
+                if x_n.is_finite() && y_n.is_finite() { self.grid.nearest(x_n, y_n) } else { None };
             let Some((t, normal, index)) = found else {
                 uniform = false;
                 break;
             };
             uniform &= object.is_none_or(|first| first == index);
             object = Some(index);
-            let point = ray.at(t);
+            let point = Ray::through_normalized(x_n, y_n).at(t);
             sum += point.coords;
             // The material follows below.
             *hit = Some(SurfaceHit {
