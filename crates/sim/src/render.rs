@@ -484,21 +484,21 @@ impl GaussianKernel {
             }
             return;
         }
-        // The interior needs no clamping: windows of 2 r + 1 pixels.
         for (u, pixel) in out.iter_mut().enumerate().take(r) {
             *pixel = tap(u);
         }
-        for (pixel, window) in out[r..n - r].iter_mut().zip(row.windows(2 * r + 1)) {
-            let mut sum = [0.0f32; 3];
-            for (w, s) in self.weights.iter().zip(window) {
-                for c in 0..3 {
-                    sum[c] += w * s[c];
-                }
-            }
-            *pixel = sum;
-        }
         for (u, pixel) in out.iter_mut().enumerate().skip(n - r) {
             *pixel = tap(u);
+        }
+        // The interior needs no clamping: tap k of pixel u is pixel u + k - r,
+        // so each tap adds a shifted copy of the row, channels interleaved.
+        let interior = out[r..n - r].as_flattened_mut();
+        interior.fill(0.0);
+        let row = row.as_flattened();
+        for (k, w) in self.weights.iter().enumerate() {
+            for (sum, s) in interior.iter_mut().zip(&row[3 * k..]) {
+                *sum += w * s;
+            }
         }
     }
 
@@ -506,14 +506,13 @@ impl GaussianKernel {
     /// its columns, into `out`.
     fn blur_column_rows(&self, image: &[[f32; 3]], width: usize, v: usize, out: &mut [[f32; 3]]) {
         let height = image.len() / width.max(1);
-        out.fill([0.0; 3]);
+        let out = out.as_flattened_mut();
+        out.fill(0.0);
         for (k, w) in self.weights.iter().enumerate() {
             let source = (v + k).saturating_sub(self.radius).min(height - 1);
-            let source = &image[source * width..][..width];
-            for (pixel, s) in out.iter_mut().zip(source) {
-                for c in 0..3 {
-                    pixel[c] += w * s[c];
-                }
+            let source = image[source * width..][..width].as_flattened();
+            for (sum, s) in out.iter_mut().zip(source) {
+                *sum += w * s;
             }
         }
     }
