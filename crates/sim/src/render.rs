@@ -58,6 +58,21 @@ pub trait Scene: Sync {
         self.intersect(&Ray::through_normalized(x_n, y_n))
     }
 
+    /// The hits of one pixel's sub-pixel camera rays, for scenes that can
+    /// find them faster together than one by one: `hits[k]` for the ray
+    /// through undistorted normalized coordinates `rays[k]`, as
+    /// [`Scene::intersect_camera_ray`] gives it (for instance sharing a
+    /// texture that is smooth at the scale of a pixel), and true. The
+    /// renderer draws rays that are not finite (sub-pixels the lens model
+    /// could not undistort) black, whatever their hit. The default returns
+    /// false and leaves `hits` alone: the renderer then calls
+    /// [`Scene::intersect_camera_ray`] for each ray.
+    #[inline]
+    fn intersect_camera_pixel(&self, rays: &[[f32; 2]], hits: &mut [Option<SurfaceHit>]) -> bool {
+        let _ = (rays, hits);
+        false
+    }
+
     /// Whether a surface lies strictly between `from` and `to` (both in the
     /// camera frame, mm). A surface through `to` itself (the shaded point)
     /// does not count.
@@ -256,12 +271,24 @@ impl RayMap {
         let read_variance = sensor.read_noise_dn * sensor.read_noise_dn;
         let row_rays = width as usize * per_pixel;
         // The light on a pixel, in DN before noise: the mean of its sub-pixel rays.
-        let pixel_light = |rays: &[[f32; 2]]| {
+        // `hits` is scratch space for the pixel's s x s hits.
+        let pixel_light = |rays: &[[f32; 2]], hits: &mut [Option<SurfaceHit>]| {
             let mut sum = [0.0; 3];
-            for &[x, y] in rays {
-                let radiance = shade(scene, lighting, laser, f64::from(x), f64::from(y));
+            let mut add = |radiance: [f64; 3]| {
                 for (channel, value) in sum.iter_mut().zip(radiance) {
                     *channel += value * scale_dn;
+                }
+            };
+            if scene.intersect_camera_pixel(rays, hits) {
+                for (&[x, y], hit) in rays.iter().zip(hits.iter()) {
+                    add(shade(lighting, laser, scene, f64::from(x), f64::from(y), hit.as_ref()));
+                }
+            } else {
+                for &[x, y] in rays {
+                    let (x_n, y_n) = (f64::from(x), f64::from(y));
+                    let finite = x_n.is_finite() && y_n.is_finite();
+                    let hit = if finite { scene.intersect_camera_ray(x_n, y_n) } else { None };
+                    add(shade(lighting, laser, scene, x_n, y_n, hit.as_ref()));
                 }
             }
             sum
@@ -282,29 +309,40 @@ impl RayMap {
         let rows = image.par_chunks_mut(width as usize * 3).enumerate();
         if sensor.blur_sigma_px > 0.0 {
             // The lens blurs the light before the sensor records it: light
-            // first, then the blur, then the noise.
-            let mut light = vec![[0.0f32; 3]; width as usize * height as usize];
-            light.par_chunks_mut(width as usize).enumerate().for_each(|(v, row)| {
-                let rays = &self.rays[v * row_rays..(v + 1) * row_rays];
-                for (pixel, out) in rays.chunks_exact(per_pixel).zip(row.iter_mut()) {
-                    *out = pixel_light(pixel).map(|c| c as f32);
-                }
-            });
-            let light = gaussian_blur(light, width as usize, sensor.blur_sigma_px);
-            rows.for_each(|(v, row)| {
-                let mut rng = ChaCha8Rng::seed_from_u64(mix_seed(noise_seed, v as u64));
-                let light_row = &light[v * width as usize..(v + 1) * width as usize];
-                for (pixel, out) in light_row.iter().zip(row.chunks_exact_mut(3)) {
-                    record(pixel.map(f64::from), out, &mut rng);
-                }
-            });
+            // first, then the blur, then the noise. The blur is separable:
+            // each row is shaded and blurred along itself, then each output
+            // row is blurred down the columns, noised and quantized.
+            let width = width as usize;
+            let kernel = GaussianKernel::new(sensor.blur_sigma_px);
+            let mut light = vec![[0.0f32; 3]; width * height as usize];
+            light.par_chunks_mut(width).enumerate().for_each_init(
+                || (vec![None; per_pixel], vec![[0.0f32; 3]; width]),
+                |(hits, sharp), (v, out)| {
+                    let rays = &self.rays[v * row_rays..(v + 1) * row_rays];
+                    for (pixel, light) in rays.chunks_exact(per_pixel).zip(sharp.iter_mut()) {
+                        *light = pixel_light(pixel, hits).map(|c| c as f32);
+                    }
+                    kernel.blur_row(sharp, out);
+                },
+            );
+            rows.for_each_init(
+                || vec![[0.0f32; 3]; width],
+                |blurred, (v, row)| {
+                    kernel.blur_column_rows(&light, width, v, blurred);
+                    let mut rng = ChaCha8Rng::seed_from_u64(mix_seed(noise_seed, v as u64));
+                    for (pixel, out) in blurred.iter().zip(row.chunks_exact_mut(3)) {
+                        record(pixel.map(f64::from), out, &mut rng);
+                    }
+                },
+            );
         } else {
             // No blur: shade and record each row in one pass.
             rows.for_each(|(v, row)| {
                 let mut rng = ChaCha8Rng::seed_from_u64(mix_seed(noise_seed, v as u64));
                 let rays = &self.rays[v * row_rays..(v + 1) * row_rays];
+                let mut hits = vec![None; per_pixel];
                 for (pixel, out) in rays.chunks_exact(per_pixel).zip(row.chunks_exact_mut(3)) {
-                    record(pixel_light(pixel), out, &mut rng);
+                    record(pixel_light(pixel, &mut hits), out, &mut rng);
                 }
             });
         }
@@ -408,42 +446,76 @@ impl<'a> RowMarch<'a> {
     }
 }
 
-/// A separable Gaussian blur of a row-major image `width` pixels wide
-/// (edges clamped): each row in place, then each column into a new image,
-/// rows in parallel.
-fn gaussian_blur(mut image: Vec<[f32; 3]>, width: usize, sigma_px: f64) -> Vec<[f32; 3]> {
-    let radius = (3.0 * sigma_px).ceil() as isize;
-    let weights: Vec<f32> =
-        (-radius..=radius).map(|k| (-0.5 * (k as f64 / sigma_px).powi(2)).exp() as f32).collect();
-    let total: f32 = weights.iter().sum();
-    let weights: Vec<f32> = weights.iter().map(|w| w / total).collect();
-    let height = image.len() / width.max(1);
-    let clamp = |i: isize, n: usize| i.clamp(0, n as isize - 1) as usize;
-    image.par_chunks_mut(width).for_each(|row| {
-        let source = row.to_vec();
-        for (u, pixel) in row.iter_mut().enumerate() {
+/// A normalized, sampled Gaussian for the lens blur, cut off at 3 sigma,
+/// applied separably (rows, then columns) with clamped edges.
+struct GaussianKernel {
+    radius: usize,
+    /// Weights of offsets -radius..=radius, summing to 1.
+    weights: Vec<f32>,
+}
+
+impl GaussianKernel {
+    fn new(sigma_px: f64) -> Self {
+        let radius = (3.0 * sigma_px).ceil() as isize;
+        let weights: Vec<f32> = (-radius..=radius)
+            .map(|k| (-0.5 * (k as f64 / sigma_px).powi(2)).exp() as f32)
+            .collect();
+        let total: f32 = weights.iter().sum();
+        let weights = weights.iter().map(|w| w / total).collect();
+        Self { radius: radius as usize, weights }
+    }
+
+    /// Blurs `row` along itself into `out` (same length).
+    fn blur_row(&self, row: &[[f32; 3]], out: &mut [[f32; 3]]) {
+        let (r, n) = (self.radius, row.len());
+        let tap = |u: usize| {
             let mut sum = [0.0f32; 3];
-            for (k, w) in (-radius..=radius).zip(&weights) {
-                let s = source[clamp(u as isize + k, width)];
+            for (k, w) in self.weights.iter().enumerate() {
+                let s = row[(u + k).saturating_sub(r).min(n - 1)];
                 for c in 0..3 {
                     sum[c] += w * s[c];
                 }
             }
-            *pixel = sum;
+            sum
+        };
+        if n <= 2 * r {
+            for (u, pixel) in out.iter_mut().enumerate() {
+                *pixel = tap(u);
+            }
+            return;
         }
-    });
-    let mut blurred = vec![[0.0f32; 3]; image.len()];
-    blurred.par_chunks_mut(width).enumerate().for_each(|(v, out)| {
-        for (k, w) in (-radius..=radius).zip(&weights) {
-            let source = &image[clamp(v as isize + k, height) * width..][..width];
-            for (pixel, s) in out.iter_mut().zip(source) {
-                for c in 0..3 {
-                    pixel[c] += w * s[c];
-                }
+        for (u, pixel) in out.iter_mut().enumerate().take(r) {
+            *pixel = tap(u);
+        }
+        for (u, pixel) in out.iter_mut().enumerate().skip(n - r) {
+            *pixel = tap(u);
+        }
+        // The interior needs no clamping: tap k of pixel u is pixel u + k - r,
+        // so each tap adds a shifted copy of the row, channels interleaved.
+        let interior = out[r..n - r].as_flattened_mut();
+        interior.fill(0.0);
+        let row = row.as_flattened();
+        for (k, w) in self.weights.iter().enumerate() {
+            for (sum, s) in interior.iter_mut().zip(&row[3 * k..]) {
+                *sum += w * s;
             }
         }
-    });
-    blurred
+    }
+
+    /// Row `v` of the row-major `image` (`width` pixels wide) blurred down
+    /// its columns, into `out`.
+    fn blur_column_rows(&self, image: &[[f32; 3]], width: usize, v: usize, out: &mut [[f32; 3]]) {
+        let height = image.len() / width.max(1);
+        let out = out.as_flattened_mut();
+        out.fill(0.0);
+        for (k, w) in self.weights.iter().enumerate() {
+            let source = (v + k).saturating_sub(self.radius).min(height - 1);
+            let source = image[source * width..][..width].as_flattened();
+            for (sum, s) in out.iter_mut().zip(source) {
+                *sum += w * s;
+            }
+        }
+    }
 }
 
 /// 8-bit quantization: round to the nearest digital number, saturate at 0 and 255.
@@ -453,19 +525,21 @@ fn quantize(signal_dn: f64) -> u8 {
     (signal_dn.clamp(0.0, 255.0) + 0.5) as u8
 }
 
-/// The radiance seen along the camera ray through normalized (x_n, y_n).
+/// The radiance seen along the camera ray through normalized (x_n, y_n),
+/// which meets the scene at `hit`.
 #[inline]
 fn shade(
-    scene: &impl Scene,
     lighting: &Lighting,
     laser: Option<&LaserStripe>,
+    scene: &impl Scene,
     x_n: f64,
     y_n: f64,
+    hit: Option<&SurfaceHit>,
 ) -> [f64; 3] {
     if !(x_n.is_finite() && y_n.is_finite()) {
         return [0.0; 3];
     }
-    let Some(hit) = scene.intersect_camera_ray(x_n, y_n) else {
+    let Some(hit) = hit else {
         return [lighting.background; 3];
     };
     let facing = hit.normal.dot(&lighting.to_light_in_camera);
@@ -482,7 +556,7 @@ fn shade(
         radiance = radiance.map(|channel| channel + highlight);
     }
     if let Some(laser) = laser {
-        let irradiance = laser.irradiance(scene, &hit);
+        let irradiance = laser.irradiance(scene, hit);
         if irradiance > 0.0 {
             let mut laser_radiance = irradiance * hit.laser_reflectance;
             if laser.speckle_contrast > 0.0 {
@@ -601,6 +675,7 @@ impl LaserStripe {
     /// power * exp(-d^2 / (2 sigma^2)) * cos(incidence), d the point's
     /// distance from the laser plane; 0 where the lit side faces away from
     /// the laser origin or something in `scene` shadows the point.
+    #[inline]
     pub fn irradiance(&self, scene: &impl Scene, hit: &SurfaceHit) -> f64 {
         let sigma_mm = self.sigma_per_depth * hit.point.z.abs();
         let distance_mm = self.plane.normal.dot(&hit.point.coords) - self.plane.offset_mm;
