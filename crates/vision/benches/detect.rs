@@ -6,13 +6,13 @@ use std::path::Path;
 use alacs_model::{BoardSpec, Camera, Fidelity, LaserModel};
 use alacs_sim::{SessionOptions, simulate_session};
 use alacs_vision::{
-    Region, StripeOptions, board_gray, detect_checkerboard, extract_stripe, laser_score,
-    read_image,
+    Region, StripeOptions, board_gray, detect_checkerboard, extract_stripe, laser_score, read_image,
 };
 use criterion::{Criterion, criterion_group, criterion_main};
 
 fn detection(c: &mut Criterion) {
-    let photo = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../testdata/opencv_right/right01.jpg");
+    let photo =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../testdata/opencv_right/right01.jpg");
     let photo = board_gray(&read_image(&photo).unwrap());
     let board_9x6 = BoardSpec { cols: 9, rows: 6, square_x_mm: 25.0, square_y_mm: 25.0 };
     c.bench_function("checkerboard_640x480_photo", |b| {
