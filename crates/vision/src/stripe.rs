@@ -117,19 +117,19 @@ impl Region {
         if last < 0.0 {
             return Region { spans };
         }
+        let n = vertices.len();
+        // Orientation: the polygon's signed area.
+        let area: f64 = (0..n)
+            .map(|i| {
+                let (a, b) = (vertices[i], vertices[(i + 1) % n]);
+                a.x * b.y - b.x * a.y
+            })
+            .sum();
+        let sign = if area >= 0.0 { 1.0 } else { -1.0 };
         for v in first..=last as u32 {
             let y = f64::from(v);
             let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
             let mut inside = true;
-            let n = vertices.len();
-            // Orientation: the polygon's signed area.
-            let area: f64 = (0..n)
-                .map(|i| {
-                    let (a, b) = (vertices[i], vertices[(i + 1) % n]);
-                    a.x * b.y - b.x * a.y
-                })
-                .sum();
-            let sign = if area >= 0.0 { 1.0 } else { -1.0 };
             for i in 0..n {
                 let (a, b) = (vertices[i], vertices[(i + 1) % n]);
                 // Inside: sign * cross(b - a, p - a) >= margin * |b - a|, linear in x.
@@ -179,7 +179,7 @@ impl Region {
 /// laser-off image of the same pose.
 pub fn laser_score(on: &RgbImage, off: Option<&RgbImage>) -> Result<ScoreImage> {
     let (width, height) = on.dimensions();
-    match off {
+    let data: Vec<f32> = match off {
         Some(off) => {
             if off.dimensions() != (width, height) {
                 return Err(Error::Mismatch {
@@ -190,23 +190,16 @@ pub fn laser_score(on: &RgbImage, off: Option<&RgbImage>) -> Result<ScoreImage> 
                     ),
                 });
             }
-            let data = on
-                .pixels()
+            on.pixels()
                 .zip(off.pixels())
                 .map(|(a, b)| (f32::from(a[0]) - f32::from(b[0])).max(0.0))
-                .collect();
-            Ok(ScoreImage::from_raw(width, height, data)
-                .unwrap_or_else(|| ScoreImage::new(width, height)))
+                .collect()
         }
         None => {
-            let data = on
-                .pixels()
-                .map(|p| (f32::from(p[0]) - f32::from(p[1].max(p[2]))).max(0.0))
-                .collect();
-            Ok(ScoreImage::from_raw(width, height, data)
-                .unwrap_or_else(|| ScoreImage::new(width, height)))
+            on.pixels().map(|p| (f32::from(p[0]) - f32::from(p[1].max(p[2]))).max(0.0)).collect()
         }
-    }
+    };
+    Ok(ScoreImage::from_raw(width, height, data).unwrap_or_else(|| ScoreImage::new(width, height)))
 }
 
 /// The stripe: at most one point per row of the region (see
