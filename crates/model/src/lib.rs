@@ -36,6 +36,7 @@ mod camera;
 mod error;
 mod geometry;
 mod laser;
+mod scan;
 mod scan_plan;
 mod session;
 
@@ -43,5 +44,6 @@ pub use camera::*;
 pub use error::{Error, Result};
 pub use geometry::{Plane, Ray};
 pub use laser::{Fidelity, LaserModel, PreparedLaser, SLIDE_STROKE_MM, SlideTarget};
+pub use scan::{DEFAULT_FRUIT_RADIUS_MM, SCAN_FILE, Scan, ScanFrameSpec};
 pub use scan_plan::{ScanPlan, ScanStrategy};
 pub use session::{BoardSpec, SESSION_FILE, Session, SessionView};

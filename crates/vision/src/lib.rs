@@ -15,5 +15,6 @@ pub use checkerboard::{
 pub use error::{Error, Result};
 pub use image_io::read_image;
 pub use stripe::{
-    PeakMethod, Region, ScoreImage, StripeOptions, StripePoint, extract_stripe, laser_score,
+    LocalBackground, PeakMethod, Region, ScoreImage, StripeOptions, StripePoint, extract_stripe,
+    extract_stripe_rgb, laser_score,
 };

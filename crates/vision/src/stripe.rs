@@ -47,6 +47,32 @@ pub struct StripeOptions {
     pub ambiguity_ratio: f32,
     /// The sub-pixel method.
     pub method: PeakMethod,
+    /// Subtract the local background along the row before the peak search
+    /// (a line detector); `None` takes the scores as they are.
+    pub local_background: Option<LocalBackground>,
+    /// A peak where the laser-on image's red channel reaches this value
+    /// (DN) within a pixel of the centre is clipped, its centre biased, and
+    /// the row is skipped ([`extract_stripe_rgb`] only).
+    pub saturation_dn: Option<u8>,
+}
+
+/// A line detector along the row: each score minus the larger of the mean
+/// scores in two windows, one each side, `gap_px` away. A thin line keeps
+/// its height; a smooth surface (a red apple's body under the
+/// colour-contrast score) and a step (the apple's edge) go to zero or below.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LocalBackground {
+    /// Distance from the pixel to the near end of each window, px.
+    pub gap_px: usize,
+    /// Length of each window, px.
+    pub window_px: usize,
+}
+
+impl LocalBackground {
+    /// Pixels the detector looks at each side of a pixel.
+    fn reach(&self) -> usize {
+        self.gap_px + self.window_px
+    }
 }
 
 impl Default for StripeOptions {
@@ -56,6 +82,23 @@ impl Default for StripeOptions {
             max_width_px: 12.0,
             ambiguity_ratio: 0.5,
             method: PeakMethod::CentreOfGravity,
+            local_background: None,
+            saturation_dn: None,
+        }
+    }
+}
+
+impl StripeOptions {
+    /// Settings for orchard frames: a red line on a red, sunlit, textured
+    /// fruit among leaves. The local background removes the fruit's own
+    /// colour contrast (the stripe's Gaussian cross-section, sigma about
+    /// 1.5 px, lies within the 5 px gap); clipped peaks are skipped.
+    pub fn orchard() -> StripeOptions {
+        StripeOptions {
+            min_strength: 10.0,
+            local_background: Some(LocalBackground { gap_px: 5, window_px: 4 }),
+            saturation_dn: Some(250),
+            ..StripeOptions::default()
         }
     }
 }
@@ -95,6 +138,11 @@ impl Region {
             (v0..=v1).map(|v| (v, u0, u1)).collect()
         };
         Region { spans }
+    }
+
+    /// The spans: (row, first column, last column), rows increasing.
+    pub fn spans(&self) -> &[(u32, u32, u32)] {
+        &self.spans
     }
 
     /// The pixels whose centres lie inside a convex polygon (vertices in
@@ -181,25 +229,39 @@ pub fn laser_score(on: &RgbImage, off: Option<&RgbImage>) -> Result<ScoreImage> 
     let (width, height) = on.dimensions();
     let data: Vec<f32> = match off {
         Some(off) => {
-            if off.dimensions() != (width, height) {
-                return Err(Error::Mismatch {
-                    message: format!(
-                        "the laser-off image is {} x {} px, the laser image {width} x {height} px",
-                        off.width(),
-                        off.height()
-                    ),
-                });
-            }
-            on.pixels()
-                .zip(off.pixels())
-                .map(|(a, b)| (f32::from(a[0]) - f32::from(b[0])).max(0.0))
-                .collect()
+            check_same_size(on, off)?;
+            on.pixels().zip(off.pixels()).map(|(a, b)| difference_score(a[0], b[0])).collect()
         }
-        None => {
-            on.pixels().map(|p| (f32::from(p[0]) - f32::from(p[1].max(p[2]))).max(0.0)).collect()
-        }
+        None => on.pixels().map(|p| colour_score(p[0], p[1], p[2])).collect(),
     };
     Ok(ScoreImage::from_raw(width, height, data).unwrap_or_else(|| ScoreImage::new(width, height)))
+}
+
+/// `R_on - R_off`, clamped at 0.
+#[inline]
+fn difference_score(red_on: u8, red_off: u8) -> f32 {
+    (f32::from(red_on) - f32::from(red_off)).max(0.0)
+}
+
+/// `R - max(G, B)`, clamped at 0.
+#[inline]
+fn colour_score(red: u8, green: u8, blue: u8) -> f32 {
+    (f32::from(red) - f32::from(green.max(blue))).max(0.0)
+}
+
+fn check_same_size(on: &RgbImage, off: &RgbImage) -> Result<()> {
+    if off.dimensions() == on.dimensions() {
+        return Ok(());
+    }
+    Err(Error::Mismatch {
+        message: format!(
+            "the laser-off image is {} x {} px, the laser image {} x {} px",
+            off.width(),
+            off.height(),
+            on.width(),
+            on.height()
+        ),
+    })
 }
 
 /// The stripe: at most one point per row of the region (see
@@ -211,22 +273,130 @@ pub fn extract_stripe(
 ) -> Vec<StripePoint> {
     let width = score.width() as usize;
     let data = score.as_raw();
+    let mut buffer = Vec::new();
     let mut points = Vec::new();
     for &(v, u0, u1) in &region.spans {
         let row_start = v as usize * width;
-        let Some(row) = data.get(row_start + u0 as usize..=row_start + u1 as usize) else {
+        let Some(row) = data.get(row_start..row_start + width) else {
             continue;
         };
-        if let Some((u, strength, width_px)) = row_peak(row, options) {
-            points.push(StripePoint {
-                u_px: f64::from(u0) + u,
-                v_px: f64::from(v),
-                strength,
-                width_px,
-            });
+        if let Some(point) = span_peak(row, v, u0, u1, options, &mut buffer) {
+            points.push(point);
         }
     }
     points
+}
+
+/// [`laser_score`] and [`extract_stripe`] in one pass over the region: the
+/// scores are computed only there (plus the local background's reach), and
+/// clipped peaks are skipped per [`StripeOptions::saturation_dn`].
+pub fn extract_stripe_rgb(
+    on: &RgbImage,
+    off: Option<&RgbImage>,
+    region: &Region,
+    options: &StripeOptions,
+) -> Result<Vec<StripePoint>> {
+    let (width, height) = on.dimensions();
+    if let Some(off) = off {
+        check_same_size(on, off)?;
+    }
+    let reach = options.local_background.map_or(0, |b| b.reach());
+    let (on_raw, off_raw) = (on.as_raw(), off.map(|o| o.as_raw()));
+    let mut row = vec![0.0_f32; width as usize];
+    let mut buffer = Vec::new();
+    let mut points = Vec::new();
+    for &(v, u0, u1) in &region.spans {
+        if v >= height || u1 >= width {
+            continue;
+        }
+        let first = (u0 as usize).saturating_sub(reach);
+        let last = (u1 as usize + reach).min(width as usize - 1);
+        let row_start = 3 * v as usize * width as usize;
+        for u in first..=last {
+            let i = row_start + 3 * u;
+            row[u] = match off_raw {
+                Some(off) => difference_score(on_raw[i], off[i]),
+                None => colour_score(on_raw[i], on_raw[i + 1], on_raw[i + 2]),
+            };
+        }
+        let Some(point) = span_peak(&row, v, u0, u1, options, &mut buffer) else {
+            continue;
+        };
+        if let Some(limit) = options.saturation_dn {
+            let centre = point.u_px.round() as i64;
+            let clipped = (centre - 1..=centre + 1)
+                .filter(|&u| (0..i64::from(width)).contains(&u))
+                .any(|u| on_raw[row_start + 3 * u as usize] >= limit);
+            if clipped {
+                continue;
+            }
+        }
+        points.push(point);
+    }
+    Ok(points)
+}
+
+/// The peak of one span of a row: `row` holds the whole image row's scores
+/// (valid at least over the span and the local background's reach).
+fn span_peak(
+    row: &[f32],
+    v: u32,
+    u0: u32,
+    u1: u32,
+    options: &StripeOptions,
+    buffer: &mut Vec<f32>,
+) -> Option<StripePoint> {
+    let (first, last) = (u0 as usize, u1 as usize);
+    let span = row.get(first..=last)?;
+    let scores = match options.local_background {
+        None => span,
+        Some(background) => {
+            local_contrast(row, first, last, background, buffer);
+            buffer.as_slice()
+        }
+    };
+    let (u, strength, width_px) = row_peak(scores, options)?;
+    Some(StripePoint { u_px: f64::from(u0) + u, v_px: f64::from(v), strength, width_px })
+}
+
+/// The line detector of [`LocalBackground`] over `row[first..=last]`,
+/// written to `out`. Windows are cut at the row's ends; a side with no
+/// pixels counts as no background.
+fn local_contrast(
+    row: &[f32],
+    first: usize,
+    last: usize,
+    background: LocalBackground,
+    out: &mut Vec<f32>,
+) {
+    let lo = first.saturating_sub(background.reach());
+    let hi = (last + background.reach()).min(row.len() - 1);
+    // Prefix sums over lo..=hi: sum(a..b) = prefix[b - lo] - prefix[a - lo].
+    let mut prefix = Vec::with_capacity(hi - lo + 2);
+    prefix.push(0.0_f64);
+    let mut total = 0.0_f64;
+    for &s in &row[lo..=hi] {
+        total += f64::from(s);
+        prefix.push(total);
+    }
+    let mean = |a: usize, b: usize| -> Option<f64> {
+        // Mean over a..b (exclusive), clipped to lo..=hi.
+        let (a, b) = (a.max(lo), b.min(hi + 1));
+        (b > a).then(|| (prefix[b - lo] - prefix[a - lo]) / (b - a) as f64)
+    };
+    out.clear();
+    for u in first..=last {
+        let left = u
+            .checked_sub(background.gap_px)
+            .and_then(|end| mean(end.saturating_sub(background.window_px), end));
+        let right = mean(u + background.gap_px + 1, u + background.reach() + 1);
+        let level = match (left, right) {
+            (Some(a), Some(b)) => a.max(b),
+            (Some(a), None) | (None, Some(a)) => a,
+            (None, None) => 0.0,
+        };
+        out.push((f64::from(row[u]) - level).max(0.0) as f32);
+    }
 }
 
 /// The sub-pixel peak of one row's scores: (column within the row, peak
@@ -347,6 +517,47 @@ mod tests {
             *s += t * 0.8;
         }
         assert!(row_peak(&two, &options).is_none());
+    }
+
+    #[test]
+    fn local_background_keeps_a_line_and_drops_a_step() {
+        // A line of height 60 on a plateau of 80 that starts at column 30 (a
+        // red apple's edge under the colour-contrast score).
+        let mut row: Vec<f32> = (0..80).map(|i| if i >= 30 { 80.0 } else { 5.0 }).collect();
+        for (s, t) in row.iter_mut().zip(gaussian_row(50.0, 80)) {
+            *s += t * 0.6 - 1.8;
+        }
+        let background = LocalBackground { gap_px: 5, window_px: 4 };
+        let mut out = Vec::new();
+        local_contrast(&row, 0, 79, background, &mut out);
+        let options =
+            StripeOptions { local_background: Some(background), ..StripeOptions::orchard() };
+        let (u, strength, _) = row_peak(&out, &options).unwrap();
+        assert!((u - 50.0).abs() < 0.05, "{u}");
+        assert!((strength - 60.0).abs() < 3.0, "{strength}");
+        // The step alone gives nothing.
+        let step: Vec<f32> = (0..80).map(|i| if i >= 30 { 80.0 } else { 5.0 }).collect();
+        local_contrast(&step, 0, 79, background, &mut out);
+        assert!(out.iter().all(|&s| s < 1.0), "{out:?}");
+    }
+
+    #[test]
+    fn rgb_extraction_skips_clipped_rows_and_matches_the_score_image() {
+        let mut image = RgbImage::from_pixel(60, 4, image::Rgb([120, 30, 30]));
+        for v in 0..4 {
+            for (u, t) in gaussian_row(30.0, 60).iter().enumerate() {
+                let red = if v == 3 { 255.0 } else { 120.0 + t * 1.2 };
+                image.put_pixel(u as u32, v, image::Rgb([red.min(255.0) as u8, 30, 30]));
+            }
+        }
+        let region = Region::full(60, 4);
+        let options = StripeOptions::orchard();
+        let points = extract_stripe_rgb(&image, None, &region, &options).unwrap();
+        assert_eq!(points.len(), 3, "the clipped row is skipped");
+        let score = laser_score(&image, None).unwrap();
+        let again = extract_stripe(&score, &region, &options);
+        assert_eq!(points[..], again[..3]);
+        assert!(points.iter().all(|p| (p.u_px - 30.0).abs() < 0.1));
     }
 
     #[test]
