@@ -21,6 +21,7 @@
 //! ```
 
 pub use alacs_calib as calib;
+pub use alacs_locate as locate;
 pub use alacs_model as model;
 pub use alacs_sim as sim;
 pub use alacs_vision as vision;
@@ -28,4 +29,4 @@ pub use alacs_vision as vision;
 pub use alacs_calib::{
     CalibrationOptions, LaserCalibration, LaserSample, Method, calibrate, compare,
 };
-pub use alacs_model::{Camera, Distortion, Fidelity, LaserModel, Session};
+pub use alacs_model::{Camera, Distortion, Fidelity, LaserModel, Scan, Session};

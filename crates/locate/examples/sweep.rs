@@ -1,0 +1,82 @@
+//! Localization errors on a batch of simulated scans, both methods:
+//! `cargo run --release -p alacs-locate --example sweep -- [N] [occlusion] [sun] [scale] [first_seed] [ellipticity]`.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use alacs_locate::{FrameImages, LocateOptions, Method, Prior, Status, locate};
+use alacs_model::{Camera, Fidelity, LaserModel};
+use alacs_sim::{OrchardOptions, ScanOptions, simulate_scan};
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let n: u64 = args.get(1).map_or(8, |a| a.parse().unwrap());
+    let occlusion: f64 = args.get(2).map_or(0.0, |a| a.parse().unwrap());
+    let sun = args.get(3).is_some_and(|a| a == "sun");
+    let scale: f64 = args.get(4).map_or(1.0, |a| a.parse().unwrap());
+    let first: u64 = args.get(5).map_or(0, |a| a.parse().unwrap());
+    let ellipticity: f64 = args.get(6).map_or(0.08, |a| a.parse().unwrap());
+    let laser = LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98);
+    for seed in first..first + n {
+        let options = ScanOptions {
+            orchard: OrchardOptions {
+                occlusion,
+                max_ellipticity: ellipticity,
+                ..OrchardOptions::default()
+            },
+            sun,
+            scale,
+            seed,
+            ..ScanOptions::default()
+        };
+        let scan = simulate_scan(&Camera::blackfly_s_5mp(), &laser, &options).unwrap();
+        let images: Vec<_> =
+            (0..scan.frames.len()).map(|i| scan.render_frame(i, true).unwrap()).collect();
+        let frames: Vec<_> = images
+            .iter()
+            .zip(&scan.frames)
+            .map(|(image, f)| FrameImages { image, image_laser_off: None, slide_mm: f.slide_mm })
+            .collect();
+        let prior = Prior { rough_position_mm: scan.rough_position_mm, fruit_radius_mm: 40.0 };
+        let truth = scan.scene.fruit_centre;
+        let start = std::time::Instant::now();
+        let mut line = format!(
+            "seed {seed:3} z {:6.1} r {:4.1} occ {:3.0}% |",
+            truth.z,
+            scan.scene.fruit_radius_mm,
+            100.0 * scan.scene.occlusion
+        );
+        for method in [Method::Fused, Method::Holistic] {
+            let answer = locate(
+                &scan.camera,
+                &laser,
+                &prior,
+                &frames,
+                &LocateOptions { method, ..LocateOptions::default() },
+            )
+            .unwrap();
+            match (answer.status, answer.position_mm) {
+                (Status::Ok, Some(p)) => {
+                    let e = p - truth;
+                    line += &format!(
+                        " {:8} err ({:6.2} {:6.2} {:6.2}) 3d {:6.2} |",
+                        method.as_str(),
+                        e.x,
+                        e.y,
+                        e.z,
+                        e.norm()
+                    );
+                }
+                _ => line += &format!(" {:8} NOT FOUND: {} |", method.as_str(), answer.reason),
+            }
+            if method == Method::Fused {
+                let per: Vec<String> = answer
+                    .frames
+                    .iter()
+                    .map(|f| format!("{}/{}", f.fruit.len(), f.stripe.len()))
+                    .collect();
+                line += &format!(" pts {} |", per.join(" "));
+            }
+        }
+        line += &format!(" {:.0} ms", start.elapsed().as_secs_f64() * 1000.0 / 2.0);
+        println!("{line}");
+    }
+}

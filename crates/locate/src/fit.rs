@@ -1,0 +1,313 @@
+//! Circles and spheres through points: minimal solvers for RANSAC,
+//! algebraic least squares (Kasa) for a start, and Gauss-Newton on the
+//! geometric distance |‖p - c‖ - r| to finish.
+
+use alacs_calib::ransac::Estimator;
+use nalgebra::{Matrix3, Matrix4, Point2, Point3, Vector2, Vector3, Vector4};
+
+/// A circle in a plane's 2-D coordinates (mm).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Circle {
+    /// Centre.
+    pub centre: Point2<f64>,
+    /// Radius.
+    pub radius_mm: f64,
+}
+
+/// A sphere in the camera frame (mm).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sphere {
+    /// Centre.
+    pub centre: Point3<f64>,
+    /// Radius.
+    pub radius_mm: f64,
+}
+
+impl Circle {
+    /// Geometric distance of `p` from the circle.
+    pub fn distance_mm(&self, p: &Point2<f64>) -> f64 {
+        ((p - self.centre).norm() - self.radius_mm).abs()
+    }
+}
+
+impl Sphere {
+    /// Geometric distance of `p` from the sphere.
+    pub fn distance_mm(&self, p: &Point3<f64>) -> f64 {
+        ((p - self.centre).norm() - self.radius_mm).abs()
+    }
+}
+
+/// The circle through three points, `None` when they are (nearly) collinear.
+pub fn circle_through(a: &Point2<f64>, b: &Point2<f64>, c: &Point2<f64>) -> Option<Circle> {
+    let (ab, ac) = (b - a, c - a);
+    let cross = ab.x * ac.y - ab.y * ac.x;
+    if cross.abs() <= 1e-9 * ab.norm_squared().max(ac.norm_squared()) {
+        return None;
+    }
+    let (ab2, ac2) = (ab.norm_squared(), ac.norm_squared());
+    let offset = Vector2::new(ac.y * ab2 - ab.y * ac2, ab.x * ac2 - ac.x * ab2) / (2.0 * cross);
+    let circle = Circle { centre: a + offset, radius_mm: offset.norm() };
+    circle.radius_mm.is_finite().then_some(circle)
+}
+
+/// The sphere through four points, `None` when they are (nearly) coplanar.
+pub fn sphere_through(points: [&Point3<f64>; 4]) -> Option<Sphere> {
+    let [a, b, c, d] = points;
+    let rows = [b - a, c - a, d - a];
+    let m = Matrix3::from_rows(&[rows[0].transpose(), rows[1].transpose(), rows[2].transpose()]);
+    let rhs =
+        Vector3::new(rows[0].norm_squared(), rows[1].norm_squared(), rows[2].norm_squared()) * 0.5;
+    let scale = rows.iter().map(|r| r.norm()).fold(0.0, f64::max);
+    if m.determinant().abs() <= 1e-9 * scale.powi(3) {
+        return None;
+    }
+    let offset = m.lu().solve(&rhs)?;
+    let sphere = Sphere { centre: a + offset, radius_mm: offset.norm() };
+    sphere.radius_mm.is_finite().then_some(sphere)
+}
+
+/// Least-squares circle: Kasa's algebraic fit, then Gauss-Newton on the
+/// geometric distances. `None` for fewer than 3 points or a degenerate set.
+pub fn fit_circle(points: &[Point2<f64>]) -> Option<Circle> {
+    if points.len() < 3 {
+        return None;
+    }
+    // Kasa: x^2 + y^2 = 2 a x + 2 b y + c, centred for conditioning.
+    let mean = points.iter().fold(Vector2::zeros(), |s, p| s + p.coords) / points.len() as f64;
+    let mut normal = Matrix3::zeros();
+    let mut rhs = Vector3::zeros();
+    for p in points {
+        let q = p.coords - mean;
+        let row = Vector3::new(2.0 * q.x, 2.0 * q.y, 1.0);
+        normal += row * row.transpose();
+        rhs += row * q.norm_squared();
+    }
+    let solution = normal.lu().solve(&rhs)?;
+    let centre = Vector2::new(solution.x, solution.y);
+    let radius_squared = solution.z + centre.norm_squared();
+    if !(radius_squared > 0.0) {
+        return None;
+    }
+    let mut circle =
+        Circle { centre: Point2::from(centre + mean), radius_mm: radius_squared.sqrt() };
+    for _ in 0..GAUSS_NEWTON_STEPS {
+        let mut jtj = Matrix3::zeros();
+        let mut jtr = Vector3::zeros();
+        for p in points {
+            let d = p - circle.centre;
+            let n = d.norm();
+            if n <= 0.0 {
+                continue;
+            }
+            let j = Vector3::new(-d.x / n, -d.y / n, -1.0);
+            let r = n - circle.radius_mm;
+            jtj += j * j.transpose();
+            jtr += j * r;
+        }
+        let step = jtj.lu().solve(&(-jtr))?;
+        circle.centre += Vector2::new(step.x, step.y);
+        circle.radius_mm += step.z;
+        if step.norm() < 1e-9 {
+            break;
+        }
+    }
+    (circle.radius_mm > 0.0 && circle.centre.coords.iter().all(|c| c.is_finite())).then_some(circle)
+}
+
+/// Least-squares sphere: the algebraic fit, then Gauss-Newton on the
+/// geometric distances. `None` for fewer than 4 points or a degenerate set.
+pub fn fit_sphere(points: &[Point3<f64>]) -> Option<Sphere> {
+    if points.len() < 4 {
+        return None;
+    }
+    let mean = points.iter().fold(Vector3::zeros(), |s, p| s + p.coords) / points.len() as f64;
+    let mut normal = Matrix4::zeros();
+    let mut rhs = Vector4::zeros();
+    for p in points {
+        let q = p.coords - mean;
+        let row = Vector4::new(2.0 * q.x, 2.0 * q.y, 2.0 * q.z, 1.0);
+        normal += row * row.transpose();
+        rhs += row * q.norm_squared();
+    }
+    let solution = normal.lu().solve(&rhs)?;
+    let centre = Vector3::new(solution.x, solution.y, solution.z);
+    let radius_squared = solution.w + centre.norm_squared();
+    if !(radius_squared > 0.0) {
+        return None;
+    }
+    let mut sphere =
+        Sphere { centre: Point3::from(centre + mean), radius_mm: radius_squared.sqrt() };
+    for _ in 0..GAUSS_NEWTON_STEPS {
+        let mut jtj = Matrix4::zeros();
+        let mut jtr = Vector4::zeros();
+        for p in points {
+            let d = p - sphere.centre;
+            let n = d.norm();
+            if n <= 0.0 {
+                continue;
+            }
+            let j = Vector4::new(-d.x / n, -d.y / n, -d.z / n, -1.0);
+            let r = n - sphere.radius_mm;
+            jtj += j * j.transpose();
+            jtr += j * r;
+        }
+        let step = jtj.lu().solve(&(-jtr))?;
+        sphere.centre += Vector3::new(step.x, step.y, step.z);
+        sphere.radius_mm += step.w;
+        if step.norm() < 1e-9 {
+            break;
+        }
+    }
+    (sphere.radius_mm > 0.0 && sphere.centre.coords.iter().all(|c| c.is_finite())).then_some(sphere)
+}
+
+/// Gauss-Newton steps after the algebraic fit (it converges in 3-5 on
+/// points that cover an arc of a few tens of degrees).
+const GAUSS_NEWTON_STEPS: usize = 20;
+
+/// RMS of the geometric distances.
+pub fn rms_mm(distances: impl Iterator<Item = f64>) -> f64 {
+    let (sum, n) = distances.fold((0.0, 0usize), |(s, n), d| (s + d * d, n + 1));
+    if n == 0 { f64::INFINITY } else { (sum / n as f64).sqrt() }
+}
+
+/// RMS distance of points from their least-squares line (2-D) through the
+/// principal axis: how far the points are from straight.
+pub fn line_rms_mm(points: &[Point2<f64>]) -> f64 {
+    if points.len() < 2 {
+        return 0.0;
+    }
+    let mean = points.iter().fold(Vector2::zeros(), |s, p| s + p.coords) / points.len() as f64;
+    let mut scatter = nalgebra::Matrix2::zeros();
+    for p in points {
+        let q = p.coords - mean;
+        scatter += q * q.transpose();
+    }
+    let smallest = scatter.symmetric_eigenvalues().min().max(0.0);
+    (smallest / points.len() as f64).sqrt()
+}
+
+/// RMS distance of points from their least-squares plane: how far they are
+/// from flat.
+pub fn plane_rms_mm(points: &[Point3<f64>]) -> f64 {
+    if points.len() < 3 {
+        return 0.0;
+    }
+    let mean = points.iter().fold(Vector3::zeros(), |s, p| s + p.coords) / points.len() as f64;
+    let mut scatter = Matrix3::zeros();
+    for p in points {
+        let q = p.coords - mean;
+        scatter += q * q.transpose();
+    }
+    let smallest = scatter.symmetric_eigenvalues().min().max(0.0);
+    (smallest / points.len() as f64).sqrt()
+}
+
+/// Circles through 2-D points for [`alacs_calib::ransac::ransac`], with a
+/// bound on the radius.
+pub struct CircleEstimator<'a> {
+    /// The points.
+    pub points: &'a [Point2<f64>],
+    /// Radii outside this range are no hypothesis.
+    pub radius_range_mm: (f64, f64),
+}
+
+impl Estimator for CircleEstimator<'_> {
+    type Model = Circle;
+
+    fn len(&self) -> usize {
+        self.points.len()
+    }
+
+    fn sample_size(&self) -> usize {
+        3
+    }
+
+    fn fit_minimal(&self, indices: &[usize]) -> Option<Circle> {
+        let [a, b, c] = indices else { return None };
+        let circle = circle_through(&self.points[*a], &self.points[*b], &self.points[*c])?;
+        let (lo, hi) = self.radius_range_mm;
+        (lo..=hi).contains(&circle.radius_mm).then_some(circle)
+    }
+
+    fn residual(&self, model: &Circle, index: usize) -> f64 {
+        model.distance_mm(&self.points[index])
+    }
+}
+
+/// Spheres through 3-D points for [`alacs_calib::ransac::ransac`], with a
+/// bound on the radius.
+pub struct SphereEstimator<'a> {
+    /// The points.
+    pub points: &'a [Point3<f64>],
+    /// Radii outside this range are no hypothesis.
+    pub radius_range_mm: (f64, f64),
+}
+
+impl Estimator for SphereEstimator<'_> {
+    type Model = Sphere;
+
+    fn len(&self) -> usize {
+        self.points.len()
+    }
+
+    fn sample_size(&self) -> usize {
+        4
+    }
+
+    fn fit_minimal(&self, indices: &[usize]) -> Option<Sphere> {
+        let [a, b, c, d] = indices else { return None };
+        let p = self.points;
+        let sphere = sphere_through([&p[*a], &p[*b], &p[*c], &p[*d]])?;
+        let (lo, hi) = self.radius_range_mm;
+        (lo..=hi).contains(&sphere.radius_mm).then_some(sphere)
+    }
+
+    fn residual(&self, model: &Sphere, index: usize) -> f64 {
+        model.distance_mm(&self.points[index])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    #[test]
+    fn circles_and_spheres_through_exact_points() {
+        let circle = Circle { centre: Point2::new(3.0, -2.0), radius_mm: 40.0 };
+        let on = |t: f64| circle.centre + Vector2::new(t.cos(), t.sin()) * circle.radius_mm;
+        let c = circle_through(&on(0.1), &on(0.7), &on(1.5)).unwrap();
+        assert!((c.centre - circle.centre).norm() < 1e-9 && (c.radius_mm - 40.0).abs() < 1e-9);
+        // A 60-degree arc with alternating +-0.1 mm noise.
+        let arc: Vec<_> = (0..50)
+            .map(|i| {
+                let p = on(0.3 + i as f64 * 0.02);
+                let noise = if i % 2 == 0 { 0.1 } else { -0.1 };
+                p + (p - circle.centre).normalize() * noise
+            })
+            .collect();
+        let fitted = fit_circle(&arc).unwrap();
+        assert!((fitted.centre - circle.centre).norm() < 0.5, "{fitted:?}");
+        assert!(circle_through(&on(0.0), &on(0.0), &on(1.0)).is_none());
+
+        let sphere = Sphere { centre: Point3::new(10.0, 5.0, 900.0), radius_mm: 38.0 };
+        let on = |t: f64, s: f64| {
+            sphere.centre
+                + Vector3::new(t.cos() * s.sin(), t.sin() * s.sin(), -s.cos()) * sphere.radius_mm
+        };
+        let s =
+            sphere_through([&on(0.1, 0.3), &on(1.7, 0.9), &on(3.0, 0.5), &on(4.4, 1.2)]).unwrap();
+        assert!((s.centre - sphere.centre).norm() < 1e-6, "{s:?}");
+        // The front cap only, as the camera sees it.
+        let cap: Vec<_> =
+            (0..200).map(|i| on(i as f64 * 0.37, 0.1 + (i % 13) as f64 * 0.08)).collect();
+        let fitted = fit_sphere(&cap).unwrap();
+        assert!((fitted.centre - sphere.centre).norm() < 1e-6, "{fitted:?}");
+        assert!(plane_rms_mm(&cap) > 2.0);
+        assert!(
+            line_rms_mm(&[Point2::new(0.0, 0.0), Point2::new(1.0, 1.0), Point2::new(2.0, 2.0)])
+                < 1e-9
+        );
+    }
+}
