@@ -25,6 +25,8 @@ pub enum Command {
     Triangulate(TriangulateArgs),
     /// Extract the laser stripe of one frame (u_px,v_px,strength), to check exposure.
     Stripe(StripeArgs),
+    /// Locate the target fruit from a scan folder (scan.yaml and its frames).
+    Localize(LocalizeArgs),
     /// Generate simulated data with ground truth.
     #[command(subcommand)]
     Simulate(SimulateCommand),
@@ -307,6 +309,35 @@ pub struct SimulateScanArgs {
     #[command(flatten)]
     pub truth: TruthArgs,
     /// Print a JSON summary on standard output.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// How `localize` chooses the final position.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum LocalizeMethodArg {
+    /// One robust sphere (then ellipsoid) fit over every frame's fruit points.
+    Fused,
+    /// The best single-frame candidate (the seed paper's holistic evaluation).
+    Holistic,
+}
+
+/// `alacs localize`
+#[derive(Debug, Args)]
+pub struct LocalizeArgs {
+    /// Scan folder (scan.yaml beside the frames).
+    #[arg(long, value_name = "DIR")]
+    pub scan: PathBuf,
+    /// The calibrated camera (camera.yaml).
+    #[arg(long, value_name = "FILE")]
+    pub camera: PathBuf,
+    /// The calibrated laser (laser.yaml).
+    #[arg(long, value_name = "FILE")]
+    pub laser: PathBuf,
+    /// How the final position is chosen.
+    #[arg(long, value_enum, default_value_t = LocalizeMethodArg::Fused)]
+    pub method: LocalizeMethodArg,
+    /// Print one JSON object (FORMATS.md) on standard output instead of text.
     #[arg(long)]
     pub json: bool,
 }

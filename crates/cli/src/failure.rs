@@ -61,3 +61,14 @@ impl From<alacs::sim::Error> for Failure {
         }
     }
 }
+
+impl From<alacs::locate::Error> for Failure {
+    fn from(error: alacs::locate::Error) -> Self {
+        use alacs::locate::Error as E;
+        match error {
+            E::Model(e) => e.into(),
+            E::Vision(e) => e.into(),
+            _ => Self::bad_input(error),
+        }
+    }
+}

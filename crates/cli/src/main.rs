@@ -20,6 +20,7 @@ fn main() -> ExitCode {
         args::Command::Calibrate(args::CalibrateCommand::Camera(a)) => cmd::calibrate::camera(&a),
         args::Command::Triangulate(a) => cmd::triangulate::run(&a),
         args::Command::Stripe(a) => cmd::stripe::run(&a),
+        args::Command::Localize(a) => cmd::localize::run(&a),
         args::Command::Simulate(args::SimulateCommand::Samples(a)) => cmd::simulate::samples(&a),
         args::Command::Simulate(args::SimulateCommand::Session(a)) => cmd::simulate::session(&a),
         args::Command::Simulate(args::SimulateCommand::Scan(a)) => cmd::simulate::scan(&a),

@@ -5,6 +5,7 @@ use std::fmt::Write as _;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use alacs::LaserCalibration;
+use alacs::locate::{Localization, Status};
 use alacs::model::Fidelity;
 use serde_json::{Value, json};
 
@@ -125,4 +126,91 @@ pub fn start_progress(bar: &ProgressBar, len: usize, message: &'static str) {
         bar.set_style(style.progress_chars("=> "));
     }
     bar.set_message(message);
+}
+
+/// FORMATS.md's `localize --json` object for `answer`, with the method,
+/// the fused fit and each frame's stripe and fruit point counts added.
+pub fn localization_json(answer: &Localization) -> Value {
+    let point = |p: &nalgebra::Point3<f64>| json!([p.x, p.y, p.z]);
+    json!({
+        "position_mm": answer.position_mm.as_ref().map(point),
+        "radius_mm": answer.radius_mm,
+        "candidates": answer.candidates.iter().map(|c| json!({
+            "frame": c.frame,
+            "slide_mm": c.slide_mm,
+            "position_mm": point(&c.position_mm),
+            "n_points": c.n_points,
+            "score": c.score,
+            "circle_radius_mm": c.circle_radius_mm,
+            "continuity": c.continuity,
+            "fit_rms_mm": c.fit_rms_mm,
+        })).collect::<Vec<_>>(),
+        "selected": answer.selected,
+        "status": answer.status.as_str(),
+        "reason": answer.reason,
+        "method": answer.method.as_str(),
+        "holistic_selection": answer.holistic,
+        "fused": answer.fused.as_ref().map(|f| json!({
+            "sphere_centre_mm": point(&f.sphere.centre),
+            "sphere_radius_mm": f.sphere.radius_mm,
+            "ellipsoid_semi_axes_mm": f.ellipsoid.map(|e| [e.semi_axes_mm.x, e.semi_axes_mm.y, e.semi_axes_mm.z]),
+            "n_points": f.n_points,
+            "n_frames": f.n_frames,
+            "rms_mm": f.rms_mm,
+        })),
+        "fused_rejected": answer.fused_rejected,
+        "frames": answer.frames.iter().map(|f| json!({
+            "slide_mm": f.slide_mm,
+            "stripe_points": f.stripe.len(),
+            "fruit_points": f.fruit.len(),
+            "rejected": f.rejected,
+        })).collect::<Vec<_>>(),
+    })
+}
+
+/// A readable summary of a localization.
+pub fn localization_summary(answer: &Localization) -> String {
+    let mut out = String::new();
+    match (answer.status, answer.position_mm) {
+        (Status::Ok, Some(p)) => {
+            let _ = writeln!(
+                out,
+                "fruit at ({:.1}, {:.1}, {:.1}) mm, radius {:.1} mm ({}: {})",
+                p.x,
+                p.y,
+                p.z,
+                answer.radius_mm.unwrap_or(f64::NAN),
+                answer.method.as_str(),
+                answer.reason
+            );
+        }
+        _ => {
+            let _ = writeln!(out, "not found: {}", answer.reason);
+        }
+    }
+    let _ = writeln!(
+        out,
+        "{:>5} {:>9} {:>7} {:>6}  {:<28} {:>7}",
+        "frame", "slide_mm", "stripe", "fruit", "candidate (mm)", "score"
+    );
+    for (k, frame) in answer.frames.iter().enumerate() {
+        let candidate = answer.candidates.iter().find(|c| c.frame == k);
+        let (position, score) = match candidate {
+            Some(c) => (
+                format!("({:.1}, {:.1}, {:.1})", c.position_mm.x, c.position_mm.y, c.position_mm.z),
+                format!("{:.2}", c.score),
+            ),
+            None => (frame.rejected.clone().unwrap_or_default(), String::new()),
+        };
+        let _ = writeln!(
+            out,
+            "{k:>5} {:>9.1} {:>7} {:>6}  {:<28} {:>7}",
+            frame.slide_mm,
+            frame.stripe.len(),
+            frame.fruit.len(),
+            position,
+            score
+        );
+    }
+    out
 }

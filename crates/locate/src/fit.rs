@@ -311,3 +311,139 @@ mod tests {
         );
     }
 }
+
+/// An ellipsoid in the camera frame (mm): the fruit as the simulator and
+/// nature make it, a sphere stretched a few per cent along three axes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Ellipsoid {
+    /// Centre.
+    pub centre: Point3<f64>,
+    /// Rotation from the body frame to the camera frame.
+    pub rotation: nalgebra::Rotation3<f64>,
+    /// Semi-axes along the body frame's x, y, z, mm.
+    pub semi_axes_mm: Vector3<f64>,
+}
+
+impl Ellipsoid {
+    /// The equal-volume radius, (a b c)^(1/3).
+    pub fn equal_volume_radius_mm(&self) -> f64 {
+        self.semi_axes_mm.product().cbrt()
+    }
+
+    /// Approximate distance of `p` from the surface: (|S^-1 R^T (p - c)| - 1)
+    /// times the equal-volume radius (exact for a sphere).
+    pub fn distance_mm(&self, p: &Point3<f64>) -> f64 {
+        self.scaled_residual(p).abs()
+    }
+
+    fn scaled_residual(&self, p: &Point3<f64>) -> f64 {
+        let body = (self.rotation.inverse() * (p - self.centre)).component_div(&self.semi_axes_mm);
+        (body.norm() - 1.0) * self.equal_volume_radius_mm()
+    }
+}
+
+/// Standard deviation of the log semi-axes about their mean in the
+/// ellipsoid fit's prior: apples are round to a few per cent.
+pub const ELLIPTICITY_PRIOR: f64 = 0.05;
+
+/// Least-squares ellipsoid through surface points, started from `sphere`:
+/// Levenberg-Marquardt over centre, rotation and log semi-axes, with a
+/// Gaussian prior that keeps the semi-axes within a few per cent of each
+/// other ([`ELLIPTICITY_PRIOR`]), weighted as `prior_weight_points` points
+/// of `noise_mm` scatter. A camera sees the fruit's front only, so a sphere
+/// fitted to a slightly elongated fruit misplaces the centre by the
+/// elongation; the ellipsoid takes it up. `None` when the fit diverges.
+pub fn fit_ellipsoid(
+    points: &[Point3<f64>],
+    sphere: &Sphere,
+    noise_mm: f64,
+    prior_weight_points: f64,
+) -> Option<Ellipsoid> {
+    use nalgebra::{DMatrix, DVector, Rotation3, SVector};
+    if points.len() < 9 {
+        return None;
+    }
+    type Params = SVector<f64, 9>;
+    let log_r = sphere.radius_mm.ln();
+    let to_ellipsoid = |x: &Params| Ellipsoid {
+        centre: Point3::new(x[0], x[1], x[2]),
+        rotation: Rotation3::new(Vector3::new(x[3], x[4], x[5])),
+        semi_axes_mm: Vector3::new(x[6].exp(), x[7].exp(), x[8].exp()),
+    };
+    let prior_scale = noise_mm * prior_weight_points.sqrt();
+    let residuals = |x: &Params| -> DVector<f64> {
+        let e = to_ellipsoid(x);
+        let mean_log = (x[6] + x[7] + x[8]) / 3.0;
+        let mut r = DVector::zeros(points.len() + 4);
+        for (i, p) in points.iter().enumerate() {
+            r[i] = e.scaled_residual(p);
+        }
+        let n = points.len();
+        for k in 0..3 {
+            r[n + k] = prior_scale * (x[6 + k] - mean_log) / ELLIPTICITY_PRIOR;
+        }
+        // The overall size is free: the data fix it.
+        r[n + 3] = 0.0;
+        r
+    };
+    let mut x = Params::from_column_slice(&[
+        sphere.centre.x,
+        sphere.centre.y,
+        sphere.centre.z,
+        0.0,
+        0.0,
+        0.0,
+        log_r,
+        log_r,
+        log_r,
+    ]);
+    // Break the symmetry of the sphere start, where the rotation is free.
+    x[3] = 1e-3;
+    x[4] = 2e-3;
+    x[5] = 3e-3;
+    let mut r = residuals(&x);
+    let mut cost = r.norm_squared();
+    let mut lambda = 1e-3;
+    for _ in 0..50 {
+        let mut jacobian = DMatrix::zeros(r.len(), 9);
+        for k in 0..9 {
+            let step = if k < 3 { 1e-4 } else { 1e-6 };
+            let mut xp = x;
+            xp[k] += step;
+            let column = (residuals(&xp) - &r) / step;
+            jacobian.set_column(k, &column);
+        }
+        let jtj = jacobian.transpose() * &jacobian;
+        let jtr = jacobian.transpose() * &r;
+        let mut improved = false;
+        for _ in 0..10 {
+            let mut damped = jtj.clone();
+            for k in 0..9 {
+                damped[(k, k)] += lambda * (jtj[(k, k)] + 1e-9);
+            }
+            let Some(delta) = damped.lu().solve(&(-&jtr)) else {
+                lambda *= 10.0;
+                continue;
+            };
+            let candidate = x + Params::from_column_slice(delta.as_slice());
+            let r_new = residuals(&candidate);
+            let cost_new = r_new.norm_squared();
+            if cost_new.is_finite() && cost_new < cost {
+                let converged = (cost - cost_new) < 1e-10 * cost.max(1e-12);
+                x = candidate;
+                r = r_new;
+                cost = cost_new;
+                lambda = (lambda * 0.3).max(1e-9);
+                improved = !converged;
+                break;
+            }
+            lambda *= 10.0;
+        }
+        if !improved {
+            break;
+        }
+    }
+    let e = to_ellipsoid(&x);
+    (e.centre.coords.iter().all(|c| c.is_finite()) && e.semi_axes_mm.iter().all(|a| a.is_finite()))
+        .then_some(e)
+}

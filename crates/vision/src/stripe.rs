@@ -42,9 +42,16 @@ pub struct StripeOptions {
     /// Widest stripe accepted at half maximum (px): a wider peak is a
     /// saturated blob or a red surface, not a line.
     pub max_width_px: f64,
-    /// A row is ambiguous, and skipped, when a second peak away from the
-    /// first reaches this fraction of it.
+    /// With one peak per row: a row is ambiguous, and skipped, when a
+    /// second peak away from the first reaches this fraction of it. With
+    /// several: peaks weaker than this fraction of the row's strongest are
+    /// dropped.
     pub ambiguity_ratio: f32,
+    /// Peaks kept per row. 1 for a board, where the line is the only red
+    /// thing; more for orchard frames, where a leaf edge or the fruit's red
+    /// rim can outshine the line on a sunlit fruit and the 3-D shape test
+    /// downstream tells them apart.
+    pub max_peaks_per_row: usize,
     /// The sub-pixel method.
     pub method: PeakMethod,
     /// Subtract the local background along the row before the peak search
@@ -82,6 +89,7 @@ impl Default for StripeOptions {
             max_width_px: 12.0,
             ambiguity_ratio: 0.5,
             method: PeakMethod::CentreOfGravity,
+            max_peaks_per_row: 1,
             local_background: None,
             saturation_dn: None,
         }
@@ -98,6 +106,8 @@ impl StripeOptions {
             min_strength: 10.0,
             local_background: Some(LocalBackground { gap_px: 5, window_px: 4 }),
             saturation_dn: Some(250),
+            max_peaks_per_row: 3,
+            ambiguity_ratio: 0.2,
             ..StripeOptions::default()
         }
     }
@@ -264,8 +274,8 @@ fn check_same_size(on: &RgbImage, off: &RgbImage) -> Result<()> {
     })
 }
 
-/// The stripe: at most one point per row of the region (see
-/// [`StripeOptions`] for what is skipped).
+/// The stripe: at most [`StripeOptions::max_peaks_per_row`] points per row
+/// of the region, rows increasing (see [`StripeOptions`] for what is skipped).
 pub fn extract_stripe(
     score: &ScoreImage,
     region: &Region,
@@ -280,9 +290,7 @@ pub fn extract_stripe(
         let Some(row) = data.get(row_start..row_start + width) else {
             continue;
         };
-        if let Some(point) = span_peak(row, v, u0, u1, options, &mut buffer) {
-            points.push(point);
-        }
+        span_peaks(row, (v, u0, u1), options, &mut buffer, &mut points);
     }
     points
 }
@@ -319,44 +327,77 @@ pub fn extract_stripe_rgb(
                 None => colour_score(on_raw[i], on_raw[i + 1], on_raw[i + 2]),
             };
         }
-        let Some(point) = span_peak(&row, v, u0, u1, options, &mut buffer) else {
-            continue;
-        };
+        let found = points.len();
+        span_peaks(&row, (v, u0, u1), options, &mut buffer, &mut points);
         if let Some(limit) = options.saturation_dn {
-            let centre = point.u_px.round() as i64;
-            let clipped = (centre - 1..=centre + 1)
-                .filter(|&u| (0..i64::from(width)).contains(&u))
-                .any(|u| on_raw[row_start + 3 * u as usize] >= limit);
-            if clipped {
-                continue;
+            let clipped = |point: &StripePoint| {
+                let centre = point.u_px.round() as i64;
+                (centre - 1..=centre + 1)
+                    .filter(|&u| (0..i64::from(width)).contains(&u))
+                    .any(|u| on_raw[row_start + 3 * u as usize] >= limit)
+            };
+            let mut k = found;
+            while k < points.len() {
+                if clipped(&points[k]) {
+                    points.remove(k);
+                } else {
+                    k += 1;
+                }
             }
         }
-        points.push(point);
     }
     Ok(points)
 }
 
-/// The peak of one span of a row: `row` holds the whole image row's scores
-/// (valid at least over the span and the local background's reach).
-fn span_peak(
+/// The peaks of one span of a row, appended to `points`: `row` holds the
+/// whole image row's scores (valid at least over the span and the local
+/// background's reach).
+fn span_peaks(
     row: &[f32],
-    v: u32,
-    u0: u32,
-    u1: u32,
+    (v, u0, u1): (u32, u32, u32),
     options: &StripeOptions,
     buffer: &mut Vec<f32>,
-) -> Option<StripePoint> {
+    points: &mut Vec<StripePoint>,
+) {
     let (first, last) = (u0 as usize, u1 as usize);
-    let span = row.get(first..=last)?;
-    let scores = match options.local_background {
-        None => span,
-        Some(background) => {
-            local_contrast(row, first, last, background, buffer);
-            buffer.as_slice()
+    let Some(span) = row.get(first..=last) else { return };
+    match options.local_background {
+        None => {
+            buffer.clear();
+            buffer.extend_from_slice(span);
         }
+        Some(background) => local_contrast(row, first, last, background, buffer),
+    }
+    let point = |(u, strength, width_px): (f64, f32, f64)| StripePoint {
+        u_px: f64::from(u0) + u,
+        v_px: f64::from(v),
+        strength,
+        width_px,
     };
-    let (u, strength, width_px) = row_peak(scores, options)?;
-    Some(StripePoint { u_px: f64::from(u0) + u, v_px: f64::from(v), strength, width_px })
+    if options.max_peaks_per_row <= 1 {
+        if let Some(peak) = row_peak(buffer, options) {
+            points.push(point(peak));
+        }
+        return;
+    }
+    // Several peaks: the strongest, then the next outside its flanks, down
+    // to `ambiguity_ratio` of the strongest.
+    let single = StripeOptions { ambiguity_ratio: f32::INFINITY, ..options.clone() };
+    let mut strongest = None;
+    for _ in 0..options.max_peaks_per_row {
+        let Some(peak) = row_peak(buffer, &single) else { break };
+        let floor = *strongest.get_or_insert(peak.1) * options.ambiguity_ratio;
+        if peak.1 < floor {
+            break;
+        }
+        points.push(point(peak));
+        let guard = (2.0 * peak.2).ceil() + 2.0;
+        let lo = (peak.0 - guard).floor().max(0.0) as usize;
+        let hi = ((peak.0 + guard).ceil() as usize).min(buffer.len().saturating_sub(1));
+        for s in buffer.iter_mut().take(hi + 1).skip(lo) {
+            *s = 0.0;
+        }
+    }
 }
 
 /// The line detector of [`LocalBackground`] over `row[first..=last]`,
