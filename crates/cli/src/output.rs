@@ -126,3 +126,51 @@ pub fn start_progress(bar: &ProgressBar, len: usize, message: &'static str) {
     }
     bar.set_message(message);
 }
+
+/// `[x, y, z]` of a point, mm.
+fn point_json(p: &nalgebra::Point3<f64>) -> Value {
+    json!([p.x, p.y, p.z])
+}
+
+/// A localization as FORMATS.md's `localize --json` object: `position_mm`
+/// and `radius_mm` (null when not found), `candidates` (one per frame that
+/// gave one), `selected` (index into `candidates` of the holistic answer;
+/// null for the fused answer, which no single frame gives), `status`,
+/// `reason`; plus `method`, `holistic`, the fused fit and the search radius.
+pub fn localization_json(l: &alacs::locate::Localization) -> Value {
+    let candidates: Vec<Value> = l
+        .candidates
+        .iter()
+        .map(|c| {
+            json!({
+                "frame": c.frame,
+                "slide_mm": c.slide_mm,
+                "position_mm": point_json(&c.position_mm),
+                "n_points": c.n_points,
+                "score": c.score,
+                "circle_radius_mm": c.circle_radius_mm,
+                "continuity": c.continuity,
+                "fit_rms_mm": c.fit_rms_mm,
+            })
+        })
+        .collect();
+    json!({
+        "position_mm": l.position_mm.as_ref().map(point_json),
+        "radius_mm": l.radius_mm,
+        "candidates": candidates,
+        "selected": l.selected,
+        "status": l.status.as_str(),
+        "reason": l.reason,
+        "method": l.method.as_str(),
+        "holistic": l.holistic,
+        "fused": l.fused.as_ref().map(|f| json!({
+            "position_mm": point_json(&f.sphere.centre),
+            "radius_mm": f.sphere.radius_mm,
+            "n_points": f.n_points,
+            "n_frames": f.n_frames,
+            "rms_mm": f.rms_mm,
+        })),
+        "fused_rejected": l.fused_rejected,
+        "search_radius_mm": l.search_radius_mm,
+    })
+}

@@ -2,6 +2,7 @@
 
 pub mod calibrate;
 pub mod demo;
+pub mod scan;
 pub mod simulate;
 pub mod stripe;
 pub mod triangulate;
