@@ -5,7 +5,8 @@
 //! This facade re-exports the domain crates:
 //! - [`model`]: the camera model and the ALACS laser model (eqs. (1)-(10) of the seed paper),
 //! - [`calib`]: robust laser calibration (eq. (9), Algorithm 1, the four methods of Table 1),
-//! - [`sim`]: the seeded simulator with ground truth.
+//! - [`sim`]: the seeded simulator with ground truth,
+//! - [`scanner`]: the scan controller (slide, camera and laser behind small traits; a simulated rig).
 //!
 //! # Example
 //! ```
@@ -23,6 +24,7 @@
 pub use alacs_calib as calib;
 pub use alacs_locate as locate;
 pub use alacs_model as model;
+pub use alacs_scanner as scanner;
 pub use alacs_sim as sim;
 pub use alacs_vision as vision;
 

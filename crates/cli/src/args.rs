@@ -32,6 +32,9 @@ pub enum Command {
     Simulate(SimulateCommand),
     /// Run the main job on the built-in simulator and print the results.
     Demo(DemoArgs),
+    /// Scan a fruit with the rig and locate it: the seed's 5-frame active scan
+    /// from the RGB-D camera's rough position. Only the simulated rig (--sim) is built in.
+    Scan(ScanArgs),
 }
 
 /// `alacs calibrate ...`
@@ -349,6 +352,58 @@ pub struct DemoArgs {
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Print one JSON object on standard output instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `alacs scan`
+#[derive(Debug, Args)]
+pub struct ScanArgs {
+    /// Scan with the built-in simulated rig (an orchard scene rendered by the
+    /// simulator). Required: real hardware drivers implement the
+    /// alacs::scanner traits in their own crate.
+    #[arg(long)]
+    pub sim: bool,
+    /// Seed of the simulated scene.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Fraction of the fruit hidden behind leaves (0 to 1).
+    #[arg(long, value_name = "F", default_value_t = 0.0)]
+    pub occlusion: f64,
+    /// Direct sunlight instead of shade.
+    #[arg(long)]
+    pub sun: bool,
+    /// Also capture every frame with the laser off (for differencing).
+    #[arg(long)]
+    pub laser_off: bool,
+    /// Fruit distance range MIN,MAX in mm.
+    #[arg(long, value_name = "MIN,MAX", default_value = "600,1200")]
+    pub depth_mm: String,
+    /// Render the camera resized by this factor.
+    #[arg(long, value_name = "F", default_value_t = 1.0)]
+    pub scale: f64,
+    /// Pose of the RGB-D camera in the ALACS camera frame: translation in mm,
+    /// then roll, pitch, yaw in degrees (R = Rz(yaw) Ry(pitch) Rx(roll));
+    /// point_in_alacs = R point_in_rgbd + (x, y, z). The simulated RGB-D camera
+    /// is mounted there and reports the rough position in its own frame.
+    #[arg(
+        long,
+        value_name = "X,Y,Z,ROLL,PITCH,YAW",
+        default_value = "0,0,0,0,0,0",
+        allow_hyphen_values = true
+    )]
+    pub rgbd_to_alacs: String,
+    /// Localize with this calibrated camera.yaml instead of the simulation's true camera.
+    #[arg(long, value_name = "FILE")]
+    pub camera: Option<PathBuf>,
+    /// Plan and localize with this calibrated laser.yaml instead of the simulation's true laser.
+    #[arg(long, value_name = "FILE")]
+    pub laser: Option<PathBuf>,
+    /// Write the scan folder (scan.yaml, frames, camera.yaml, laser.yaml) and truth.json here.
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// Print one JSON object on standard output: FORMATS.md's localize object
+    /// plus "truth", "error_mm" and "error_3d_mm".
     #[arg(long)]
     pub json: bool,
 }

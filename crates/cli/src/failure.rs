@@ -72,3 +72,16 @@ impl From<alacs::locate::Error> for Failure {
         }
     }
 }
+
+impl From<alacs::scanner::Error> for Failure {
+    fn from(error: alacs::scanner::Error) -> Self {
+        use alacs::scanner::Error as E;
+        match error {
+            E::Sim(e) => e.into(),
+            E::InvalidInput(_) => Self::bad_input(error),
+            E::Locate(ref e) if e.is_bad_input() => Self::bad_input(error),
+            // Devices that failed, outputs that could not be written.
+            _ => Self::job_failed(error),
+        }
+    }
+}

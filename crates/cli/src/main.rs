@@ -25,6 +25,7 @@ fn main() -> ExitCode {
         args::Command::Simulate(args::SimulateCommand::Session(a)) => cmd::simulate::session(&a),
         args::Command::Simulate(args::SimulateCommand::Scan(a)) => cmd::simulate::scan(&a),
         args::Command::Demo(a) => cmd::demo::run(&a),
+        args::Command::Scan(a) => cmd::scan::run(&a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -36,7 +36,14 @@ pub fn calibration_json(c: &LaserCalibration) -> Value {
 
 /// Prints `value` as the one JSON object on standard output.
 pub fn print_json(value: &Value) {
-    println!("{value}");
+    print_text(&format!("{value}\n"));
+}
+
+/// Writes `text` to standard output; a closed pipe (`alacs ... | head`)
+/// ends the output quietly instead of panicking.
+pub fn print_text(text: &str) {
+    use std::io::Write as _;
+    let _ = std::io::stdout().lock().write_all(text.as_bytes());
 }
 
 /// The seed paper's Table 1 for `results`.

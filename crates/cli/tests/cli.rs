@@ -426,3 +426,65 @@ fn session_errors_name_the_input() {
 fn image_like_grey(path: &Path) {
     image::RgbImage::from_pixel(320, 240, image::Rgb([90, 90, 90])).save(path).unwrap();
 }
+
+#[test]
+fn scan_sim_json_localizes_the_simulated_apple_and_writes_a_scan_folder() {
+    let dir = scratch("scan_sim");
+    let out = dir.join("scan");
+    let output = alacs(&[
+        "scan",
+        "--sim",
+        "--scale",
+        "0.25",
+        "--rgbd-to-alacs",
+        "-40,-60,-10,2,5,0",
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    let json = stdout_json(&output);
+    for key in ["position_mm", "radius_mm", "candidates", "selected", "status", "reason"] {
+        assert!(json.get(key).is_some(), "missing {key} in {json}");
+    }
+    assert_eq!(json["status"], "ok", "{json}");
+    let position: Vec<f64> =
+        json["position_mm"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    let truth: Vec<f64> = json["truth"]["position_mm"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    let error: Vec<f64> =
+        json["error_mm"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    for axis in 0..3 {
+        assert!((position[axis] - truth[axis] - error[axis]).abs() < 1e-9);
+    }
+    // A quarter of the 5 MP camera's resolution (612 x 512 px): seed 0
+    // measures 3.3 mm; the pixels are four times the full camera's.
+    assert!(json["error_3d_mm"].as_f64().unwrap() < 8.0, "{json}");
+    assert!(json["truth"]["radius_mm"].as_f64().unwrap() > 30.0);
+    // The folder reads back as a scan of FORMATS.md at the reported slides.
+    let scan = alacs::Scan::read(&out).unwrap();
+    assert_eq!(scan.frames.len(), 5);
+    for (frame, slide) in scan.frames.iter().zip(json["slides_mm"].as_array().unwrap()) {
+        assert_eq!(frame.slide_mm, slide.as_f64().unwrap());
+        assert!(scan.path_of(&frame.image).is_file());
+    }
+    for file in ["camera.yaml", "laser.yaml", "truth.json"] {
+        assert!(out.join(file).is_file(), "{file}");
+    }
+    // The true camera and laser are a simulation's shortcut, and said so.
+    assert!(stderr(&output).contains("calibrated camera.yaml"), "{}", stderr(&output));
+}
+
+#[test]
+fn scan_without_sim_exits_2_naming_the_simulated_rig() {
+    let output = alacs(&["scan"]);
+    assert_eq!(output.status.code(), Some(2));
+    assert!(output.stdout.is_empty());
+    assert!(stderr(&output).contains("only the simulated rig is built in"), "{}", stderr(&output));
+    let output = alacs(&["scan", "--sim", "--rgbd-to-alacs", "1,2,3"]);
+    assert_eq!(output.status.code(), Some(2));
+    assert!(stderr(&output).contains("--rgbd-to-alacs"), "{}", stderr(&output));
+}

@@ -16,7 +16,17 @@ fn main() {
     let frame = &answer.frames[k];
     for (i, p) in frame.stripe.iter().enumerate() {
         let z = frame.points_in_camera.iter().find(|(j, _)| *j == i).map_or(f64::NAN, |(_, q)| q.z);
-        println!("{:.2},{},{},{:.1},{:.1}", p.u_px, p.v_px, u8::from(frame.fruit.contains(&i)), p.strength, z);
+        println!(
+            "{:.2},{},{},{:.1},{:.1}",
+            p.u_px,
+            p.v_px,
+            u8::from(frame.fruit.contains(&i)),
+            p.strength,
+            z
+        );
     }
-    eprintln!("outline {:?}", frame.region_outline_px.iter().map(|p| (p.x as i32, p.y as i32)).collect::<Vec<_>>());
+    eprintln!(
+        "outline {:?}",
+        frame.region_outline_px.iter().map(|p| (p.x as i32, p.y as i32)).collect::<Vec<_>>()
+    );
 }

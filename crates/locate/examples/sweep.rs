@@ -82,11 +82,20 @@ fn main() {
         line += &format!(" {:.0} ms", start.elapsed().as_secs_f64() * 1000.0 / 2.0);
         println!("{line}");
         if std::env::var("DEBUG").is_ok() {
-            let answer = locate(&scan.camera, &laser, &prior, &frames, &LocateOptions::default()).unwrap();
+            let answer =
+                locate(&scan.camera, &laser, &prior, &frames, &LocateOptions::default()).unwrap();
             println!("truth shape {:?}", scan.scene.objects[0].shape);
             println!("fused {:?}", answer.fused);
             for (k, f) in answer.frames.iter().enumerate() {
-                println!("frame {k}: slide {} stripe {} pts {} fruit {} cand {:?} rej {:?}", f.slide_mm, f.stripe.len(), f.points_in_camera.len(), f.fruit.len(), f.candidate.as_ref().map(|c| (c.circle_radius_mm, c.fit_rms_mm, c.n_points)), f.rejected);
+                println!(
+                    "frame {k}: slide {} stripe {} pts {} fruit {} cand {:?} rej {:?}",
+                    f.slide_mm,
+                    f.stripe.len(),
+                    f.points_in_camera.len(),
+                    f.fruit.len(),
+                    f.candidate.as_ref().map(|c| (c.circle_radius_mm, c.fit_rms_mm, c.n_points)),
+                    f.rejected
+                );
             }
         }
     }

@@ -85,7 +85,7 @@ pub fn fit_circle(points: &[Point2<f64>]) -> Option<Circle> {
     let solution = normal.lu().solve(&rhs)?;
     let centre = Vector2::new(solution.x, solution.y);
     let radius_squared = solution.z + centre.norm_squared();
-    if !(radius_squared > 0.0) {
+    if radius_squared.is_nan() || radius_squared <= 0.0 {
         return None;
     }
     let mut circle =
@@ -132,7 +132,7 @@ pub fn fit_sphere(points: &[Point3<f64>]) -> Option<Sphere> {
     let solution = normal.lu().solve(&rhs)?;
     let centre = Vector3::new(solution.x, solution.y, solution.z);
     let radius_squared = solution.w + centre.norm_squared();
-    if !(radius_squared > 0.0) {
+    if radius_squared.is_nan() || radius_squared <= 0.0 {
         return None;
     }
     let mut sphere =

@@ -43,8 +43,8 @@ use nalgebra::{Point2, Point3, Unit, Vector3};
 use rayon::prelude::*;
 
 use crate::fit::{
-    Circle, CircleEstimator, Ellipsoid, Sphere, SphereEstimator, fit_circle, fit_ellipsoid, fit_sphere, line_rms_mm,
-    plane_rms_mm, rms_mm,
+    Circle, CircleEstimator, Ellipsoid, Sphere, SphereEstimator, fit_circle, fit_ellipsoid,
+    fit_sphere, line_rms_mm, plane_rms_mm, rms_mm,
 };
 use crate::{Error, Result};
 
@@ -460,7 +460,7 @@ impl PlaneFrame {
     fn new(laser: &LaserModel, slide_mm: f64) -> Option<PlaneFrame> {
         let plane = laser.plane_in_camera(slide_mm);
         let norm = plane.normal.norm();
-        if !(norm > 0.0) {
+        if norm.is_nan() || norm <= 0.0 {
             return None;
         }
         let normal = Unit::new_unchecked(plane.normal / norm);
@@ -477,7 +477,7 @@ impl PlaneFrame {
         Point2::new(d.dot(&self.e1), d.dot(&self.e2))
     }
 
-    fn from_plane(&self, q: &Point2<f64>) -> Point3<f64> {
+    fn point_at(&self, q: &Point2<f64>) -> Point3<f64> {
         self.origin + self.e1 * q.x + self.e2 * q.y
     }
 
@@ -664,10 +664,10 @@ impl FrameContext<'_> {
         circle: &Circle,
         arc: &[Point2<f64>],
     ) -> Point3<f64> {
-        let centre_on_plane = plane.from_plane(&circle.centre);
+        let centre_on_plane = plane.point_at(&circle.centre);
         let radius = self.prior.fruit_radius_mm.max(circle.radius_mm);
         let height = (radius * radius - circle.radius_mm * circle.radius_mm).max(0.0).sqrt();
-        let points: Vec<Point3<f64>> = arc.iter().map(|q| plane.from_plane(q)).collect();
+        let points: Vec<Point3<f64>> = arc.iter().map(|q| plane.point_at(q)).collect();
         let option = |sign: f64| {
             let centre = centre_on_plane + plane.normal.into_inner() * (sign * height);
             let facing = facing_fraction(&centre, &points);

@@ -329,7 +329,7 @@ const FRUIT_RADIUS_PRIOR_MM: f64 = 40.0;
 const LASER_OFF_STREAM: u64 = 1 << 32;
 
 impl SimulatedScan {
-    /// Renders frame `index` with the laser on (`laser = true`) or off.
+    /// Renders frame `index` of the plan with the laser on (`laser = true`) or off.
     pub fn render_frame(&self, index: usize, laser: bool) -> Result<RgbImage> {
         let frame = self.frames.get(index).ok_or_else(|| {
             Error::InvalidOptions(format!(
@@ -337,13 +337,33 @@ impl SimulatedScan {
                 self.frames.len()
             ))
         })?;
-        let stripe =
-            LaserStripe::new(&self.laser, frame.slide_mm, &self.render.laser, self.camera.fx_px);
-        let stream = if laser { index as u64 } else { LASER_OFF_STREAM + index as u64 };
+        self.render_at(frame.slide_mm, laser, index as u64)
+    }
+
+    /// Renders the scene with the slide at any travel `slide_mm` (not only
+    /// the plan's), the laser on or off: what a scan controller's camera
+    /// sees. `frame_index_for_noise` picks the sensor noise: frame k of the
+    /// plan is `render_at(slides_mm[k], laser, k)`, byte for byte, and the
+    /// laser-on and laser-off images of one index have independent noise.
+    pub fn render_at(
+        &self,
+        slide_mm: f64,
+        laser_on: bool,
+        frame_index_for_noise: u64,
+    ) -> Result<RgbImage> {
+        if !slide_mm.is_finite() {
+            return Err(Error::InvalidOptions(format!("slide travel {slide_mm} mm is not finite")));
+        }
+        let stripe = LaserStripe::new(&self.laser, slide_mm, &self.render.laser, self.camera.fx_px);
+        let stream = if laser_on {
+            frame_index_for_noise
+        } else {
+            LASER_OFF_STREAM.wrapping_add(frame_index_for_noise)
+        };
         Ok(self.ray_map.render(
             &GriddedScene { scene: &self.scene, grid: &self.grid },
             &self.lighting,
-            laser.then_some(&stripe),
+            laser_on.then_some(&stripe),
             &self.render.sensor,
             mix_seed(self.seed, stream),
         ))

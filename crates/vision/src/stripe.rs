@@ -320,9 +320,9 @@ pub fn extract_stripe_rgb(
         let first = (u0 as usize).saturating_sub(reach);
         let last = (u1 as usize + reach).min(width as usize - 1);
         let row_start = 3 * v as usize * width as usize;
-        for u in first..=last {
+        for (u, score) in row.iter_mut().enumerate().take(last + 1).skip(first) {
             let i = row_start + 3 * u;
-            row[u] = match off_raw {
+            *score = match off_raw {
                 Some(off) => difference_score(on_raw[i], off[i]),
                 None => colour_score(on_raw[i], on_raw[i + 1], on_raw[i + 2]),
             };
@@ -336,14 +336,8 @@ pub fn extract_stripe_rgb(
                     .filter(|&u| (0..i64::from(width)).contains(&u))
                     .any(|u| on_raw[row_start + 3 * u as usize] >= limit)
             };
-            let mut k = found;
-            while k < points.len() {
-                if clipped(&points[k]) {
-                    points.remove(k);
-                } else {
-                    k += 1;
-                }
-            }
+            let row_points = points.split_off(found);
+            points.extend(row_points.into_iter().filter(|p| !clipped(p)));
         }
     }
     Ok(points)
@@ -426,7 +420,7 @@ fn local_contrast(
         (b > a).then(|| (prefix[b - lo] - prefix[a - lo]) / (b - a) as f64)
     };
     out.clear();
-    for u in first..=last {
+    for (u, &score) in row.iter().enumerate().take(last + 1).skip(first) {
         let left = u
             .checked_sub(background.gap_px)
             .and_then(|end| mean(end.saturating_sub(background.window_px), end));
@@ -436,7 +430,7 @@ fn local_contrast(
             (Some(a), None) | (None, Some(a)) => a,
             (None, None) => 0.0,
         };
-        out.push((f64::from(row[u]) - level).max(0.0) as f32);
+        out.push((f64::from(score) - level).max(0.0) as f32);
     }
 }
 

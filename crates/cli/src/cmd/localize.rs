@@ -25,7 +25,7 @@ pub fn run(args: &LocalizeArgs) -> CmdResult {
     if args.json {
         output::print_json(&output::localization_json(&answer));
     } else {
-        print!("{}", output::localization_summary(&answer));
+        output::print_text(&output::localization_summary(&answer));
     }
     Ok(())
 }

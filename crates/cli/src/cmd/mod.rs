@@ -3,6 +3,7 @@
 pub mod calibrate;
 pub mod demo;
 pub mod localize;
+pub mod scan;
 pub mod simulate;
 pub mod stripe;
 pub mod triangulate;

@@ -26,7 +26,7 @@ pub fn parse_list(text: &str, name: &str) -> CmdResult<Vec<f64>> {
 }
 
 /// Parses `MIN,MAX` for option `name`.
-fn parse_range(text: &str, name: &str) -> CmdResult<(f64, f64)> {
+pub fn parse_range(text: &str, name: &str) -> CmdResult<(f64, f64)> {
     match parse_list(text, name)?.as_slice() {
         [min, max] => Ok((*min, *max)),
         _ => Err(Failure::bad_input(anyhow!("{name} takes MIN,MAX, got `{text}`"))),

@@ -1,0 +1,744 @@
+//! The scan controller: from the RGB-D camera's rough fruit position to the
+//! frames of an active scan, then to the fruit's centre.
+//!
+//! 1. The rough position is carried from the RGB-D camera's frame into the
+//!    ALACS camera's ([`ControllerConfig::rgbd_to_alacs`]).
+//! 2. The seed's strategy plans the slide positions from it
+//!    ([`ScanStrategy::plan`]: the laser on the left half of the fruit,
+//!    then steps to the right, shifted into the stroke).
+//! 3. Per frame: move the slide and wait until it settles, switch the laser
+//!    on, capture; with [`ControllerConfig::capture_laser_off`], switch it
+//!    off and capture again at the same position.
+//! 4. The laser is switched off at the end, and whenever a step fails.
+//!
+//! The frames keep the positions the slide reported, not the plan's:
+//! localization triangulates with where the laser was.
+
+use std::path::Path;
+use std::time::Duration;
+
+use alacs_locate::{FrameImages, Localization, LocateOptions, Prior, locate};
+use alacs_model::{Camera, DEFAULT_FRUIT_RADIUS_MM, LaserModel, SCAN_FILE, ScanPlan, ScanStrategy};
+use image::RgbImage;
+use nalgebra::{Isometry3, Point3};
+
+use crate::hardware::Rig;
+use crate::{Error, Result, Step};
+
+/// Settings of [`ScanController`]. `Default`: the seed's strategy, the
+/// RGB-D and ALACS frames the same, no laser-off frames, a 40 mm radius prior.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ControllerConfig {
+    /// Frames, step and stroke of the scan (the seed paper's by default).
+    pub strategy: ScanStrategy,
+    /// The pose of the RGB-D camera in the ALACS camera frame:
+    /// `point_in_alacs = rgbd_to_alacs * point_in_rgbd` (mm). Identity by
+    /// default (a rough position already in the ALACS frame).
+    pub rgbd_to_alacs: Isometry3<f64>,
+    /// Also capture every frame with the laser off (for differencing).
+    pub capture_laser_off: bool,
+    /// Longest wait for the slide to reach and settle at a position.
+    pub move_timeout: Duration,
+    /// Longest wait for one frame.
+    pub capture_timeout: Duration,
+    /// The fruit radius prior, mm (plans the start and seeds localization).
+    pub fruit_radius_mm: f64,
+    /// Largest difference between a commanded and a reported slide
+    /// position, mm, before the scan stops.
+    pub position_tolerance_mm: f64,
+}
+
+impl Default for ControllerConfig {
+    fn default() -> Self {
+        Self {
+            strategy: ScanStrategy::default(),
+            rgbd_to_alacs: Isometry3::identity(),
+            capture_laser_off: false,
+            move_timeout: Duration::from_secs(10),
+            capture_timeout: Duration::from_secs(2),
+            fruit_radius_mm: DEFAULT_FRUIT_RADIUS_MM,
+            position_tolerance_mm: DEFAULT_POSITION_TOLERANCE_MM,
+        }
+    }
+}
+
+/// A slide that settles 0.5 mm from its target moves the laser plane about
+/// 0.5 mm at the fruit; the frames keep the reported position, so this only
+/// catches a slide that did not go where it was sent.
+const DEFAULT_POSITION_TOLERANCE_MM: f64 = 0.5;
+
+/// Runs active scans with a laser model (the calibrated laser.yaml) and
+/// [`ControllerConfig`].
+#[derive(Debug, Clone)]
+pub struct ScanController {
+    laser: LaserModel,
+    config: ControllerConfig,
+}
+
+/// One captured frame.
+#[derive(Debug, Clone)]
+pub struct CapturedFrame {
+    /// Where the plan put the slide, mm.
+    pub planned_slide_mm: f64,
+    /// Where the slide reported it settled, mm: the frame's slide travel d.
+    pub slide_mm: f64,
+    /// The frame with the laser on.
+    pub image: RgbImage,
+    /// The same view with the laser off, if captured.
+    pub image_laser_off: Option<RgbImage>,
+}
+
+/// What a scan captured.
+#[derive(Debug, Clone)]
+pub struct CapturedScan {
+    /// The rough fruit centre as the RGB-D camera gave it, its frame, mm.
+    pub rough_position_in_rgbd_mm: Point3<f64>,
+    /// The rough fruit centre in the ALACS camera frame, mm.
+    pub rough_position_mm: Point3<f64>,
+    /// The fruit radius prior, mm.
+    pub fruit_radius_mm: f64,
+    /// The plan the scan followed.
+    pub plan: ScanPlan,
+    /// The frames, in plan order.
+    pub frames: Vec<CapturedFrame>,
+}
+
+impl ScanController {
+    /// A controller planning with `laser`; checks the configuration.
+    pub fn new(laser: LaserModel, config: ControllerConfig) -> Result<Self> {
+        laser.validate().map_err(|e| Error::InvalidInput(format!("laser: {e}")))?;
+        let invalid = |m: String| Err(Error::InvalidInput(m));
+        let s = &config.strategy;
+        if s.frames == 0 {
+            return invalid("the strategy has no frames".into());
+        }
+        if !(s.step_mm.is_finite() && s.stroke_mm.is_finite() && s.stroke_mm > 0.0) {
+            return invalid(format!(
+                "the strategy's step {} mm and stroke {} mm must be finite, the stroke positive",
+                s.step_mm, s.stroke_mm
+            ));
+        }
+        if !s.start_left_of_centre.is_finite() {
+            return invalid("the strategy's start must be finite".into());
+        }
+        if !(config.fruit_radius_mm.is_finite() && config.fruit_radius_mm > 0.0) {
+            return invalid(format!(
+                "the fruit radius prior {} mm must be positive",
+                config.fruit_radius_mm
+            ));
+        }
+        if !(config.position_tolerance_mm.is_finite() && config.position_tolerance_mm >= 0.0) {
+            return invalid(format!(
+                "the position tolerance {} mm must be non-negative",
+                config.position_tolerance_mm
+            ));
+        }
+        if config.move_timeout.is_zero() || config.capture_timeout.is_zero() {
+            return invalid("timeouts must be longer than zero".into());
+        }
+        let transform = config.rgbd_to_alacs.to_homogeneous();
+        if !transform.iter().all(|v| v.is_finite()) {
+            return invalid("the RGB-D to ALACS transform must be finite".into());
+        }
+        Ok(Self { laser, config })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &ControllerConfig {
+        &self.config
+    }
+
+    /// The laser model the controller plans with.
+    pub fn laser(&self) -> &LaserModel {
+        &self.laser
+    }
+
+    /// The rough position in the ALACS camera frame, checked to lie in
+    /// front of the camera.
+    pub fn rough_in_alacs(&self, rough_position_in_rgbd_mm: &Point3<f64>) -> Result<Point3<f64>> {
+        let rough = self.config.rgbd_to_alacs * rough_position_in_rgbd_mm;
+        if !(rough.coords.iter().all(|c| c.is_finite()) && rough.z > 0.0) {
+            let r = rough_position_in_rgbd_mm;
+            return Err(Error::InvalidInput(format!(
+                "the rough position ({:.1}, {:.1}, {:.1}) mm of the RGB-D camera is at ({:.1}, {:.1}, {:.1}) mm in the ALACS camera frame, not in front of the camera; check rgbd_to_alacs",
+                r.x, r.y, r.z, rough.x, rough.y, rough.z
+            )));
+        }
+        Ok(rough)
+    }
+
+    /// The plan for a rough position in the RGB-D frame.
+    pub fn plan(&self, rough_position_in_rgbd_mm: &Point3<f64>) -> Result<ScanPlan> {
+        let rough = self.rough_in_alacs(rough_position_in_rgbd_mm)?;
+        Ok(self.config.strategy.plan(&self.laser, &rough, self.config.fruit_radius_mm))
+    }
+
+    /// How many images a scan captures.
+    pub fn image_count(&self) -> usize {
+        self.config.strategy.frames * (1 + usize::from(self.config.capture_laser_off))
+    }
+
+    /// Scans the fruit roughly at `rough_position_in_rgbd_mm` (the RGB-D
+    /// camera's frame) with `rig`.
+    pub fn run(
+        &self,
+        rig: &mut Rig<'_>,
+        rough_position_in_rgbd_mm: &Point3<f64>,
+    ) -> Result<CapturedScan> {
+        self.run_with_progress(rig, rough_position_in_rgbd_mm, |_, _| {})
+    }
+
+    /// [`ScanController::run`], calling `progress(done, total)` after each image.
+    pub fn run_with_progress(
+        &self,
+        rig: &mut Rig<'_>,
+        rough_position_in_rgbd_mm: &Point3<f64>,
+        mut progress: impl FnMut(usize, usize),
+    ) -> Result<CapturedScan> {
+        let rough_position_mm = self.rough_in_alacs(rough_position_in_rgbd_mm)?;
+        let plan =
+            self.config.strategy.plan(&self.laser, &rough_position_mm, self.config.fruit_radius_mm);
+        // The plan fits the strategy's stroke; the slide's may be shorter.
+        let stroke_mm = rig.slide.stroke_mm();
+        if let Some(&target_mm) =
+            plan.slides_mm.iter().find(|d| !(d.is_finite() && (0.0..=stroke_mm).contains(*d)))
+        {
+            return Err(Error::OutOfStroke { step: Some(Step::Planning), target_mm, stroke_mm });
+        }
+        let frames = match self.capture_frames(rig, &plan, &mut progress) {
+            Ok(frames) => frames,
+            Err(error) => {
+                // Whatever failed, the laser goes off; the first error is the one reported.
+                let _ = rig.laser.set(false);
+                return Err(error);
+            }
+        };
+        rig.laser.set(false).map_err(|e| e.at(Step::Finish))?;
+        Ok(CapturedScan {
+            rough_position_in_rgbd_mm: *rough_position_in_rgbd_mm,
+            rough_position_mm,
+            fruit_radius_mm: self.config.fruit_radius_mm,
+            plan,
+            frames,
+        })
+    }
+
+    fn capture_frames(
+        &self,
+        rig: &mut Rig<'_>,
+        plan: &ScanPlan,
+        progress: &mut impl FnMut(usize, usize),
+    ) -> Result<Vec<CapturedFrame>> {
+        let total = plan.slides_mm.len() * (1 + usize::from(self.config.capture_laser_off));
+        let mut done = 0;
+        let mut frames = Vec::with_capacity(plan.slides_mm.len());
+        for (frame, &target_mm) in plan.slides_mm.iter().enumerate() {
+            let step = Step::Move { frame, target_mm };
+            let slide_mm =
+                rig.slide.move_to(target_mm, self.config.move_timeout).map_err(|e| e.at(step))?;
+            let tolerance_mm = self.config.position_tolerance_mm;
+            if !(slide_mm.is_finite() && (slide_mm - target_mm).abs() <= tolerance_mm) {
+                return Err(Error::PositionMismatch {
+                    step: Some(step),
+                    target_mm,
+                    reached_mm: slide_mm,
+                    tolerance_mm,
+                });
+            }
+            rig.laser.set(true).map_err(|e| e.at(Step::Laser { frame, on: true }))?;
+            let image = rig
+                .camera
+                .capture(self.config.capture_timeout)
+                .map_err(|e| e.at(Step::Capture { frame, laser_on: true }))?;
+            done += 1;
+            progress(done, total);
+            let image_laser_off = if self.config.capture_laser_off {
+                rig.laser.set(false).map_err(|e| e.at(Step::Laser { frame, on: false }))?;
+                let off = rig
+                    .camera
+                    .capture(self.config.capture_timeout)
+                    .map_err(|e| e.at(Step::Capture { frame, laser_on: false }))?;
+                done += 1;
+                progress(done, total);
+                Some(off)
+            } else {
+                None
+            };
+            frames.push(CapturedFrame {
+                planned_slide_mm: target_mm,
+                slide_mm,
+                image,
+                image_laser_off,
+            });
+        }
+        Ok(frames)
+    }
+}
+
+/// File name of frame `index`'s laser-on or laser-off PNG.
+fn frame_file(index: usize, laser_on: bool) -> String {
+    if laser_on { format!("frame{index}.png") } else { format!("frame{index}_off.png") }
+}
+
+impl CapturedScan {
+    /// The frames as [`alacs_locate::locate`] takes them.
+    pub fn frame_images(&self) -> Vec<FrameImages<'_>> {
+        self.frames
+            .iter()
+            .map(|f| FrameImages {
+                image: &f.image,
+                image_laser_off: f.image_laser_off.as_ref(),
+                slide_mm: f.slide_mm,
+            })
+            .collect()
+    }
+
+    /// What localization knows before it looks: the rough position (ALACS
+    /// frame) and the radius prior.
+    pub fn prior(&self) -> Prior {
+        Prior { rough_position_mm: self.rough_position_mm, fruit_radius_mm: self.fruit_radius_mm }
+    }
+
+    /// Locates the fruit in the frames with the calibrated `camera` and `laser`.
+    pub fn localize(
+        &self,
+        camera: &Camera,
+        laser: &LaserModel,
+        options: &LocateOptions,
+    ) -> Result<Localization> {
+        Ok(locate(camera, laser, &self.prior(), &self.frame_images(), options)?)
+    }
+
+    /// The slide positions the frames were taken at, mm.
+    pub fn slides_mm(&self) -> Vec<f64> {
+        self.frames.iter().map(|f| f.slide_mm).collect()
+    }
+
+    /// How many images [`CapturedScan::write`] writes.
+    pub fn image_count(&self) -> usize {
+        self.frames.iter().map(|f| 1 + usize::from(f.image_laser_off.is_some())).sum()
+    }
+
+    /// scan.yaml (FORMATS.md) for the frames as [`CapturedScan::write`]
+    /// names them, with the extra keys `rough_position_in_rgbd_mm`,
+    /// `plan_shifted_into_stroke` and, per frame, `planned_slide_mm`.
+    pub fn scan_yaml(&self) -> String {
+        let r = &self.rough_position_mm;
+        let g = &self.rough_position_in_rgbd_mm;
+        let mut text = format!(
+            "# Captured by alacs-scanner. rough_position_mm is the RGB-D camera's rough\n\
+             # position carried into the ALACS camera frame; slide_mm where the slide settled.\n\
+             rough_position_mm: [{:?}, {:?}, {:?}]\n\
+             rough_position_in_rgbd_mm: [{:?}, {:?}, {:?}]\n\
+             fruit_radius_mm: {:?}\n\
+             plan_shifted_into_stroke: {}\n\
+             frames:\n",
+            r.x, r.y, r.z, g.x, g.y, g.z, self.fruit_radius_mm, self.plan.shifted
+        );
+        for (index, frame) in self.frames.iter().enumerate() {
+            text.push_str(&format!(
+                "  - image: {}\n    slide_mm: {:?}\n    planned_slide_mm: {:?}\n",
+                frame_file(index, true),
+                frame.slide_mm,
+                frame.planned_slide_mm
+            ));
+            if frame.image_laser_off.is_some() {
+                text.push_str(&format!("    image_laser_off: {}\n", frame_file(index, false)));
+            }
+        }
+        text
+    }
+
+    /// Writes the scan folder (FORMATS.md): scan.yaml and the PNG frames,
+    /// creating `dir`. Localize it with the rig's calibrated camera.yaml and
+    /// laser.yaml.
+    pub fn write(&self, dir: &Path) -> Result<()> {
+        std::fs::create_dir_all(dir).map_err(|error| Error::Io { path: dir.into(), error })?;
+        let save = |image: &RgbImage, name: String| {
+            let path = dir.join(name);
+            image
+                .save_with_format(&path, image::ImageFormat::Png)
+                .map_err(|error| Error::Image { path, error })
+        };
+        for (index, frame) in self.frames.iter().enumerate() {
+            save(&frame.image, frame_file(index, true))?;
+            if let Some(off) = &frame.image_laser_off {
+                save(off, frame_file(index, false))?;
+            }
+        }
+        let path = dir.join(SCAN_FILE);
+        std::fs::write(&path, self.scan_yaml()).map_err(|error| Error::Io { path, error })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+    use std::cell::RefCell;
+    use std::rc::Rc;
+
+    use alacs_model::{Fidelity, SLIDE_STROKE_MM};
+    use nalgebra::{Translation3, UnitQuaternion, Vector3};
+
+    use super::*;
+    use crate::hardware::{FrameCamera, LaserSwitch, Slide};
+    use crate::{Device, Step};
+
+    /// What the fake devices were told, in order.
+    #[derive(Debug, Clone, Copy, PartialEq)]
+    enum Call {
+        Move(f64),
+        Laser(bool),
+        Capture { laser_on: bool, slide_mm: f64 },
+    }
+
+    #[derive(Default)]
+    struct State {
+        calls: Vec<Call>,
+        laser_on: bool,
+        slide_mm: f64,
+    }
+
+    type Shared = Rc<RefCell<State>>;
+
+    struct FakeSlide {
+        state: Shared,
+        stroke_mm: f64,
+        /// The n-th move (from 0) times out.
+        timeout_at: Option<usize>,
+        /// The slide settles this far from the target.
+        settle_error_mm: f64,
+        moves: usize,
+    }
+
+    struct FakeCamera {
+        state: Shared,
+        timeout_at: Option<usize>,
+        captures: usize,
+    }
+
+    struct FakeLaser {
+        state: Shared,
+    }
+
+    impl Slide for FakeSlide {
+        fn stroke_mm(&self) -> f64 {
+            self.stroke_mm
+        }
+        fn move_to(&mut self, target_mm: f64, timeout: Duration) -> Result<f64> {
+            if !(0.0..=self.stroke_mm).contains(&target_mm) {
+                return Err(Error::OutOfStroke {
+                    step: None,
+                    target_mm,
+                    stroke_mm: self.stroke_mm,
+                });
+            }
+            let mut state = self.state.borrow_mut();
+            state.calls.push(Call::Move(target_mm));
+            self.moves += 1;
+            if self.timeout_at == Some(self.moves - 1) {
+                return Err(Error::Timeout {
+                    device: Device::Slide,
+                    step: None,
+                    timeout,
+                    detail: "stalled".into(),
+                });
+            }
+            state.slide_mm = target_mm + self.settle_error_mm;
+            Ok(state.slide_mm)
+        }
+        fn position_mm(&mut self) -> Result<f64> {
+            Ok(self.state.borrow().slide_mm)
+        }
+    }
+
+    impl FrameCamera for FakeCamera {
+        fn capture(&mut self, timeout: Duration) -> Result<RgbImage> {
+            let mut state = self.state.borrow_mut();
+            let call = Call::Capture { laser_on: state.laser_on, slide_mm: state.slide_mm };
+            state.calls.push(call);
+            self.captures += 1;
+            if self.timeout_at == Some(self.captures - 1) {
+                return Err(Error::Timeout {
+                    device: Device::Camera,
+                    step: None,
+                    timeout,
+                    detail: String::new(),
+                });
+            }
+            // The laser state in the red channel, to check the pairing of images.
+            Ok(RgbImage::from_pixel(4, 3, image::Rgb([u8::from(state.laser_on) * 200, 0, 0])))
+        }
+    }
+
+    impl LaserSwitch for FakeLaser {
+        fn set(&mut self, on: bool) -> Result<()> {
+            let mut state = self.state.borrow_mut();
+            state.calls.push(Call::Laser(on));
+            state.laser_on = on;
+            Ok(())
+        }
+    }
+
+    struct FakeRig {
+        state: Shared,
+        slide: FakeSlide,
+        camera: FakeCamera,
+        laser: FakeLaser,
+    }
+
+    impl FakeRig {
+        fn new() -> Self {
+            let state: Shared = Rc::default();
+            Self {
+                slide: FakeSlide {
+                    state: state.clone(),
+                    stroke_mm: SLIDE_STROKE_MM,
+                    timeout_at: None,
+                    settle_error_mm: 0.0,
+                    moves: 0,
+                },
+                camera: FakeCamera { state: state.clone(), timeout_at: None, captures: 0 },
+                laser: FakeLaser { state: state.clone() },
+                state,
+            }
+        }
+
+        fn run(&mut self, controller: &ScanController, rough: Point3<f64>) -> Result<CapturedScan> {
+            let mut rig =
+                Rig { slide: &mut self.slide, camera: &mut self.camera, laser: &mut self.laser };
+            controller.run(&mut rig, &rough)
+        }
+
+        fn calls(&self) -> Vec<Call> {
+            self.state.borrow().calls.clone()
+        }
+
+        fn moves(&self) -> Vec<f64> {
+            self.calls()
+                .iter()
+                .filter_map(|c| match c {
+                    Call::Move(d) => Some(*d),
+                    _ => None,
+                })
+                .collect()
+        }
+    }
+
+    fn laser() -> LaserModel {
+        LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98)
+    }
+
+    fn controller(config: ControllerConfig) -> ScanController {
+        ScanController::new(laser(), config).unwrap()
+    }
+
+    #[test]
+    fn the_slide_follows_the_plan_with_the_laser_on_for_every_capture() {
+        let rough = Point3::new(20.0, -10.0, 800.0);
+        let plan = ScanStrategy::default().plan(&laser(), &rough, 40.0);
+        assert!(!plan.shifted);
+        let mut rig = FakeRig::new();
+        let scan = rig.run(&controller(ControllerConfig::default()), rough).unwrap();
+        assert_eq!(rig.moves(), plan.slides_mm);
+        assert_eq!(scan.plan, plan);
+        assert_eq!(scan.slides_mm(), plan.slides_mm);
+        assert_eq!(scan.rough_position_mm, rough);
+        let mut expected = Vec::new();
+        for &d in &plan.slides_mm {
+            expected.extend([
+                Call::Move(d),
+                Call::Laser(true),
+                Call::Capture { laser_on: true, slide_mm: d },
+            ]);
+        }
+        expected.push(Call::Laser(false));
+        assert_eq!(rig.calls(), expected);
+        assert!(
+            scan.frames.iter().all(|f| f.image_laser_off.is_none() && f.image[(0, 0)][0] == 200)
+        );
+    }
+
+    #[test]
+    fn laser_off_frames_follow_each_laser_on_frame_at_the_same_position() {
+        let rough = Point3::new(0.0, 0.0, 700.0);
+        let config = ControllerConfig { capture_laser_off: true, ..ControllerConfig::default() };
+        let mut rig = FakeRig::new();
+        let scan = rig.run(&controller(config), rough).unwrap();
+        let calls = rig.calls();
+        assert_eq!(calls.len(), 5 * 5 + 1);
+        for (k, chunk) in calls.chunks(5).take(5).enumerate() {
+            let d = scan.plan.slides_mm[k];
+            assert_eq!(
+                chunk,
+                [
+                    Call::Move(d),
+                    Call::Laser(true),
+                    Call::Capture { laser_on: true, slide_mm: d },
+                    Call::Laser(false),
+                    Call::Capture { laser_on: false, slide_mm: d },
+                ]
+            );
+        }
+        assert_eq!(calls.last(), Some(&Call::Laser(false)));
+        for frame in &scan.frames {
+            assert_eq!(frame.image[(0, 0)][0], 200);
+            assert_eq!(frame.image_laser_off.as_ref().unwrap()[(0, 0)][0], 0);
+        }
+        assert_eq!(scan.image_count(), 10);
+    }
+
+    #[test]
+    fn the_rough_position_is_carried_into_the_alacs_frame() {
+        // The RGB-D camera 60 mm above and 40 mm left of the ALACS camera,
+        // turned 5 degrees about y (mm, radians).
+        let rgbd_to_alacs = Isometry3::from_parts(
+            Translation3::new(-40.0, -60.0, 10.0),
+            UnitQuaternion::from_euler_angles(0.0, 5f64.to_radians(), 0.0),
+        );
+        let rough_in_rgbd = Point3::new(30.0, 50.0, 750.0);
+        let rough_in_alacs = rgbd_to_alacs * rough_in_rgbd;
+        let config = ControllerConfig { rgbd_to_alacs, ..ControllerConfig::default() };
+        let mut rig = FakeRig::new();
+        let scan = rig.run(&controller(config), rough_in_rgbd).unwrap();
+        assert!((scan.rough_position_mm - rough_in_alacs).norm() < 1e-9);
+        assert_eq!(scan.rough_position_in_rgbd_mm, rough_in_rgbd);
+        let plan = ScanStrategy::default().plan(&laser(), &rough_in_alacs, 40.0);
+        assert_eq!(rig.moves(), plan.slides_mm);
+        // Untransformed, the plan would differ.
+        let naive = ScanStrategy::default().plan(&laser(), &rough_in_rgbd, 40.0);
+        assert!((naive.slides_mm[0] - plan.slides_mm[0]).abs() > 1.0);
+    }
+
+    #[test]
+    fn a_plan_beyond_the_stroke_is_shifted_into_it_not_cut() {
+        // Far right: the start lies beyond the stroke's last 40 mm; far
+        // left: before 0.
+        for (x, first) in [(350.0, SLIDE_STROKE_MM - 40.0), (-300.0, 0.0)] {
+            let rough = Point3::new(x, 0.0, 800.0);
+            let mut rig = FakeRig::new();
+            let scan = rig.run(&controller(ControllerConfig::default()), rough).unwrap();
+            assert!(scan.plan.shifted, "x {x}: {:?}", scan.plan);
+            let moves = rig.moves();
+            assert_eq!(moves.len(), 5);
+            assert_eq!(moves[0], first);
+            assert!(moves.windows(2).all(|w| (w[1] - w[0] - 10.0).abs() < 1e-9));
+            assert!(moves.iter().all(|d| (0.0..=SLIDE_STROKE_MM).contains(d)));
+        }
+    }
+
+    #[test]
+    fn a_slide_shorter_than_the_plan_is_refused_before_anything_moves() {
+        let mut rig = FakeRig::new();
+        rig.slide.stroke_mm = 100.0;
+        let rough = Point3::new(150.0, 0.0, 800.0);
+        let error = rig.run(&controller(ControllerConfig::default()), rough).unwrap_err();
+        assert!(matches!(error, Error::OutOfStroke { step: Some(Step::Planning), .. }), "{error}");
+        assert_eq!(error.device(), Some(Device::Slide));
+        assert!(rig.calls().is_empty());
+        assert!(error.to_string().contains("outside the stroke 0..100"), "{error}");
+    }
+
+    #[test]
+    fn a_slide_timeout_names_the_slide_and_the_frame_and_turns_the_laser_off() {
+        let mut rig = FakeRig::new();
+        rig.slide.timeout_at = Some(2);
+        let config =
+            ControllerConfig { move_timeout: Duration::from_secs(3), ..Default::default() };
+        let error = rig.run(&controller(config), Point3::new(0.0, 0.0, 800.0)).unwrap_err();
+        assert_eq!(error.device(), Some(Device::Slide));
+        assert!(matches!(error.step(), Some(Step::Move { frame: 2, .. })), "{error:?}");
+        let message = error.to_string();
+        assert!(
+            message.starts_with("slide error at frame 2, moving the slide to")
+                && message.contains("timed out after 3.000 s (stalled)"),
+            "{message}"
+        );
+        assert_eq!(rig.calls().last(), Some(&Call::Laser(false)));
+        assert_eq!(rig.moves().len(), 3);
+    }
+
+    #[test]
+    fn a_camera_timeout_names_the_camera_and_the_capture() {
+        let mut rig = FakeRig::new();
+        rig.camera.timeout_at = Some(3);
+        let config = ControllerConfig { capture_laser_off: true, ..Default::default() };
+        let error = rig.run(&controller(config), Point3::new(0.0, 0.0, 800.0)).unwrap_err();
+        assert_eq!(error.device(), Some(Device::Camera));
+        assert_eq!(error.step(), Some(Step::Capture { frame: 1, laser_on: false }));
+        assert!(
+            error.to_string().starts_with(
+                "camera error at frame 1, capturing with the laser off: timed out after 2.000 s"
+            ),
+            "{error}"
+        );
+        assert_eq!(rig.calls().last(), Some(&Call::Laser(false)));
+    }
+
+    #[test]
+    fn frames_keep_the_reported_position_and_a_slide_off_target_stops_the_scan() {
+        let rough = Point3::new(0.0, 0.0, 800.0);
+        let mut rig = FakeRig::new();
+        rig.slide.settle_error_mm = 0.2;
+        let scan = rig.run(&controller(ControllerConfig::default()), rough).unwrap();
+        for frame in &scan.frames {
+            assert!((frame.slide_mm - frame.planned_slide_mm - 0.2).abs() < 1e-12);
+        }
+        assert!(scan.scan_yaml().contains("planned_slide_mm"));
+
+        let mut rig = FakeRig::new();
+        rig.slide.settle_error_mm = 1.0;
+        let error = rig.run(&controller(ControllerConfig::default()), rough).unwrap_err();
+        assert!(matches!(
+            error,
+            Error::PositionMismatch { step: Some(Step::Move { frame: 0, .. }), .. }
+        ));
+        assert!(error.to_string().contains("1.000 mm from the target"), "{error}");
+        assert_eq!(rig.calls().last(), Some(&Call::Laser(false)));
+    }
+
+    #[test]
+    fn bad_configurations_and_rough_positions_are_refused() {
+        for config in [
+            ControllerConfig { fruit_radius_mm: 0.0, ..Default::default() },
+            ControllerConfig { move_timeout: Duration::ZERO, ..Default::default() },
+            ControllerConfig {
+                strategy: ScanStrategy { frames: 0, ..ScanStrategy::default() },
+                ..Default::default()
+            },
+        ] {
+            assert!(matches!(ScanController::new(laser(), config), Err(Error::InvalidInput(_))));
+        }
+        // 1 m behind the ALACS camera once turned half a turn about y.
+        let rgbd_to_alacs = Isometry3::rotation(Vector3::y() * std::f64::consts::PI);
+        let config = ControllerConfig { rgbd_to_alacs, ..Default::default() };
+        let mut rig = FakeRig::new();
+        let error = rig.run(&controller(config), Point3::new(0.0, 0.0, 1000.0)).unwrap_err();
+        assert!(error.to_string().contains("not in front of the camera"), "{error}");
+        assert!(rig.calls().is_empty());
+    }
+
+    #[test]
+    fn scan_yaml_reads_back_as_a_formats_md_scan() {
+        let mut rig = FakeRig::new();
+        let config = ControllerConfig { capture_laser_off: true, ..Default::default() };
+        let scan = rig.run(&controller(config), Point3::new(5.0, 1.0, 900.0)).unwrap();
+        let dir = std::env::temp_dir().join(format!("alacs-scanner-yaml-{}", std::process::id()));
+        scan.write(&dir).unwrap();
+        let read = alacs_model::Scan::read(&dir).unwrap();
+        assert_eq!(read.rough_position_mm, scan.rough_position_mm);
+        assert_eq!(read.fruit_radius_mm, 40.0);
+        assert_eq!(read.frames.len(), 5);
+        for (k, (spec, frame)) in read.frames.iter().zip(&scan.frames).enumerate() {
+            assert_eq!(spec.slide_mm, frame.slide_mm);
+            assert_eq!(spec.image, Path::new(&format!("frame{k}.png")));
+            let off = read.path_of(spec.image_laser_off.as_ref().unwrap());
+            assert_eq!(
+                image::open(off).unwrap().to_rgb8(),
+                *frame.image_laser_off.as_ref().unwrap()
+            );
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

@@ -1,0 +1,87 @@
+//! The rig's devices as the controller sees them: three small, object-safe
+//! traits. A real rig implements them in its own crate (over a serial
+//! stepper controller, a GenICam camera, a GPIO line); this crate has the
+//! simulated ones ([`crate::SimulatedRig`]).
+//!
+//! Every method reports failures as this crate's [`Error`](crate::Error),
+//! naming its device ([`Error::Timeout`](crate::Error::Timeout),
+//! [`Error::Device`](crate::Error::Device), ...) and leaving the step empty:
+//! the controller adds the step of the scan.
+
+use std::time::Duration;
+
+use image::RgbImage;
+
+use crate::Result;
+
+/// The linear slide that carries the laser.
+///
+/// Positions are the slide travel d of FORMATS.md, in mm: the laser's travel
+/// from its calibration position towards the camera, so that the laser-camera
+/// distance is L = L0 - d. A driver whose axis counts the other way or from
+/// another origin converts, so that the positions it takes and reports are
+/// the d that laser.yaml was calibrated with.
+///
+/// A driver must guarantee:
+/// - [`Slide::move_to`] returns only after the slide has stopped and settled
+///   (no vibration left that moves the laser line by more than the
+///   controller's position tolerance), and returns the position the encoder
+///   reports then, not the commanded one;
+/// - a target outside `0 ..= stroke_mm()` (or not finite) is refused with
+///   [`Error::OutOfStroke`](crate::Error::OutOfStroke) before anything
+///   moves: never clamped, never moved to the nearest end;
+/// - when the move does not settle within the timeout it returns
+///   [`Error::Timeout`](crate::Error::Timeout), stops the slide, and the
+///   position is whatever [`Slide::position_mm`] reports afterwards.
+pub trait Slide {
+    /// The stroke, mm: positions `0 ..= stroke_mm` are reachable.
+    fn stroke_mm(&self) -> f64;
+
+    /// Moves to `target_mm` and waits until the slide has settled there, at
+    /// most `timeout`; returns the settled position, mm.
+    fn move_to(&mut self, target_mm: f64, timeout: Duration) -> Result<f64>;
+
+    /// The current position, mm, as the encoder reports it.
+    fn position_mm(&mut self) -> Result<f64>;
+}
+
+/// The ALACS camera.
+///
+/// A driver must guarantee:
+/// - the frame [`FrameCamera::capture`] returns was exposed entirely after
+///   the call began: no frame buffered from before the slide moved or the
+///   laser switched (flush the queue, or trigger in software);
+/// - frames are RGB8 in the resolution and orientation of the calibrated
+///   camera.yaml, not undistorted or rectified (localization undistorts
+///   them with camera.yaml, eq. (3));
+/// - exposure, gain and white balance stay fixed over a scan, so that
+///   laser-off differencing compares like with like;
+/// - no frame within the timeout gives
+///   [`Error::Timeout`](crate::Error::Timeout).
+pub trait FrameCamera {
+    /// Captures one frame, waiting at most `timeout`.
+    fn capture(&mut self, timeout: Duration) -> Result<RgbImage>;
+}
+
+/// The line laser's on/off switch.
+///
+/// A driver must guarantee:
+/// - when [`LaserSwitch::set`] returns, the laser emits steadily (on) or is
+///   dark (off): any warm-up or switching time is waited out inside;
+/// - switching to the state it is already in is harmless;
+/// - `set(false)` may be called at any time, also after another device
+///   failed: the controller switches the laser off whenever a scan stops.
+pub trait LaserSwitch {
+    /// Switches the laser on or off.
+    fn set(&mut self, on: bool) -> Result<()>;
+}
+
+/// The three devices of a rig, borrowed for one scan.
+pub struct Rig<'a> {
+    /// The slide carrying the laser.
+    pub slide: &'a mut dyn Slide,
+    /// The camera.
+    pub camera: &'a mut dyn FrameCamera,
+    /// The laser's switch.
+    pub laser: &'a mut dyn LaserSwitch,
+}

@@ -1,0 +1,156 @@
+//! The controller on the simulated rig: the seed's scan of a simulated
+//! apple, localized against the simulator's truth.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use alacs_locate::{LocateOptions, Status};
+use alacs_model::{Camera, Fidelity, LaserModel};
+use alacs_scanner::{
+    ControllerConfig, Device, Error, ScanController, SimulatedRig, SimulatedRigOptions, Slide, Step,
+};
+use alacs_sim::{ScanOptions, SimulatedScan, simulate_scan};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+
+fn laser() -> LaserModel {
+    LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98)
+}
+
+fn scene(seed: u64, scale: f64) -> Arc<SimulatedScan> {
+    let options = ScanOptions { scale, seed, ..ScanOptions::default() };
+    Arc::new(simulate_scan(&Camera::blackfly_s_5mp(), &laser(), &options).unwrap())
+}
+
+/// The RGB-D camera of the examples: 60 mm above, 40 mm left of and 10 mm
+/// behind the ALACS camera, turned 5 degrees about its y axis and 2 about x.
+fn rgbd_to_alacs() -> Isometry3<f64> {
+    Isometry3::from_parts(
+        Translation3::new(-40.0, -60.0, -10.0),
+        UnitQuaternion::from_euler_angles(2f64.to_radians(), 5f64.to_radians(), 0.0),
+    )
+}
+
+/// Localization tolerance at half the 5 MP camera's resolution, 3-D, mm.
+/// Measured with `measure_localization_error_at_half_scale` (seeds 0-11,
+/// unoccluded, shade): median 2.0 mm, 10 of 12 under 3.2 mm, worst 6.5 mm
+/// (a far, elliptic apple); the seeds tested here measure 1.2 mm (seed 3)
+/// and 1.2 mm (seed 1, with laser-off frames).
+const HALF_SCALE_TOLERANCE_MM: f64 = 4.0;
+
+#[test]
+fn the_rig_captures_the_simulators_frames_and_localizes_the_apple() {
+    let scene = scene(3, 0.5);
+    let mut rig = SimulatedRig::new(scene.clone(), SimulatedRigOptions::default()).unwrap();
+    let controller = ScanController::new(laser(), ControllerConfig::default()).unwrap();
+    let scan = controller.run(&mut rig.rig(), &scene.rough_position_mm).unwrap();
+    // The same strategy from the same rough position: the simulator's plan,
+    // and at its positions the rig's camera renders the simulator's frames.
+    assert_eq!(scan.slides_mm(), scene.plan.slides_mm);
+    for (k, frame) in scan.frames.iter().enumerate() {
+        assert!(frame.image == scene.render_frame(k, true).unwrap(), "frame {k}");
+    }
+    assert!(!rig.laser_on());
+    // The simulated clock: the slide's travel from 0 at 50 mm/s plus 50 ms
+    // settling per move, 30 ms per frame, 2 ms per laser switch.
+    let last_mm = scan.slides_mm()[4];
+    let expected = last_mm / 50.0 + 5.0 * (0.05 + 0.03) + 2.0 * 0.002;
+    assert!((rig.elapsed().as_secs_f64() - expected).abs() < 1e-6, "{:?}", rig.elapsed());
+
+    let answer = scan.localize(&scene.camera, &scene.laser, &LocateOptions::default()).unwrap();
+    assert_eq!(answer.status, Status::Ok, "{}", answer.reason);
+    let error = (answer.position_mm.unwrap() - scene.scene.fruit_centre).norm();
+    assert!(error < HALF_SCALE_TOLERANCE_MM, "3-D error {error:.2} mm");
+}
+
+#[test]
+fn a_rough_position_from_the_rgbd_frame_and_laser_off_frames_localize_too() {
+    let scene = scene(1, 0.5);
+    let transform = rgbd_to_alacs();
+    // What an RGB-D camera mounted there reports.
+    let rough_in_rgbd = transform.inverse() * scene.rough_position_mm;
+    let config = ControllerConfig {
+        rgbd_to_alacs: transform,
+        capture_laser_off: true,
+        ..ControllerConfig::default()
+    };
+    let mut rig = SimulatedRig::new(scene.clone(), SimulatedRigOptions::default()).unwrap();
+    let scan =
+        ScanController::new(laser(), config).unwrap().run(&mut rig.rig(), &rough_in_rgbd).unwrap();
+    assert!((scan.rough_position_mm - scene.rough_position_mm).norm() < 1e-9);
+    for (planned, captured) in scene.plan.slides_mm.iter().zip(scan.slides_mm()) {
+        assert!((planned - captured).abs() < 1e-9);
+    }
+    assert!(scan.frames.iter().all(|f| f.image_laser_off.is_some()));
+    let answer = scan.localize(&scene.camera, &scene.laser, &LocateOptions::default()).unwrap();
+    assert_eq!(answer.status, Status::Ok, "{}", answer.reason);
+    let error = (answer.position_mm.unwrap() - scene.scene.fruit_centre).norm();
+    assert!(error < HALF_SCALE_TOLERANCE_MM, "3-D error {error:.2} mm");
+}
+
+#[test]
+fn the_simulated_devices_time_out_and_refuse_targets_beyond_the_stroke() {
+    let scene = scene(2, 0.1);
+    let rough = scene.rough_position_mm;
+    // A slow slide: 1 mm/s cannot reach the first position within 3 s.
+    let slow = SimulatedRigOptions { speed_mm_per_s: 1.0, ..SimulatedRigOptions::default() };
+    let mut rig = SimulatedRig::new(scene.clone(), slow).unwrap();
+    let config = ControllerConfig { move_timeout: Duration::from_secs(3), ..Default::default() };
+    let error =
+        ScanController::new(laser(), config).unwrap().run(&mut rig.rig(), &rough).unwrap_err();
+    assert_eq!(error.device(), Some(Device::Slide));
+    assert!(matches!(error.step(), Some(Step::Move { frame: 0, .. })), "{error}");
+    assert!(error.to_string().contains("stopped at 3.000 mm"), "{error}");
+    assert_eq!(rig.slide_mm(), 3.0);
+    assert_eq!(rig.elapsed(), Duration::from_secs(3));
+    assert!(!rig.laser_on());
+
+    // A camera slower than its timeout.
+    let slow = SimulatedRigOptions { frame_time: Duration::from_secs(1), ..Default::default() };
+    let mut rig = SimulatedRig::new(scene.clone(), slow).unwrap();
+    let config =
+        ControllerConfig { capture_timeout: Duration::from_millis(500), ..Default::default() };
+    let error =
+        ScanController::new(laser(), config).unwrap().run(&mut rig.rig(), &rough).unwrap_err();
+    assert_eq!(error.device(), Some(Device::Camera));
+    assert_eq!(error.step(), Some(Step::Capture { frame: 0, laser_on: true }));
+    assert!(!rig.laser_on());
+
+    // Out of stroke: refused, nothing moves.
+    let mut rig = SimulatedRig::new(scene, SimulatedRigOptions::default()).unwrap();
+    for target in [-1.0, 200.5, f64::NAN] {
+        let error = rig.slide.move_to(target, Duration::from_secs(10)).unwrap_err();
+        assert!(matches!(error, Error::OutOfStroke { .. }), "{error}");
+    }
+    assert_eq!(rig.slide.position_mm().unwrap(), 0.0);
+    assert_eq!(rig.elapsed(), Duration::ZERO);
+}
+
+#[test]
+#[ignore = "measurement: cargo test --release -p alacs-scanner --test sim_rig -- --ignored --nocapture"]
+fn measure_localization_error_at_half_scale() {
+    for seed in 0..12 {
+        let scene = scene(seed, 0.5);
+        let mut rig = SimulatedRig::new(scene.clone(), SimulatedRigOptions::default()).unwrap();
+        let controller = ScanController::new(laser(), ControllerConfig::default()).unwrap();
+        let scan = controller.run(&mut rig.rig(), &scene.rough_position_mm).unwrap();
+        let answer = scan.localize(&scene.camera, &scene.laser, &LocateOptions::default()).unwrap();
+        match answer.position_mm {
+            Some(p) => {
+                let e = p - scene.scene.fruit_centre;
+                println!(
+                    "seed {seed:2} z {:6.1} err ({:6.2} {:6.2} {:6.2}) 3d {:5.2} radius {:5.2} vs {:5.2}",
+                    scene.scene.fruit_centre.z,
+                    e.x,
+                    e.y,
+                    e.z,
+                    e.norm(),
+                    answer.radius_mm.unwrap(),
+                    scene.scene.fruit_radius_mm
+                );
+            }
+            None => println!("seed {seed:2} not found: {}", answer.reason),
+        }
+    }
+}
