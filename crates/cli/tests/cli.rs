@@ -476,6 +476,51 @@ fn scan_sim_json_localizes_the_simulated_apple_and_writes_a_scan_folder() {
     }
     // The true camera and laser are a simulation's shortcut, and said so.
     assert!(stderr(&output).contains("calibrated camera.yaml"), "{}", stderr(&output));
+
+    // `alacs localize` on the written folder gives the same answer.
+    let (camera, laser) = (out.join("camera.yaml"), out.join("laser.yaml"));
+    let localize = |extra: &[&str]| {
+        let mut args = vec![
+            "localize",
+            "--scan",
+            out.to_str().unwrap(),
+            "--camera",
+            camera.to_str().unwrap(),
+            "--laser",
+            laser.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        alacs(&args)
+    };
+    let again = stdout_json(&localize(&["--json"]));
+    assert_eq!(again["status"], "ok", "{again}");
+    for axis in 0..3 {
+        let p = again["position_mm"][axis].as_f64().unwrap();
+        assert!((p - position[axis]).abs() < 1e-6, "{again}");
+    }
+    let text = localize(&[]);
+    assert_eq!(text.status.code(), Some(0));
+    assert!(String::from_utf8_lossy(&text.stdout).contains("fruit at"));
+}
+
+#[test]
+fn localize_bad_input_exits_2_naming_the_file() {
+    let dir = scratch("localize_bad");
+    let camera = dir.join("camera.yaml");
+    std::fs::write(&camera, "not: [a camera").unwrap();
+    let missing = dir.join("no_such_scan");
+    let output = alacs(&[
+        "localize",
+        "--scan",
+        missing.to_str().unwrap(),
+        "--camera",
+        camera.to_str().unwrap(),
+        "--laser",
+        camera.to_str().unwrap(),
+    ]);
+    assert_eq!(output.status.code(), Some(2));
+    assert!(output.stdout.is_empty());
+    assert!(stderr(&output).contains("scan.yaml"), "{}", stderr(&output));
 }
 
 #[test]
