@@ -235,6 +235,17 @@ fn demo_json_reports_four_methods_and_accuracy() {
         // alone (noise-free pixels) must stay well inside them.
         assert!(a["max_abs_error_mm"]["z"].as_f64().unwrap() < 4.0, "{a}");
     }
+    // From images: calibration near the truth, every unoccluded fruit found
+    // within the paper's 4 mm, no found fruit beyond the end-effector's 15 mm.
+    let images = &json["images"];
+    assert!((images["laser"]["alpha_deg"].as_f64().unwrap() - 19.07).abs() < 0.05, "{images}");
+    assert!((images["laser"]["l0_mm"].as_f64().unwrap() - 381.98).abs() < 0.5, "{images}");
+    let conditions = images["localization"].as_array().unwrap();
+    assert_eq!(conditions[0]["found"], conditions[0]["scans"], "{images}");
+    assert!(conditions[0]["error_3d"]["max_abs_mm"].as_f64().unwrap() < 4.0, "{images}");
+    for c in conditions {
+        assert_eq!(c["found"], c["within_15_mm"], "{c}");
+    }
 }
 
 #[test]
