@@ -160,10 +160,11 @@ pub fn localization_json(answer: &Localization) -> Value {
         "fused": answer.fused.as_ref().map(|f| json!({
             "sphere_centre_mm": point(&f.sphere.centre),
             "sphere_radius_mm": f.sphere.radius_mm,
-            "ellipsoid_semi_axes_mm": f.ellipsoid.map(|e| [e.semi_axes_mm.x, e.semi_axes_mm.y, e.semi_axes_mm.z]),
+            "ellipsoid_semi_axes_mm": f.ellipsoid.map(|e| { let a = e.semi_axes_mm(); [a.x, a.y, a.z] }),
             "n_points": f.n_points,
             "n_frames": f.n_frames,
             "rms_mm": f.rms_mm,
+            "radius_from_prior": f.radius_from_prior,
         })),
         "fused_rejected": answer.fused_rejected,
         "frames": answer.frames.iter().map(|f| json!({

@@ -68,7 +68,11 @@ fn main() {
                 _ => line += &format!(" {:8} NOT FOUND: {} |", method.as_str(), answer.reason),
             }
             if let Some(fit) = &answer.fused {
-                line += &format!(" sphere 3d {:6.2} |", (fit.sphere.centre - truth).norm());
+                line += &format!(
+                    " sphere 3d {:6.2}{} |",
+                    (fit.sphere.centre - truth).norm(),
+                    if fit.radius_from_prior { " (prior radius)" } else { "" }
+                );
             }
             if method == Method::Fused {
                 let per: Vec<String> = answer
@@ -85,6 +89,57 @@ fn main() {
             let answer =
                 locate(&scan.camera, &laser, &prior, &frames, &LocateOptions::default()).unwrap();
             println!("truth shape {:?}", scan.scene.objects[0].shape);
+            if let alacs_sim::Shape::Ellipsoid { centre, rotation, semi_axes_mm } =
+                &scan.scene.objects[0].shape
+            {
+                let inverse_squares =
+                    nalgebra::Matrix3::from_diagonal(&semi_axes_mm.map(|a| 1.0 / (a * a)));
+                let true_fit = alacs_locate::fit::Ellipsoid {
+                    centre: *centre,
+                    shape: rotation.matrix() * inverse_squares * rotation.matrix().transpose(),
+                };
+                let points: Vec<_> = answer
+                    .frames
+                    .iter()
+                    .flat_map(|f| {
+                        f.points_in_camera
+                            .iter()
+                            .filter(|(i, _)| f.fruit.contains(i))
+                            .map(|(_, p)| *p)
+                    })
+                    .collect();
+                let rms = |e: &alacs_locate::fit::Ellipsoid| {
+                    (points.iter().map(|p| e.distance_mm(p).powi(2)).sum::<f64>()
+                        / points.len() as f64)
+                        .sqrt()
+                };
+                let fitted = answer.fused.as_ref().and_then(|f| f.ellipsoid);
+                let signed: Vec<f64> = points
+                    .iter()
+                    .map(|p| {
+                        let d = p - true_fit.centre;
+                        ((d.dot(&(true_fit.shape * d))).sqrt() - 1.0) * scan.scene.fruit_radius_mm
+                    })
+                    .filter(|r| r.abs() < 2.0)
+                    .collect();
+                let mean = signed.iter().sum::<f64>() / signed.len() as f64;
+                let sd = (signed.iter().map(|r| (r - mean).powi(2)).sum::<f64>()
+                    / signed.len() as f64)
+                    .sqrt();
+                println!(
+                    "near-truth points {} of {}: signed residual mean {mean:.3} sd {sd:.3}",
+                    signed.len(),
+                    points.len()
+                );
+                println!(
+                    "points {} rms vs truth {:.3} vs fit {:?}; fitted axes {:?} true {:?}",
+                    points.len(),
+                    rms(&true_fit),
+                    fitted.as_ref().map(rms),
+                    fitted.map(|e| e.semi_axes_mm()),
+                    semi_axes_mm
+                );
+            }
             println!("fused {:?}", answer.fused);
             for (k, f) in answer.frames.iter().enumerate() {
                 println!(

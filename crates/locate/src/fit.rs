@@ -313,113 +313,124 @@ mod tests {
 }
 
 /// An ellipsoid in the camera frame (mm): the fruit as the simulator and
-/// nature make it, a sphere stretched a few per cent along three axes.
+/// nature make it, a sphere stretched a few per cent along three axes. The
+/// points p on it satisfy (p - c)^T A (p - c) = 1.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Ellipsoid {
-    /// Centre.
+    /// Centre c.
     pub centre: Point3<f64>,
-    /// Rotation from the body frame to the camera frame.
-    pub rotation: nalgebra::Rotation3<f64>,
-    /// Semi-axes along the body frame's x, y, z, mm.
-    pub semi_axes_mm: Vector3<f64>,
+    /// The shape matrix A (symmetric positive definite, 1/mm^2).
+    pub shape: Matrix3<f64>,
 }
 
 impl Ellipsoid {
-    /// The equal-volume radius, (a b c)^(1/3).
-    pub fn equal_volume_radius_mm(&self) -> f64 {
-        self.semi_axes_mm.product().cbrt()
+    /// The semi-axes, ascending, mm (1 / sqrt of A's eigenvalues).
+    pub fn semi_axes_mm(&self) -> Vector3<f64> {
+        let eigenvalues = self.shape.symmetric_eigenvalues();
+        let mut axes: Vec<f64> = eigenvalues.iter().map(|l| 1.0 / l.max(1e-12).sqrt()).collect();
+        axes.sort_by(f64::total_cmp);
+        Vector3::new(axes[0], axes[1], axes[2])
     }
 
-    /// Approximate distance of `p` from the surface: (|S^-1 R^T (p - c)| - 1)
+    /// The equal-volume radius, (a b c)^(1/3) = det(A)^(-1/6).
+    pub fn equal_volume_radius_mm(&self) -> f64 {
+        self.shape.determinant().max(1e-30).powf(-1.0 / 6.0)
+    }
+
+    /// Approximate distance of `p` from the surface: (sqrt((p - c)^T A (p - c)) - 1)
     /// times the equal-volume radius (exact for a sphere).
     pub fn distance_mm(&self, p: &Point3<f64>) -> f64 {
-        self.scaled_residual(p).abs()
+        self.scaled_residual(p, self.equal_volume_radius_mm()).abs()
     }
 
-    fn scaled_residual(&self, p: &Point3<f64>) -> f64 {
-        let body = (self.rotation.inverse() * (p - self.centre)).component_div(&self.semi_axes_mm);
-        (body.norm() - 1.0) * self.equal_volume_radius_mm()
+    fn scaled_residual(&self, p: &Point3<f64>, radius_mm: f64) -> f64 {
+        let d = p - self.centre;
+        ((d.dot(&(self.shape * d))).max(0.0).sqrt() - 1.0) * radius_mm
     }
 }
 
-/// Standard deviation of the log semi-axes about their mean in the
-/// ellipsoid fit's prior: apples are round to a few per cent.
+/// Standard deviation of the relative deviation of the semi-axes from
+/// their mean in the ellipsoid fit's prior: apples are round to a few per cent.
 pub const ELLIPTICITY_PRIOR: f64 = 0.05;
 
+/// The ellipsoid of parameters x = [c (3), ln R, D (5)]:
+/// A = exp(-2 ln R) (I + D) with D symmetric and traceless,
+/// D = [[d0, d2, d3], [d2, d1, d4], [d3, d4, -d0 - d1]].
+fn ellipsoid_of(x: &nalgebra::SVector<f64, 9>) -> Ellipsoid {
+    let (d0, d1, d2, d3, d4) = (x[4], x[5], x[6], x[7], x[8]);
+    let deviation = Matrix3::new(d0, d2, d3, d2, d1, d4, d3, d4, -d0 - d1);
+    Ellipsoid {
+        centre: Point3::new(x[0], x[1], x[2]),
+        shape: (Matrix3::identity() + deviation) * (-2.0 * x[3]).exp(),
+    }
+}
+
 /// Least-squares ellipsoid through surface points, started from `sphere`:
-/// Levenberg-Marquardt over centre, rotation and log semi-axes, with a
-/// Gaussian prior that keeps the semi-axes within a few per cent of each
-/// other ([`ELLIPTICITY_PRIOR`]), weighted as `prior_weight_points` points
-/// of `noise_mm` scatter. A camera sees the fruit's front only, so a sphere
-/// fitted to a slightly elongated fruit misplaces the centre by the
-/// elongation; the ellipsoid takes it up. `None` when the fit diverges.
+/// Levenberg-Marquardt over the centre, the size and the traceless
+/// deviation D of the shape from a sphere, with a Gaussian prior on D that
+/// keeps the semi-axes within a few per cent of each other
+/// ([`ELLIPTICITY_PRIOR`]; a semi-axis deviates by about -1/2 of D's
+/// eigenvalue), weighted as `prior_weight_points` points of `noise_mm`
+/// scatter. The parametrization is smooth through the sphere, where an
+/// axes-and-rotation one is not. A camera sees the fruit's front only, so
+/// a sphere fitted to a slightly elongated fruit misplaces the centre by
+/// the elongation; the ellipsoid takes it up. `None` when the fit fails.
 pub fn fit_ellipsoid(
     points: &[Point3<f64>],
     sphere: &Sphere,
     noise_mm: f64,
     prior_weight_points: f64,
 ) -> Option<Ellipsoid> {
-    use nalgebra::{DMatrix, DVector, Rotation3, SVector};
-    if points.len() < 9 {
+    use nalgebra::{DMatrix, DVector, SVector};
+    type Params = SVector<f64, 9>;
+    if points.len() < 9 || sphere.radius_mm <= 0.0 {
         return None;
     }
-    type Params = SVector<f64, 9>;
-    let log_r = sphere.radius_mm.ln();
-    let to_ellipsoid = |x: &Params| Ellipsoid {
-        centre: Point3::new(x[0], x[1], x[2]),
-        rotation: Rotation3::new(Vector3::new(x[3], x[4], x[5])),
-        semi_axes_mm: Vector3::new(x[6].exp(), x[7].exp(), x[8].exp()),
-    };
-    let prior_scale = noise_mm * prior_weight_points.sqrt();
+    let radius = sphere.radius_mm;
+    let prior_scale = noise_mm * prior_weight_points.sqrt() / (2.0 * ELLIPTICITY_PRIOR);
     let residuals = |x: &Params| -> DVector<f64> {
-        let e = to_ellipsoid(x);
-        let mean_log = (x[6] + x[7] + x[8]) / 3.0;
-        let mut r = DVector::zeros(points.len() + 4);
-        for (i, p) in points.iter().enumerate() {
-            r[i] = e.scaled_residual(p);
-        }
+        let e = ellipsoid_of(x);
         let n = points.len();
-        for k in 0..3 {
-            r[n + k] = prior_scale * (x[6 + k] - mean_log) / ELLIPTICITY_PRIOR;
+        let mut r = DVector::zeros(n + 6);
+        for (i, p) in points.iter().enumerate() {
+            r[i] = e.scaled_residual(p, radius);
         }
-        // The overall size is free: the data fix it.
-        r[n + 3] = 0.0;
+        // |D|_F^2 = d0^2 + d1^2 + (d0 + d1)^2 + 2 (d2^2 + d3^2 + d4^2).
+        let (d0, d1) = (x[4], x[5]);
+        r[n] = prior_scale * d0;
+        r[n + 1] = prior_scale * d1;
+        r[n + 2] = prior_scale * (d0 + d1);
+        for k in 0..3 {
+            r[n + 3 + k] = prior_scale * std::f64::consts::SQRT_2 * x[6 + k];
+        }
         r
     };
-    let mut x = Params::from_column_slice(&[
-        sphere.centre.x,
-        sphere.centre.y,
-        sphere.centre.z,
-        0.0,
-        0.0,
-        0.0,
-        log_r,
-        log_r,
-        log_r,
-    ]);
-    // Break the symmetry of the sphere start, where the rotation is free.
-    x[3] = 1e-3;
-    x[4] = 2e-3;
-    x[5] = 3e-3;
+    let mut x = Params::zeros();
+    x[0] = sphere.centre.x;
+    x[1] = sphere.centre.y;
+    x[2] = sphere.centre.z;
+    x[3] = radius.ln();
     let mut r = residuals(&x);
     let mut cost = r.norm_squared();
-    let mut lambda = 1e-3;
-    for _ in 0..50 {
+    let mut lambda = 1e-4;
+    for _ in 0..100 {
         let mut jacobian = DMatrix::zeros(r.len(), 9);
         for k in 0..9 {
-            let step = if k < 3 { 1e-4 } else { 1e-6 };
-            let mut xp = x;
-            xp[k] += step;
-            let column = (residuals(&xp) - &r) / step;
+            let step = if k < 3 { 1e-5 * radius } else { 1e-7 };
+            let mut forward = x;
+            forward[k] += step;
+            let mut backward = x;
+            backward[k] -= step;
+            let column = (residuals(&forward) - residuals(&backward)) / (2.0 * step);
             jacobian.set_column(k, &column);
         }
         let jtj = jacobian.transpose() * &jacobian;
         let jtr = jacobian.transpose() * &r;
         let mut improved = false;
-        for _ in 0..10 {
+        for _ in 0..12 {
             let mut damped = jtj.clone();
             for k in 0..9 {
-                damped[(k, k)] += lambda * (jtj[(k, k)] + 1e-9);
+                damped[(k, k)] += lambda * (jtj[(k, k)] + 1e-12);
             }
             let Some(delta) = damped.lu().solve(&(-&jtr)) else {
                 lambda *= 10.0;
@@ -429,12 +440,11 @@ pub fn fit_ellipsoid(
             let r_new = residuals(&candidate);
             let cost_new = r_new.norm_squared();
             if cost_new.is_finite() && cost_new < cost {
-                let converged = (cost - cost_new) < 1e-10 * cost.max(1e-12);
+                improved = cost - cost_new > 1e-12 * cost.max(1e-12);
                 x = candidate;
                 r = r_new;
                 cost = cost_new;
-                lambda = (lambda * 0.3).max(1e-9);
-                improved = !converged;
+                lambda = (lambda * 0.3).max(1e-12);
                 break;
             }
             lambda *= 10.0;
@@ -443,7 +453,7 @@ pub fn fit_ellipsoid(
             break;
         }
     }
-    let e = to_ellipsoid(&x);
-    (e.centre.coords.iter().all(|c| c.is_finite()) && e.semi_axes_mm.iter().all(|a| a.is_finite()))
-        .then_some(e)
+    let e = ellipsoid_of(&x);
+    let positive = e.shape.symmetric_eigenvalues().iter().all(|l| *l > 0.0);
+    (positive && e.centre.coords.iter().all(|c| c.is_finite())).then_some(e)
 }

@@ -186,6 +186,11 @@ pub struct FusedFit {
     pub n_points: usize,
     /// Frames that contribute points.
     pub n_frames: usize,
+    /// Whether the radius was held at the prior: the fallback when the free
+    /// fit is not trustworthy (a fruit mostly hidden or in the laser's
+    /// shadow shows short arcs, which fix a centre for a known radius but
+    /// not the radius itself).
+    pub radius_from_prior: bool,
     /// RMS distance of the points from the sphere, mm.
     pub rms_mm: f64,
 }
@@ -231,7 +236,8 @@ pub struct Localization {
     pub holistic: Option<usize>,
     /// The fused fit, if it was trustworthy.
     pub fused: Option<FusedFit>,
-    /// Why the fused fit was not trustworthy, if it was not.
+    /// Why the free fused fit was not trustworthy, if it was not (the
+    /// fallback with the prior radius may still have answered).
     pub fused_rejected: Option<String>,
     /// What each frame gave.
     pub frames: Vec<FrameResult>,
@@ -309,10 +315,15 @@ pub fn locate(
         .enumerate()
         .max_by(|a, b| a.1.score.total_cmp(&b.1.score))
         .map(|(i, _)| i);
-    let fused = fuse(&results, &context);
-    let (fused, fused_rejected) = match fused {
+    let candidate_positions: Vec<Point3<f64>> =
+        results.iter().filter_map(|r| r.candidate.as_ref().map(|c| c.position_mm)).collect();
+    let (fused, fused_rejected) = match fuse(&results, &context) {
         Ok(fit) => (Some(fit), None),
-        Err(reason) => (None, Some(reason)),
+        Err(reason) => match fit_prior_radius(&results, &context, &candidate_positions) {
+            Ok(fit) => (Some(fit), Some(reason)),
+            Err(_) if candidate_positions.is_empty() => (None, Some(reason)),
+            Err(second) => (None, Some(format!("{reason}; with the radius prior: {second}"))),
+        },
     };
 
     let mut answer = Localization {
@@ -339,10 +350,20 @@ pub fn locate(
                 };
                 answer.position_mm = Some(centre);
                 answer.radius_mm = Some(radius);
-                answer.reason = format!(
-                    "sphere fit over {} points from {} frames, RMS {:.2} mm",
-                    fit.n_points, fit.n_frames, fit.rms_mm
-                );
+                answer.reason = if fit.radius_from_prior {
+                    format!(
+                        "sphere of the prior radius fitted to {} points from {} frames, RMS {:.2} mm (the free fit failed: {})",
+                        fit.n_points,
+                        fit.n_frames,
+                        fit.rms_mm,
+                        answer.fused_rejected.as_deref().unwrap_or_default()
+                    )
+                } else {
+                    format!(
+                        "sphere fit over {} points from {} frames, RMS {:.2} mm",
+                        fit.n_points, fit.n_frames, fit.rms_mm
+                    )
+                };
             }
             (None, reason) => {
                 answer.reason = reason.clone().unwrap_or_default();
@@ -738,16 +759,7 @@ fn score_candidates(
 /// points, with the checks that make it trustworthy.
 fn fuse(results: &[FrameResult], context: &FrameContext) -> std::result::Result<FusedFit, String> {
     let (search, prior, options) = (context.search, context.prior, context.options);
-    let mut points = Vec::new();
-    let mut frame_of = Vec::new();
-    for (k, result) in results.iter().enumerate() {
-        for &i in &result.fruit {
-            if let Some((_, p)) = result.points_in_camera.iter().find(|(j, _)| *j == i) {
-                points.push(*p);
-                frame_of.push(k);
-            }
-        }
-    }
+    let (points, frame_of) = fruit_points(results);
     let frames_with_points = count_frames(&frame_of, 0..points.len());
     if frames_with_points < 2 {
         return Err(match frames_with_points {
@@ -830,17 +842,161 @@ fn fuse(results: &[FrameResult], context: &FrameContext) -> std::result::Result<
             "the points are nearly flat ({flatness:.2} mm RMS from a plane): not a fruit"
         ));
     }
+    // The ellipsoid replaces the sphere only where it fits clearly better:
+    // on a round fruit its extra freedom only follows the noise.
     let ellipsoid =
-        fit_ellipsoid(&on_sphere, &sphere, rms.max(MIN_NOISE_MM), ELLIPSOID_PRIOR_POINTS);
-    Ok(FusedFit { sphere, ellipsoid, n_points: inliers.len(), n_frames, rms_mm: rms })
+        fit_ellipsoid(&on_sphere, &sphere, rms.max(MIN_NOISE_MM), ELLIPSOID_PRIOR_POINTS).filter(
+            |e| {
+                let ellipsoid_rms = rms_mm(on_sphere.iter().map(|p| e.distance_mm(p)));
+                ellipsoid_rms * ellipsoid_rms < (1.0 - MIN_SSE_REDUCTION) * rms * rms
+            },
+        );
+    Ok(FusedFit {
+        sphere,
+        ellipsoid,
+        n_points: inliers.len(),
+        n_frames,
+        rms_mm: rms,
+        radius_from_prior: false,
+    })
 }
 
-/// Weight of the ellipsoid's roundness prior, in points. Measured on 24
-/// simulated ellipsoidal fruit (semi-axes within 8 % of the mean): a
-/// weight of 5 gave a mean 3-D error of 1.3 mm, 50 gave 1.7 mm, 500 2.2 mm
-/// (the sphere alone: 2.6 mm); on spheres a weight of 5-20 costs up to
-/// 1.6 mm against the sphere fit's 0.3 mm.
-const ELLIPSOID_PRIOR_POINTS: f64 = 10.0;
+/// Weight of the ellipsoid's roundness prior, in points. On 21 simulated
+/// ellipsoidal fruit (semi-axes within 8 % of the mean) weights of 10 and
+/// 50 gave the same mean 3-D error, 1.7 mm (the sphere alone: 2.6 mm); the
+/// front of a fruit does not fix its depth semi-axis, so the prior decides
+/// it, and the worst cases stay near 5 mm either way.
+const ELLIPSOID_PRIOR_POINTS: f64 = 20.0;
+
+/// The ellipsoid must cut the sum of squared distances by this fraction
+/// (measured: on simulated spheres it cuts 1-25 %, on fruit with semi-axes
+/// 8 % apart mostly 40-90 %).
+const MIN_SSE_REDUCTION: f64 = 0.3;
+
+/// Every frame's fruit points, with the frame each came from.
+fn fruit_points(results: &[FrameResult]) -> (Vec<Point3<f64>>, Vec<usize>) {
+    let mut points = Vec::new();
+    let mut frame_of = Vec::new();
+    for (k, result) in results.iter().enumerate() {
+        for (i, p) in &result.points_in_camera {
+            if result.fruit.contains(i) {
+                points.push(*p);
+                frame_of.push(k);
+            }
+        }
+    }
+    (points, frame_of)
+}
+
+/// The fallback when the free fit is not trustworthy: a sphere of the
+/// prior radius through the frames' fruit points (Gauss-Newton on the
+/// centre from each frame's candidate and the rough position, keeping the
+/// start with most points within the inlier threshold), with the same
+/// checks as the free fit except the coverage, which a fruit mostly hidden
+/// cannot meet.
+fn fit_prior_radius(
+    results: &[FrameResult],
+    context: &FrameContext,
+    starts: &[Point3<f64>],
+) -> std::result::Result<FusedFit, String> {
+    let (search, prior, options) = (context.search, context.prior, context.options);
+    let (points, frame_of) = fruit_points(results);
+    let min_points = 2 * context.min_points();
+    if points.len() < min_points {
+        return Err(format!("{} fruit points, fewer than {min_points}", points.len()));
+    }
+    let radius = prior.fruit_radius_mm;
+    let threshold = options.inlier_threshold_mm;
+    let mut best: Option<(Sphere, Vec<usize>, f64)> = None;
+    for start in starts.iter().chain(std::iter::once(&search.centre)) {
+        let mut sphere = Sphere { centre: *start, radius_mm: radius };
+        let mut inliers: Vec<usize> = (0..points.len()).collect();
+        for _ in 0..4 {
+            let chosen: Vec<Point3<f64>> = inliers.iter().map(|&i| points[i]).collect();
+            let Some(centre) = fit_centre_for_radius(&chosen, &sphere.centre, radius) else {
+                break;
+            };
+            sphere.centre = centre;
+            inliers = (0..points.len())
+                .filter(|&i| sphere.distance_mm(&points[i]) <= threshold)
+                .collect();
+            if inliers.len() < 4 {
+                break;
+            }
+        }
+        let rms = rms_mm(inliers.iter().map(|&i| sphere.distance_mm(&points[i])));
+        let better = match &best {
+            None => true,
+            Some((_, b, b_rms)) => {
+                inliers.len() > b.len() || (inliers.len() == b.len() && rms < *b_rms)
+            }
+        };
+        if better {
+            best = Some((sphere, inliers, rms));
+        }
+    }
+    let Some((sphere, inliers, rms)) = best else {
+        return Err("no sphere of the prior radius fits the fruit points".into());
+    };
+    if inliers.len() < min_points {
+        return Err(format!("{} points on the sphere, fewer than {min_points}", inliers.len()));
+    }
+    if rms > options.max_fit_rms_mm {
+        return Err(format!("the points scatter {rms:.2} mm RMS about the sphere"));
+    }
+    let offset = (sphere.centre - search.centre).norm();
+    if offset > search.radius_mm {
+        return Err(format!(
+            "the centre lies {offset:.0} mm from the rough position, beyond the search ball"
+        ));
+    }
+    let on_sphere: Vec<Point3<f64>> = inliers.iter().map(|&i| points[i]).collect();
+    let facing = facing_fraction(&sphere.centre, &on_sphere);
+    if facing < MIN_FACING_FRACTION {
+        return Err(format!("only {:.0} % of the points face the camera", 100.0 * facing));
+    }
+    let flatness = plane_rms_mm(&on_sphere);
+    if flatness < CURVATURE_SIGNIFICANCE * rms.max(MIN_NOISE_MM) {
+        return Err(format!("the points are nearly flat ({flatness:.2} mm RMS from a plane)"));
+    }
+    Ok(FusedFit {
+        sphere,
+        ellipsoid: None,
+        n_points: inliers.len(),
+        n_frames: count_frames(&frame_of, inliers.iter().copied()),
+        rms_mm: rms,
+        radius_from_prior: true,
+    })
+}
+
+/// Gauss-Newton on the centre of a sphere of known radius, from `start`.
+fn fit_centre_for_radius(
+    points: &[Point3<f64>],
+    start: &Point3<f64>,
+    radius_mm: f64,
+) -> Option<Point3<f64>> {
+    let mut centre = *start;
+    for _ in 0..20 {
+        let mut jtj = nalgebra::Matrix3::zeros();
+        let mut jtr = Vector3::zeros();
+        for p in points {
+            let d = p - centre;
+            let n = d.norm();
+            if n <= 0.0 {
+                continue;
+            }
+            let j = -d / n;
+            jtj += j * j.transpose();
+            jtr += j * (n - radius_mm);
+        }
+        let step = jtj.lu().solve(&(-jtr))?;
+        centre += step;
+        if step.norm() < 1e-6 {
+            break;
+        }
+    }
+    centre.coords.iter().all(|c| c.is_finite()).then_some(centre)
+}
 
 /// Smallest fraction of the stripe rows the fitted fruit predicts that
 /// must hold fruit points (40 % leaf occlusion and clipped rows in sun
