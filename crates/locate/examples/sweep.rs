@@ -39,10 +39,11 @@ fn main() {
         let truth = scan.scene.fruit_centre;
         let start = std::time::Instant::now();
         let mut line = format!(
-            "seed {seed:3} z {:6.1} r {:4.1} occ {:3.0}% |",
+            "seed {seed:3} z {:6.1} r {:4.1} occ {:3.0}%{} |",
             truth.z,
             scan.scene.fruit_radius_mm,
-            100.0 * scan.scene.occlusion
+            100.0 * scan.scene.occlusion,
+            if scan.plan.shifted { " shifted" } else { "" }
         );
         for method in [Method::Fused, Method::Holistic] {
             let answer = locate(
@@ -108,12 +109,25 @@ fn main() {
                             .map(|(_, p)| *p)
                     })
                     .collect();
+                let fitted_for_set = answer.fused.as_ref().and_then(|f| f.ellipsoid);
+                let points: Vec<_> = points
+                    .iter()
+                    .copied()
+                    .filter(|p| fitted_for_set.is_none_or(|e| e.distance_mm(p) < 2.0))
+                    .collect();
                 let rms = |e: &alacs_locate::fit::Ellipsoid| {
                     (points.iter().map(|p| e.distance_mm(p).powi(2)).sum::<f64>()
                         / points.len() as f64)
                         .sqrt()
                 };
                 let fitted = answer.fused.as_ref().and_then(|f| f.ellipsoid);
+                let from_truth =
+                    alacs_locate::fit::fit_ellipsoid_from(&points, &true_fit, 0.2, 20.0).unwrap();
+                println!(
+                    "from truth: centre error {:.2} mm rms {:.3}",
+                    (from_truth.centre - true_fit.centre).norm(),
+                    rms(&from_truth)
+                );
                 let signed: Vec<f64> = points
                     .iter()
                     .map(|p| {

@@ -310,6 +310,44 @@ mod tests {
                 < 1e-9
         );
     }
+
+    /// The front of an elongated fruit, as the camera sees it, with a few
+    /// stray points 4 mm off: the robust ellipsoid finds the centre, the
+    /// sphere does not.
+    #[test]
+    fn robust_ellipsoid_recovers_an_elongated_fruit_from_its_front() {
+        let rotation = nalgebra::Rotation3::from_euler_angles(0.3, -0.5, 0.8);
+        let axes = Vector3::new(41.0, 37.5, 39.0);
+        let truth = Ellipsoid {
+            centre: Point3::new(20.0, -10.0, 800.0),
+            shape: rotation.matrix()
+                * Matrix3::from_diagonal(&axes.map(|a| 1.0 / (a * a)))
+                * rotation.matrix().transpose(),
+        };
+        let mut points = Vec::new();
+        for i in 0..40 {
+            for j in 0..40 {
+                let theta = std::f64::consts::PI * i as f64 / 40.0;
+                let phi = std::f64::consts::TAU * j as f64 / 40.0;
+                let body =
+                    Vector3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos());
+                let p = truth.centre + rotation * body.component_mul(&axes);
+                let normal = truth.shape * (p - truth.centre);
+                if normal.dot(&(-p.coords)) > 0.0 {
+                    let stray = if (i * 40 + j) % 97 == 0 { 4.0 } else { 0.0 };
+                    points.push(p + normal.normalize() * stray);
+                }
+            }
+        }
+        let sphere = fit_sphere(&points).unwrap();
+        let robust = fit_ellipsoid_robust(&points, &sphere, 0.15, 20.0).unwrap();
+        let sphere_error = (sphere.centre - truth.centre).norm();
+        let robust_error = (robust.centre - truth.centre).norm();
+        assert!(robust_error < 0.5, "ellipsoid {robust_error:.2} mm, sphere {sphere_error:.2} mm");
+        assert!(sphere_error > 2.0 * robust_error, "sphere {sphere_error:.2} mm");
+        let volume_radius = robust.equal_volume_radius_mm();
+        assert!((volume_radius - axes.product().cbrt()).abs() < 0.5, "{volume_radius}");
+    }
 }
 
 /// An ellipsoid in the camera frame (mm): the fruit as the simulator and
@@ -381,19 +419,81 @@ pub fn fit_ellipsoid(
     noise_mm: f64,
     prior_weight_points: f64,
 ) -> Option<Ellipsoid> {
+    let start = Ellipsoid {
+        centre: sphere.centre,
+        shape: Matrix3::identity() / (sphere.radius_mm * sphere.radius_mm),
+    };
+    fit_ellipsoid_from(points, &start, noise_mm, prior_weight_points)
+}
+
+/// [`fit_ellipsoid`] robust to stray points: iteratively reweighted least
+/// squares with Cauchy weights 1 / (1 + (r / c)^2), c = 3 times the robust
+/// scatter (1.4826 x the median absolute distance, at least `noise_mm` / 2),
+/// from the sphere. A handful of points a few millimetres off the surface
+/// (the stripe's ends at the silhouette, a leaf touching the fruit) would
+/// otherwise pull an ellipsoid, with its extra freedom, far more than a sphere.
+pub fn fit_ellipsoid_robust(
+    points: &[Point3<f64>],
+    sphere: &Sphere,
+    noise_mm: f64,
+    prior_weight_points: f64,
+) -> Option<Ellipsoid> {
+    let mut ellipsoid = Ellipsoid {
+        centre: sphere.centre,
+        shape: Matrix3::identity() / (sphere.radius_mm * sphere.radius_mm),
+    };
+    for _ in 0..ROBUST_ROUNDS {
+        let mut distances: Vec<f64> = points.iter().map(|p| ellipsoid.distance_mm(p)).collect();
+        let weights_from = distances.clone();
+        distances.sort_by(f64::total_cmp);
+        let median = distances.get(distances.len() / 2).copied().unwrap_or(noise_mm);
+        let c = 3.0 * (1.4826 * median).max(0.5 * noise_mm);
+        let weights: Vec<f64> =
+            weights_from.iter().map(|d| 1.0 / (1.0 + (d / c).powi(2))).collect();
+        ellipsoid =
+            fit_weighted(points, Some(&weights), &ellipsoid, noise_mm, prior_weight_points)?;
+    }
+    Some(ellipsoid)
+}
+
+/// Reweighting rounds of [`fit_ellipsoid_robust`].
+const ROBUST_ROUNDS: usize = 4;
+
+/// [`fit_ellipsoid`] from any start.
+pub fn fit_ellipsoid_from(
+    points: &[Point3<f64>],
+    start: &Ellipsoid,
+    noise_mm: f64,
+    prior_weight_points: f64,
+) -> Option<Ellipsoid> {
+    fit_weighted(points, None, start, noise_mm, prior_weight_points)
+}
+
+/// The Levenberg-Marquardt core of the ellipsoid fits, with optional
+/// per-point weights (on the squared residuals).
+fn fit_weighted(
+    points: &[Point3<f64>],
+    weights: Option<&[f64]>,
+    start: &Ellipsoid,
+    noise_mm: f64,
+    prior_weight_points: f64,
+) -> Option<Ellipsoid> {
     use nalgebra::{DMatrix, DVector, SVector};
     type Params = SVector<f64, 9>;
-    if points.len() < 9 || sphere.radius_mm <= 0.0 {
+    let trace = start.shape.trace();
+    if points.len() < 9 || trace.is_nan() || trace <= 0.0 {
         return None;
     }
-    let radius = sphere.radius_mm;
+    let radius = (3.0 / trace).sqrt();
+    let deviation = start.shape * (radius * radius) - Matrix3::identity();
     let prior_scale = noise_mm * prior_weight_points.sqrt() / (2.0 * ELLIPTICITY_PRIOR);
     let residuals = |x: &Params| -> DVector<f64> {
         let e = ellipsoid_of(x);
         let n = points.len();
         let mut r = DVector::zeros(n + 6);
         for (i, p) in points.iter().enumerate() {
-            r[i] = e.scaled_residual(p, radius);
+            let weight = weights.and_then(|w| w.get(i)).map_or(1.0, |w| w.sqrt());
+            r[i] = weight * e.scaled_residual(p, radius);
         }
         // |D|_F^2 = d0^2 + d1^2 + (d0 + d1)^2 + 2 (d2^2 + d3^2 + d4^2).
         let (d0, d1) = (x[4], x[5]);
@@ -406,10 +506,15 @@ pub fn fit_ellipsoid(
         r
     };
     let mut x = Params::zeros();
-    x[0] = sphere.centre.x;
-    x[1] = sphere.centre.y;
-    x[2] = sphere.centre.z;
+    x[0] = start.centre.x;
+    x[1] = start.centre.y;
+    x[2] = start.centre.z;
     x[3] = radius.ln();
+    x[4] = deviation[(0, 0)];
+    x[5] = deviation[(1, 1)];
+    x[6] = deviation[(0, 1)];
+    x[7] = deviation[(0, 2)];
+    x[8] = deviation[(1, 2)];
     let mut r = residuals(&x);
     let mut cost = r.norm_squared();
     let mut lambda = 1e-4;

@@ -28,8 +28,13 @@
 //! - **Fused** (the default): one robust sphere fit (RANSAC, then least
 //!   squares) over every frame's fruit points. Five parallel cuts 10 mm
 //!   apart fix the sphere's centre and radius without the radius prior,
-//!   which is what limits a single frame. See the crate docs for the
-//!   comparison on simulated scans.
+//!   which is what limits a single frame. Where an ellipsoid (roundness
+//!   prior, Cauchy-weighted) fits clearly better, its centre is the answer:
+//!   a sphere fitted to the front of an elongated fruit misplaces the
+//!   centre by millimetres. When the free fit is not trustworthy (short
+//!   arcs of a fruit mostly hidden), a sphere of the prior radius through
+//!   the arcs may answer, under the same checks. The README compares the
+//!   methods on simulated scans.
 //!
 //! A fit that is not trustworthy (too few points, a large residual, a
 //! radius or centre out of range, a surface facing away from the camera, a
@@ -43,7 +48,7 @@ use nalgebra::{Point2, Point3, Unit, Vector3};
 use rayon::prelude::*;
 
 use crate::fit::{
-    Circle, CircleEstimator, Ellipsoid, Sphere, SphereEstimator, fit_circle, fit_ellipsoid,
+    Circle, CircleEstimator, Ellipsoid, Sphere, SphereEstimator, fit_circle, fit_ellipsoid_robust,
     fit_sphere, line_rms_mm, plane_rms_mm, rms_mm,
 };
 use crate::{Error, Result};
@@ -845,12 +850,11 @@ fn fuse(results: &[FrameResult], context: &FrameContext) -> std::result::Result<
     // The ellipsoid replaces the sphere only where it fits clearly better:
     // on a round fruit its extra freedom only follows the noise.
     let ellipsoid =
-        fit_ellipsoid(&on_sphere, &sphere, rms.max(MIN_NOISE_MM), ELLIPSOID_PRIOR_POINTS).filter(
-            |e| {
+        fit_ellipsoid_robust(&on_sphere, &sphere, rms.max(MIN_NOISE_MM), ELLIPSOID_PRIOR_POINTS)
+            .filter(|e| {
                 let ellipsoid_rms = rms_mm(on_sphere.iter().map(|p| e.distance_mm(p)));
                 ellipsoid_rms * ellipsoid_rms < (1.0 - MIN_SSE_REDUCTION) * rms * rms
-            },
-        );
+            });
     Ok(FusedFit {
         sphere,
         ellipsoid,
