@@ -1,5 +1,6 @@
 //! Localization errors on a batch of simulated scans, both methods:
-//! `cargo run --release -p alacs-locate --example sweep -- [N] [occlusion] [sun] [scale] [first_seed] [ellipticity]`.
+//! `cargo run --release -p alacs-locate --example sweep -- [N] [occlusion] [sun] [scale] [first_seed] [ellipticity]`;
+//! `COVERAGE=0.1` overrides `LocateOptions::min_coverage`, `DEBUG=1` prints per-frame details.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use alacs_locate::{FrameImages, LocateOptions, Method, Prior, Status, locate};
@@ -51,7 +52,13 @@ fn main() {
                 &laser,
                 &prior,
                 &frames,
-                &LocateOptions { method, ..LocateOptions::default() },
+                &LocateOptions {
+                    method,
+                    min_coverage: std::env::var("COVERAGE")
+                        .ok()
+                        .map_or(0.2, |c| c.parse().unwrap()),
+                    ..LocateOptions::default()
+                },
             )
             .unwrap();
             match (answer.status, answer.position_mm) {

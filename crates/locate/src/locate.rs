@@ -94,6 +94,11 @@ pub struct LocateOptions {
     /// Fewest fruit points of a frame, as a fraction of the rows a fruit of
     /// the prior radius spans at the rough depth.
     pub min_points_fraction: f64,
+    /// Smallest fraction of the stripe rows the fitted fruit predicts that
+    /// must hold fruit points for the free fit to count (a fruit behind
+    /// leaves and in the laser's shadow shows part of them, a chance fit to
+    /// clutter few).
+    pub min_coverage: f64,
     /// Seed of the RANSAC samplers: same seed, same answer.
     pub seed: u64,
 }
@@ -109,6 +114,7 @@ impl Default for LocateOptions {
             inlier_threshold_mm: 2.0,
             max_fit_rms_mm: 1.2,
             min_points_fraction: 0.08,
+            min_coverage: 0.2,
             seed: 0,
         }
     }
@@ -826,7 +832,7 @@ fn fuse(results: &[FrameResult], context: &FrameContext) -> std::result::Result<
         })
         .sum();
     let coverage = inliers.len() as f64 / expected_rows.max(1.0);
-    if coverage < MIN_COVERAGE {
+    if coverage < options.min_coverage {
         return Err(format!(
             "the fitted fruit shows {:.0} % of the stripe rows it should ({} of {:.0}): too little to trust",
             100.0 * coverage,
@@ -1001,11 +1007,6 @@ fn fit_centre_for_radius(
     }
     centre.coords.iter().all(|c| c.is_finite()).then_some(centre)
 }
-
-/// Smallest fraction of the stripe rows the fitted fruit predicts that
-/// must hold fruit points (40 % leaf occlusion and clipped rows in sun
-/// leave about half).
-const MIN_COVERAGE: f64 = 0.2;
 
 /// Every point on a fruit's surface that the camera sees faces it; a few
 /// may not, from noise at the silhouette.

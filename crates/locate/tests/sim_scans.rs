@@ -63,6 +63,7 @@ fn unoccluded_fruit_within_4_mm() {
 /// within the vacuum end-effector's 15 mm; a fully hidden fruit is not found.
 #[test]
 fn occluded_fruit_is_near_or_not_found() {
+    let mut found = 0;
     for (seed, occlusion) in [(200, 0.4), (202, 0.4), (204, 0.4), (300, 1.0), (301, 1.0)] {
         let scan = scan(ScanOptions {
             orchard: OrchardOptions { occlusion, ..OrchardOptions::default() },
@@ -74,12 +75,17 @@ fn occluded_fruit_is_near_or_not_found() {
         match answer.status {
             Status::Ok => {
                 let error = error_mm(&scan, &answer).unwrap();
+                eprintln!("seed {seed}: {error:.2} mm");
                 assert!(occlusion < 1.0, "seed {seed}: a fully hidden fruit was found");
                 assert!(error < 15.0, "seed {seed}: {error:.1} mm");
+                found += 1;
             }
             Status::NotFound => assert!(!answer.reason.is_empty()),
         }
     }
+    // A regression guard, not a rate: 28 of 36 such scans are found today
+    // (README); of these three partly hidden ones, 202 and 204 are.
+    assert!(found >= 2, "{found} of 3 partly hidden fruit found");
 }
 
 #[test]

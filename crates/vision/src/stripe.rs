@@ -78,10 +78,14 @@ pub struct StripeOptions {
     /// Subtract the local background along the row before the peak search
     /// (a line detector); `None` takes the scores as they are.
     pub local_background: Option<LocalBackground>,
-    /// A peak where the laser-on image's red channel reaches this value
-    /// (DN) within a pixel of the centre is clipped, its centre biased, and
-    /// the row is skipped ([`extract_stripe_rgb`] only).
+    /// Red at or above this value (DN) is clipped. A peak inside a clipped
+    /// run wider than the stripe is a saturated patch where the line cannot
+    /// be seen, and is skipped; a line whose top alone is clipped keeps its
+    /// symmetric profile and is kept ([`extract_stripe_rgb`] only).
     pub saturation_dn: Option<u8>,
+    /// Skip colour-score peaks where the green channel dips ([`extract_stripe_rgb`]
+    /// without a laser-off image only): surface colour, not laser light.
+    pub green_check: bool,
 }
 
 /// A line detector along the row: each score minus the larger of the mean
@@ -113,6 +117,7 @@ impl Default for StripeOptions {
             max_peaks_per_row: 1,
             local_background: None,
             saturation_dn: None,
+            green_check: false,
         }
     }
 }
@@ -127,6 +132,7 @@ impl StripeOptions {
             min_strength: 10.0,
             local_background: Some(LocalBackground { gap_px: 5, window_px: 4 }),
             saturation_dn: Some(250),
+            green_check: true,
             max_peaks_per_row: 3,
             ambiguity_ratio: 0.2,
             ..StripeOptions::default()
@@ -268,6 +274,61 @@ pub fn laser_score(on: &RgbImage, off: Option<&RgbImage>) -> Result<ScoreImage> 
     Ok(ScoreImage::from_raw(width, height, data).unwrap_or_else(|| ScoreImage::new(width, height)))
 }
 
+/// Whether the red channel is clipped over more than the stripe itself at
+/// `point`: a saturated patch (sunlit red fruit) rather than a line whose
+/// top is clipped. A clipped line keeps a symmetric profile and its centre;
+/// in a clipped patch the line cannot be seen at all.
+fn saturated(row_rgb: &[u8], point: &StripePoint, limit: u8) -> bool {
+    let width = row_rgb.len() / 3;
+    let centre = point.u_px.round() as usize;
+    let red = |u: usize| row_rgb[3 * u];
+    if centre >= width || red(centre) < limit {
+        return false;
+    }
+    let (mut left, mut right) = (centre, centre);
+    while left > 0 && red(left - 1) >= limit {
+        left -= 1;
+    }
+    while right + 1 < width && red(right + 1) >= limit {
+        right += 1;
+    }
+    (right - left + 1) as f64 > point.width_px + 2.0
+}
+
+/// Whether the green channel dips at `point` against its surroundings (the
+/// same windows as the line detector): the laser adds light (a red laser
+/// leaks a little into green), it never takes green away, so a "line"
+/// where green drops is the surface's own colour, such as the red rim of a
+/// yellow-green fruit, not the laser.
+fn green_dips(row_rgb: &[u8], point: &StripePoint, background: Option<LocalBackground>) -> bool {
+    let width = row_rgb.len() / 3;
+    let background = background.unwrap_or(LocalBackground { gap_px: 5, window_px: 4 });
+    let centre = point.u_px.round() as i64;
+    let green =
+        |u: i64| (0..width as i64).contains(&u).then(|| f32::from(row_rgb[3 * u as usize + 1]));
+    let mean = |from: i64, to: i64| {
+        let values: Vec<f32> = (from..to).filter_map(green).collect();
+        (!values.is_empty()).then(|| values.iter().sum::<f32>() / values.len() as f32)
+    };
+    let Some(at) = mean(centre - 1, centre + 2) else { return false };
+    let (gap, reach) = (background.gap_px as i64, background.reach() as i64);
+    let level =
+        match (mean(centre - reach, centre - gap + 1), mean(centre + gap, centre + reach + 1)) {
+            (Some(a), Some(b)) => a.max(b),
+            (Some(a), None) | (None, Some(a)) => a,
+            (None, None) => return false,
+        };
+    at - level < -(GREEN_DIP_FRACTION * point.strength).max(GREEN_NOISE_DN)
+}
+
+/// A line whose green falls below its surroundings by more than this
+/// fraction of its (red) strength is surface colour, not laser ...
+const GREEN_DIP_FRACTION: f32 = 0.25;
+
+/// ... and by more than this, in DN: the noise of a 3-pixel mean against
+/// 4-pixel windows stays well inside it.
+const GREEN_NOISE_DN: f32 = 6.0;
+
 /// `R_on - R_off`, clamped at 0.
 #[inline]
 fn difference_score(red_on: u8, red_off: u8) -> f32 {
@@ -350,16 +411,14 @@ pub fn extract_stripe_rgb(
         }
         let found = points.len();
         span_peaks(&row, (v, u0, u1), options, &mut buffer, &mut points);
-        if let Some(limit) = options.saturation_dn {
-            let clipped = |point: &StripePoint| {
-                let centre = point.u_px.round() as i64;
-                (centre - 1..=centre + 1)
-                    .filter(|&u| (0..i64::from(width)).contains(&u))
-                    .any(|u| on_raw[row_start + 3 * u as usize] >= limit)
-            };
-            let row_points = points.split_off(found);
-            points.extend(row_points.into_iter().filter(|p| !clipped(p)));
-        }
+        let row_pixels = &on_raw[row_start..row_start + 3 * width as usize];
+        let row_points = points.split_off(found);
+        points.extend(row_points.into_iter().filter(|p| {
+            !options.saturation_dn.is_some_and(|limit| saturated(row_pixels, p, limit))
+                && !(off.is_none()
+                    && options.green_check
+                    && green_dips(row_pixels, p, options.local_background))
+        }));
     }
     Ok(points)
 }
@@ -708,22 +767,34 @@ mod tests {
     }
 
     #[test]
-    fn rgb_extraction_skips_clipped_rows_and_matches_the_score_image() {
-        let mut image = RgbImage::from_pixel(60, 4, image::Rgb([120, 30, 30]));
-        for v in 0..4 {
-            for (u, t) in gaussian_row(30.0, 60).iter().enumerate() {
-                let red = if v == 3 { 255.0 } else { 120.0 + t * 1.2 };
-                image.put_pixel(u as u32, v, image::Rgb([red.min(255.0) as u8, 30, 30]));
+    fn rgb_extraction_keeps_clipped_lines_and_skips_saturated_patches_and_colour() {
+        // Row 0-2: a line on a red surface; row 3: the same line with its
+        // top clipped at 255; row 4: inside a 20 px saturated patch; row 5:
+        // a red band on a yellow surface (green dips: colour, not laser).
+        let mut image = RgbImage::from_pixel(60, 6, image::Rgb([120, 30, 30]));
+        for (u, t) in gaussian_row(30.0, 60).iter().enumerate() {
+            let u = u as u32;
+            for v in 0..3 {
+                image.put_pixel(u, v, image::Rgb([(120.0 + t * 1.2) as u8, 30, 30]));
             }
+            image.put_pixel(u, 3, image::Rgb([(120.0 + t * 3.0).min(255.0) as u8, 30, 30]));
+            let patch = (20..40).contains(&u);
+            let red = if patch { 255.0 } else { (120.0 + t * 1.2).min(255.0) };
+            image.put_pixel(u, 4, image::Rgb([red as u8, 30, 30]));
+            let green = 180.0 - t * 1.5;
+            image.put_pixel(u, 5, image::Rgb([180, green.max(0.0) as u8, 30]));
         }
-        let region = Region::full(60, 4);
+        let region = Region::full(60, 6);
         let options = StripeOptions::orchard();
         let points = extract_stripe_rgb(&image, None, &region, &options).unwrap();
-        assert_eq!(points.len(), 3, "the clipped row is skipped");
+        let rows: Vec<f64> = points.iter().map(|p| p.v_px).collect();
+        assert_eq!(rows, [0.0, 1.0, 2.0, 3.0], "{points:?}");
+        assert!(points.iter().all(|p| (p.u_px - 30.0).abs() < 0.1), "{points:?}");
+        // Without the checks, the score-image path finds the same peaks in
+        // the unclipped rows.
         let score = laser_score(&image, None).unwrap();
-        let again = extract_stripe(&score, &region, &options);
-        assert_eq!(points[..], again[..3]);
-        assert!(points.iter().all(|p| (p.u_px - 30.0).abs() < 0.1));
+        let again = extract_stripe(&score, &Region::full(60, 3), &options);
+        assert_eq!(points[..3], again[..]);
     }
 
     #[test]
