@@ -414,10 +414,12 @@ pub fn extract_stripe_rgb(
         let row_pixels = &on_raw[row_start..row_start + 3 * width as usize];
         let row_points = points.split_off(found);
         points.extend(row_points.into_iter().filter(|p| {
-            !options.saturation_dn.is_some_and(|limit| saturated(row_pixels, p, limit))
-                && !(off.is_none()
-                    && options.green_check
-                    && green_dips(row_pixels, p, options.local_background))
+            let clipped =
+                options.saturation_dn.is_some_and(|limit| saturated(row_pixels, p, limit));
+            let colour = off.is_none()
+                && options.green_check
+                && green_dips(row_pixels, p, options.local_background);
+            !(clipped || colour)
         }));
     }
     Ok(points)
