@@ -130,9 +130,14 @@ pub struct StripeArgs {
     /// Search only this rectangle: u0,v0,u1,v1 (pixels, inclusive).
     #[arg(long, value_name = "U0,V0,U1,V1")]
     pub roi: Option<String>,
-    /// Smallest peak score counted as laser (DN).
-    #[arg(long, value_name = "DN", default_value_t = alacs::vision::StripeOptions::default().min_strength)]
-    pub min_strength: f32,
+    /// Smallest peak score counted as laser (DN); default 12, or 10 with --orchard.
+    #[arg(long, value_name = "DN")]
+    pub min_strength: Option<f32>,
+    /// An orchard frame: the settings `alacs localize` uses (a line detector
+    /// against the fruit's own colour, up to 3 peaks per row, clipped-line and
+    /// colour checks) instead of those for a calibration board.
+    #[arg(long)]
+    pub orchard: bool,
     /// Print one JSON object on standard output instead of CSV.
     #[arg(long)]
     pub json: bool,

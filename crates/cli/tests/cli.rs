@@ -512,6 +512,12 @@ fn scan_sim_json_localizes_the_simulated_apple_and_writes_a_scan_folder() {
     let text = localize(&[]);
     assert_eq!(text.status.code(), Some(0));
     assert!(String::from_utf8_lossy(&text.stdout).contains("fruit at"));
+
+    // The stripe of an orchard frame, with the settings localize uses.
+    let frame = scan.path_of(&scan.frames[2].image);
+    let stripe = alacs(&["stripe", "--image", frame.to_str().unwrap(), "--orchard", "--json"]);
+    let stripe = stdout_json(&stripe);
+    assert!(!stripe["points"].as_array().unwrap().is_empty(), "{stripe}");
 }
 
 #[test]

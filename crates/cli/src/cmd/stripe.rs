@@ -1,6 +1,6 @@
 //! `alacs stripe`: the laser stripe of one frame.
 
-use alacs::vision::{Region, StripeOptions, extract_stripe, laser_score, read_image};
+use alacs::vision::{Region, StripeOptions, extract_stripe_rgb, read_image};
 use anyhow::anyhow;
 use serde_json::json;
 
@@ -25,18 +25,21 @@ fn parse_roi(text: &str) -> CmdResult<[u32; 4]> {
 
 /// Runs `alacs stripe`.
 pub fn run(args: &StripeArgs) -> CmdResult {
-    if !(args.min_strength.is_finite() && args.min_strength > 0.0) {
-        return Err(Failure::bad_input(anyhow!(
-            "--min-strength must be a positive number, got {}",
-            args.min_strength
-        )));
+    let mut options =
+        if args.orchard { StripeOptions::orchard() } else { StripeOptions::default() };
+    if let Some(min_strength) = args.min_strength {
+        if !(min_strength.is_finite() && min_strength > 0.0) {
+            return Err(Failure::bad_input(anyhow!(
+                "--min-strength must be a positive number, got {min_strength}"
+            )));
+        }
+        options.min_strength = min_strength;
     }
     let on = read_image(&args.image)?.to_rgb8();
     let off = match &args.laser_off {
         Some(path) => Some(read_image(path)?.to_rgb8()),
         None => None,
     };
-    let score = laser_score(&on, off.as_ref())?;
     let (width, height) = on.dimensions();
     let region = match &args.roi {
         Some(text) => {
@@ -50,8 +53,7 @@ pub fn run(args: &StripeArgs) -> CmdResult {
         }
         None => Region::full(width, height),
     };
-    let options = StripeOptions { min_strength: args.min_strength, ..StripeOptions::default() };
-    let points = extract_stripe(&score, &region, &options);
+    let points = extract_stripe_rgb(&on, off.as_ref(), &region, &options)?;
     if args.json {
         output::print_json(&json!({
             "image": args.image.display().to_string(),
