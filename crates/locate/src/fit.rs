@@ -403,30 +403,7 @@ fn ellipsoid_of(x: &nalgebra::SVector<f64, 9>) -> Ellipsoid {
     }
 }
 
-/// Least-squares ellipsoid through surface points, started from `sphere`:
-/// Levenberg-Marquardt over the centre, the size and the traceless
-/// deviation D of the shape from a sphere, with a Gaussian prior on D that
-/// keeps the semi-axes within a few per cent of each other
-/// ([`ELLIPTICITY_PRIOR`]; a semi-axis deviates by about -1/2 of D's
-/// eigenvalue), weighted as `prior_weight_points` points of `noise_mm`
-/// scatter. The parametrization is smooth through the sphere, where an
-/// axes-and-rotation one is not. A camera sees the fruit's front only, so
-/// a sphere fitted to a slightly elongated fruit misplaces the centre by
-/// the elongation; the ellipsoid takes it up. `None` when the fit fails.
-pub fn fit_ellipsoid(
-    points: &[Point3<f64>],
-    sphere: &Sphere,
-    noise_mm: f64,
-    prior_weight_points: f64,
-) -> Option<Ellipsoid> {
-    let start = Ellipsoid {
-        centre: sphere.centre,
-        shape: Matrix3::identity() / (sphere.radius_mm * sphere.radius_mm),
-    };
-    fit_ellipsoid_from(points, &start, noise_mm, prior_weight_points)
-}
-
-/// [`fit_ellipsoid`] robust to stray points: iteratively reweighted least
+/// [`fit_ellipsoid_from`] robust to stray points: iteratively reweighted least
 /// squares with Cauchy weights 1 / (1 + (r / c)^2), c = 3 times the robust
 /// scatter (1.4826 x the median absolute distance, at least `noise_mm` / 2),
 /// from the sphere. A handful of points a few millimetres off the surface
@@ -459,7 +436,16 @@ pub fn fit_ellipsoid_robust(
 /// Reweighting rounds of [`fit_ellipsoid_robust`].
 const ROBUST_ROUNDS: usize = 4;
 
-/// [`fit_ellipsoid`] from any start.
+/// Least-squares ellipsoid through surface points, started from `start`:
+/// Levenberg-Marquardt over the centre, the size and the traceless
+/// deviation D of the shape from a sphere, with a Gaussian prior on D that
+/// keeps the semi-axes within a few per cent of each other
+/// ([`ELLIPTICITY_PRIOR`]; a semi-axis deviates by about -1/2 of D's
+/// eigenvalue), weighted as `prior_weight_points` points of `noise_mm`
+/// scatter. The parametrization is smooth through the sphere, where an
+/// axes-and-rotation one is not. A camera sees the fruit's front only, so
+/// a sphere fitted to a slightly elongated fruit misplaces the centre by
+/// the elongation; the ellipsoid takes it up. `None` when the fit fails.
 pub fn fit_ellipsoid_from(
     points: &[Point3<f64>],
     start: &Ellipsoid,

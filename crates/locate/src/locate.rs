@@ -326,8 +326,7 @@ pub fn locate(
         .enumerate()
         .max_by(|a, b| a.1.score.total_cmp(&b.1.score))
         .map(|(i, _)| i);
-    let candidate_positions: Vec<Point3<f64>> =
-        results.iter().filter_map(|r| r.candidate.as_ref().map(|c| c.position_mm)).collect();
+    let candidate_positions: Vec<Point3<f64>> = candidates.iter().map(|c| c.position_mm).collect();
     let (fused, fused_rejected) = match fuse(&results, &context) {
         Ok(fit) => (Some(fit), None),
         Err(reason) => match fit_prior_radius(&results, &context, &candidate_positions) {
@@ -801,23 +800,10 @@ fn fuse(results: &[FrameResult], context: &FrameContext) -> std::result::Result<
         return Err("the frames' fruit points do not lie on one sphere".into());
     }
     let rms = rms_mm(on_sphere.iter().map(|p| sphere.distance_mm(p)));
-    if rms > options.max_fit_rms_mm {
-        return Err(format!(
-            "the fruit points scatter {rms:.2} mm RMS about the fitted sphere, more than {:.2} mm",
-            options.max_fit_rms_mm
-        ));
-    }
     if !(radius_range_mm.0..=radius_range_mm.1).contains(&sphere.radius_mm) {
         return Err(format!(
             "the fitted radius {:.1} mm is outside {:.0}-{:.0} mm",
             sphere.radius_mm, radius_range_mm.0, radius_range_mm.1
-        ));
-    }
-    let offset = (sphere.centre - search.centre).norm();
-    if offset > search.radius_mm {
-        return Err(format!(
-            "the fitted centre lies {offset:.0} mm from the rough position, beyond the {:.0} mm search ball",
-            search.radius_mm
         ));
     }
     // The sphere predicts how many rows each frame's cut spans; a fruit
@@ -840,19 +826,7 @@ fn fuse(results: &[FrameResult], context: &FrameContext) -> std::result::Result<
             expected_rows
         ));
     }
-    let facing = facing_fraction(&sphere.centre, &on_sphere);
-    if facing < MIN_FACING_FRACTION {
-        return Err(format!(
-            "only {:.0} % of the points face the camera on the fitted sphere",
-            100.0 * facing
-        ));
-    }
-    let flatness = plane_rms_mm(&on_sphere);
-    if flatness < CURVATURE_SIGNIFICANCE * rms.max(MIN_NOISE_MM) {
-        return Err(format!(
-            "the points are nearly flat ({flatness:.2} mm RMS from a plane): not a fruit"
-        ));
-    }
+    check_sphere(&sphere, &on_sphere, rms, search, options)?;
     // The ellipsoid replaces the sphere only where it fits clearly better:
     // on a round fruit its extra freedom only follows the noise.
     let ellipsoid =
@@ -951,24 +925,8 @@ fn fit_prior_radius(
     if inliers.len() < min_points {
         return Err(format!("{} points on the sphere, fewer than {min_points}", inliers.len()));
     }
-    if rms > options.max_fit_rms_mm {
-        return Err(format!("the points scatter {rms:.2} mm RMS about the sphere"));
-    }
-    let offset = (sphere.centre - search.centre).norm();
-    if offset > search.radius_mm {
-        return Err(format!(
-            "the centre lies {offset:.0} mm from the rough position, beyond the search ball"
-        ));
-    }
     let on_sphere: Vec<Point3<f64>> = inliers.iter().map(|&i| points[i]).collect();
-    let facing = facing_fraction(&sphere.centre, &on_sphere);
-    if facing < MIN_FACING_FRACTION {
-        return Err(format!("only {:.0} % of the points face the camera", 100.0 * facing));
-    }
-    let flatness = plane_rms_mm(&on_sphere);
-    if flatness < CURVATURE_SIGNIFICANCE * rms.max(MIN_NOISE_MM) {
-        return Err(format!("the points are nearly flat ({flatness:.2} mm RMS from a plane)"));
-    }
+    check_sphere(&sphere, &on_sphere, rms, search, options)?;
     Ok(FusedFit {
         sphere,
         ellipsoid: None,
@@ -977,6 +935,45 @@ fn fit_prior_radius(
         rms_mm: rms,
         radius_from_prior: true,
     })
+}
+
+/// The checks every fused sphere must pass, free or of the prior radius:
+/// the points' scatter about it, its centre within the search ball, the
+/// points facing the camera from it, and a surface curved beyond its noise.
+fn check_sphere(
+    sphere: &Sphere,
+    on_sphere: &[Point3<f64>],
+    rms: f64,
+    search: &SearchBall,
+    options: &LocateOptions,
+) -> std::result::Result<(), String> {
+    if rms > options.max_fit_rms_mm {
+        return Err(format!(
+            "the fruit points scatter {rms:.2} mm RMS about the fitted sphere, more than {:.2} mm",
+            options.max_fit_rms_mm
+        ));
+    }
+    let offset = (sphere.centre - search.centre).norm();
+    if offset > search.radius_mm {
+        return Err(format!(
+            "the fitted centre lies {offset:.0} mm from the rough position, beyond the {:.0} mm search ball",
+            search.radius_mm
+        ));
+    }
+    let facing = facing_fraction(&sphere.centre, on_sphere);
+    if facing < MIN_FACING_FRACTION {
+        return Err(format!(
+            "only {:.0} % of the points face the camera on the fitted sphere",
+            100.0 * facing
+        ));
+    }
+    let flatness = plane_rms_mm(on_sphere);
+    if flatness < CURVATURE_SIGNIFICANCE * rms.max(MIN_NOISE_MM) {
+        return Err(format!(
+            "the points are nearly flat ({flatness:.2} mm RMS from a plane): not a fruit"
+        ));
+    }
+    Ok(())
 }
 
 /// Gauss-Newton on the centre of a sphere of known radius, from `start`.

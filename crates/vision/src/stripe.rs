@@ -100,6 +100,10 @@ pub struct LocalBackground {
     pub window_px: usize,
 }
 
+/// The line detector of [`StripeOptions::orchard`]: the stripe's Gaussian
+/// cross-section (sigma about 1.5 px) lies within the 5 px gap.
+const ORCHARD_BACKGROUND: LocalBackground = LocalBackground { gap_px: 5, window_px: 4 };
+
 impl LocalBackground {
     /// Pixels the detector looks at each side of a pixel.
     fn reach(&self) -> usize {
@@ -130,7 +134,7 @@ impl StripeOptions {
     pub fn orchard() -> StripeOptions {
         StripeOptions {
             min_strength: 10.0,
-            local_background: Some(LocalBackground { gap_px: 5, window_px: 4 }),
+            local_background: Some(ORCHARD_BACKGROUND),
             saturation_dn: Some(250),
             green_check: true,
             max_peaks_per_row: 3,
@@ -302,7 +306,7 @@ fn saturated(row_rgb: &[u8], point: &StripePoint, limit: u8) -> bool {
 /// yellow-green fruit, not the laser.
 fn green_dips(row_rgb: &[u8], point: &StripePoint, background: Option<LocalBackground>) -> bool {
     let width = row_rgb.len() / 3;
-    let background = background.unwrap_or(LocalBackground { gap_px: 5, window_px: 4 });
+    let background = background.unwrap_or(ORCHARD_BACKGROUND);
     let centre = point.u_px.round() as i64;
     let green =
         |u: i64| (0..width as i64).contains(&u).then(|| f32::from(row_rgb[3 * u as usize + 1]));
