@@ -301,6 +301,10 @@ pub struct SimulateScanArgs {
     /// Also render every frame with the laser off (frameN_off.png).
     #[arg(long)]
     pub laser_off: bool,
+    /// Also place fruit the slide cannot sweep as planned (by default the
+    /// scene is redrawn until the seed's plan fits the stroke unshifted).
+    #[arg(long)]
+    pub anywhere: bool,
     /// Fruit distance range MIN,MAX in mm.
     #[arg(long, value_name = "MIN,MAX", default_value = "600,1200")]
     pub depth_mm: String,

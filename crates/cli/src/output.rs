@@ -165,6 +165,12 @@ pub fn localization_json(answer: &Localization) -> Value {
             "n_frames": f.n_frames,
             "rms_mm": f.rms_mm,
             "radius_from_prior": f.radius_from_prior,
+            "outline": f.outline.as_ref().map(|o| json!({
+                "centre_px": [o.centre_px.x, o.centre_px.y],
+                "radius_px": o.radius_px,
+                "support": o.support,
+                "fill": o.fill,
+            })),
         })),
         "fused_rejected": answer.fused_rejected,
         "frames": answer.frames.iter().map(|f| json!({

@@ -1,6 +1,6 @@
 //! Localization errors on a batch of simulated scans, both methods:
 //! `cargo run --release -p alacs-locate --example sweep -- [N] [occlusion] [sun] [scale] [first_seed] [ellipticity]`;
-//! `COVERAGE=0.1` overrides `LocateOptions::min_coverage`, `DEBUG=1` prints per-frame details.
+//! `COVERAGE=0.1` overrides `LocateOptions::min_coverage`, `FRAMES=1` prints each frame's candidate or rejection, `DEBUG=1` ellipsoid details.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use alacs_locate::{FrameImages, LocateOptions, Method, Prior, Status, locate};
@@ -79,7 +79,13 @@ fn main() {
                 line += &format!(
                     " sphere 3d {:6.2}{} |",
                     (fit.sphere.centre - truth).norm(),
-                    if fit.radius_from_prior { " (prior radius)" } else { "" }
+                    if fit.outline.is_some() {
+                        " (outline)"
+                    } else if fit.radius_from_prior {
+                        " (prior radius)"
+                    } else {
+                        ""
+                    }
                 );
             }
             if method == Method::Fused {
@@ -93,6 +99,32 @@ fn main() {
         }
         line += &format!(" {:.0} ms", start.elapsed().as_secs_f64() * 1000.0 / 2.0);
         println!("{line}");
+        if std::env::var("FRAMES").is_ok() {
+            let answer =
+                locate(&scan.camera, &laser, &prior, &frames, &LocateOptions::default()).unwrap();
+            for (k, f) in answer.frames.iter().enumerate() {
+                match &f.candidate {
+                    Some(c) => println!(
+                        "  frame {k}: candidate err {:6.2} circle r {:5.1} n {} rms {:.2}",
+                        (c.position_mm - truth).norm(),
+                        c.circle_radius_mm,
+                        c.n_points,
+                        c.fit_rms_mm
+                    ),
+                    None => println!("  frame {k}: {}", f.rejected.as_deref().unwrap_or("-")),
+                }
+            }
+            if let Some(fit) = &answer.fused {
+                println!(
+                    "  fused: centre err {:.2} r {:.1} n {} frames {} rms {:.2}",
+                    (fit.sphere.centre - truth).norm(),
+                    fit.sphere.radius_mm,
+                    fit.n_points,
+                    fit.n_frames,
+                    fit.rms_mm
+                );
+            }
+        }
         if std::env::var("DEBUG").is_ok() {
             let answer =
                 locate(&scan.camera, &laser, &prior, &frames, &LocateOptions::default()).unwrap();

@@ -9,6 +9,7 @@
 mod error;
 pub mod fit;
 mod locate;
+pub mod outline;
 
 pub use error::{Error, Result};
 pub use locate::{

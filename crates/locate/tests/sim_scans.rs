@@ -61,10 +61,14 @@ fn unoccluded_fruit_within_4_mm() {
 
 /// A fruit behind leaves: never a confident wrong point. An `ok` answer is
 /// within the vacuum end-effector's 15 mm; a fully hidden fruit is not found.
+/// Seeds 1, 2, 9 and 30 hide 44-47 % of the fruit in sun, and the laser
+/// shows too little of it for a fit from the laser alone (one short arc, or
+/// arcs that fix no sphere): the fruit's outline in the image answers.
 #[test]
 fn occluded_fruit_is_near_or_not_found() {
     let mut found = 0;
-    for (seed, occlusion) in [(200, 0.4), (202, 0.4), (204, 0.4), (300, 1.0), (301, 1.0)] {
+    let mut from_outline = 0;
+    for (seed, occlusion) in [(1, 0.4), (2, 0.4), (9, 0.4), (30, 0.4), (300, 1.0), (301, 1.0)] {
         let scan = scan(ScanOptions {
             orchard: OrchardOptions { occlusion, ..OrchardOptions::default() },
             sun: true,
@@ -75,17 +79,20 @@ fn occluded_fruit_is_near_or_not_found() {
         match answer.status {
             Status::Ok => {
                 let error = error_mm(&scan, &answer).unwrap();
-                eprintln!("seed {seed}: {error:.2} mm");
+                eprintln!("seed {seed}: {error:.2} mm ({})", answer.reason);
                 assert!(occlusion < 1.0, "seed {seed}: a fully hidden fruit was found");
                 assert!(error < 15.0, "seed {seed}: {error:.1} mm");
                 found += 1;
+                from_outline +=
+                    usize::from(answer.fused.as_ref().is_some_and(|f| f.outline.is_some()));
             }
             Status::NotFound => assert!(!answer.reason.is_empty()),
         }
     }
-    // A regression guard, not a rate: 28 of 36 such scans are found today
-    // (README); of these three partly hidden ones, 202 and 204 are.
-    assert!(found >= 2, "{found} of 3 partly hidden fruit found");
+    // A regression guard, not a rate (the README gives the rate): all four
+    // partly hidden fruit are found today, within 4.1 mm, all from the outline.
+    assert!(found >= 3, "{found} of 4 partly hidden fruit found");
+    assert!(from_outline >= 2, "{from_outline} answers used the outline");
 }
 
 #[test]

@@ -7,7 +7,9 @@
 //! RealSense D435i's datasheet accuracy the paper quotes) and a couple of
 //! millimetres across it. The slide positions follow the seed's strategy
 //! ([`ScanStrategy`]): the first frame puts the laser on the left half of the
-//! fruit, then 4 steps of 10 mm, shifted into the 0-200 mm stroke.
+//! fruit, then 4 steps of 10 mm, shifted into the 0-200 mm stroke. By
+//! default only fruit the plan reaches unshifted are placed
+//! ([`ScanOptions::within_reach`]).
 
 use std::path::Path;
 
@@ -50,6 +52,11 @@ pub struct ScanOptions {
     pub render: RenderOptions,
     /// Write JPEG frames of this quality (1-100) instead of PNG.
     pub jpeg_quality: Option<u8>,
+    /// Place only fruit the scanner can sweep as planned: redraw the scene
+    /// while the seed's plan for the rough position would have to be shifted
+    /// into the stroke (the laser may then never cross the fruit). A
+    /// harvester brings its scanner within reach of the fruit it picks.
+    pub within_reach: bool,
     /// Seed: same seed, same scene and same bytes.
     pub seed: u64,
 }
@@ -75,10 +82,14 @@ impl Default for ScanOptions {
                 ..RenderOptions::default()
             },
             jpeg_quality: None,
+            within_reach: true,
             seed: 0,
         }
     }
 }
+
+/// Scenes drawn at most for one scan with [`ScanOptions::within_reach`].
+const MAX_SCENE_DRAWS: usize = 200;
 
 /// Laser power for scans: 2.5 times the calibration sessions' (a scan
 /// exposes for a fruit in daylight, so the line must stand out against it),
@@ -254,20 +265,33 @@ pub fn simulate_scan(
     camera.validate()?;
     options.render.validate()?;
     let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
-    let scene = orchard_scene(&OrchardOptions { seed: rng.random(), ..options.orchard.clone() })?;
-
-    // The rough position: RGB-D-like error along and across the line of sight.
-    let truth = scene.fruit_centre;
-    let line_of_sight = truth.coords.normalize();
-    let along = rng.random_range(-options.rough_depth_error..=options.rough_depth_error) * truth.z;
-    let lateral = Normal::new(0.0, options.rough_lateral_sigma_mm)
-        .map_err(|e| Error::InvalidOptions(format!("rough lateral error: {e}")))?;
-    let across = Vector3::new(lateral.sample(&mut rng), lateral.sample(&mut rng), 0.0);
-    let across = across - line_of_sight * across.dot(&line_of_sight);
-    let rough_position_mm = truth + line_of_sight * along + across;
-
-    // The scanner knows the radius prior, not the fruit's true radius.
-    let plan = options.strategy.plan(laser, &rough_position_mm, FRUIT_RADIUS_PRIOR_MM);
+    let mut draws = 0;
+    let (scene, rough_position_mm, plan) = loop {
+        let scene =
+            orchard_scene(&OrchardOptions { seed: rng.random(), ..options.orchard.clone() })?;
+        // The rough position: RGB-D-like error along and across the line of sight.
+        let truth = scene.fruit_centre;
+        let line_of_sight = truth.coords.normalize();
+        let along =
+            rng.random_range(-options.rough_depth_error..=options.rough_depth_error) * truth.z;
+        let lateral = Normal::new(0.0, options.rough_lateral_sigma_mm)
+            .map_err(|e| Error::InvalidOptions(format!("rough lateral error: {e}")))?;
+        let across = Vector3::new(lateral.sample(&mut rng), lateral.sample(&mut rng), 0.0);
+        let across = across - line_of_sight * across.dot(&line_of_sight);
+        let rough_position_mm = truth + line_of_sight * along + across;
+        // The scanner knows the radius prior, not the fruit's true radius.
+        let plan = options.strategy.plan(laser, &rough_position_mm, FRUIT_RADIUS_PRIOR_MM);
+        draws += 1;
+        if !(options.within_reach && plan.shifted) {
+            break (scene, rough_position_mm, plan);
+        }
+        if draws == MAX_SCENE_DRAWS {
+            return Err(Error::InvalidOptions(format!(
+                "no fruit within the slide's reach in {MAX_SCENE_DRAWS} scenes: the depth range {:?} mm and off-axis angle {} deg do not suit this laser (or turn off within_reach)",
+                options.orchard.depth_mm, options.orchard.max_off_axis_deg
+            )));
+        }
+    };
     let extension = if options.jpeg_quality.is_some() { "jpg" } else { "png" };
     let frames = plan
         .slides_mm

@@ -18,6 +18,23 @@ fn small(seed: u64, occlusion: f64, sun: bool) -> ScanOptions {
     ScanOptions { orchard, sun, scale: 0.2, seed, ..ScanOptions::default() }
 }
 
+/// By default every fruit lies where the seed's plan reaches it unshifted;
+/// `within_reach: false` also places fruit at the edge of the slide's reach.
+#[test]
+fn fruit_is_placed_within_the_slides_reach_unless_asked() {
+    let mut shifted_anywhere = 0;
+    for seed in 0..16 {
+        let scan = simulate_scan(&Camera::blackfly_s_5mp(), &laser(), &small(seed, 0.0, false))
+            .unwrap();
+        assert!(!scan.plan.shifted, "seed {seed}: {:?}", scan.plan);
+        let anywhere = ScanOptions { within_reach: false, ..small(seed, 0.0, false) };
+        let scan = simulate_scan(&Camera::blackfly_s_5mp(), &laser(), &anywhere).unwrap();
+        shifted_anywhere += usize::from(scan.plan.shifted);
+    }
+    // About a quarter of the field of view at 0.6-1.2 m is out of reach.
+    assert!(shifted_anywhere >= 1, "no fruit out of reach in 16 scenes");
+}
+
 #[test]
 fn scans_follow_the_seed_strategy_from_a_rough_position() {
     for seed in 0..5 {

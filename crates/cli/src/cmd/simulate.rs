@@ -155,6 +155,7 @@ pub fn scan(args: &SimulateScanArgs) -> CmdResult {
         scale: args.scale,
         render: args.render.options(defaults.render),
         jpeg_quality: args.jpeg,
+        within_reach: !args.anywhere,
         seed: args.seed,
         ..defaults
     };

@@ -1,0 +1,422 @@
+//! The fruit's outline in the image, and a sphere fitted to it and to the
+//! laser points together: the last resort when the laser shows too little
+//! of a fruit (mostly hidden, or in the laser's shadow) for a fit from the
+//! laser alone.
+//!
+//! 1. **Fruit colour.** The frames of a scan share one view, and the laser
+//!    only adds light, so the per-pixel minimum over the frames is the view
+//!    without the stripe. A pixel is fruit-coloured when red is not far
+//!    below green (an apple's red blush or its yellow-green ground; foliage
+//!    has green well above red) and blue is low (bark, sky and specular
+//!    highlights are not).
+//! 2. **Outline.** The edges between fruit-coloured pixels and the rest,
+//!    each with its outward direction, and a RANSAC circle through them
+//!    whose edges face outwards: the fruit's silhouette. Leaf edges that
+//!    cut across the fruit do not lie on one circle with it.
+//! 3. **Sphere.** Every camera ray through the outline touches the sphere:
+//!    its distance from the centre is the radius. With the outline's
+//!    angular radius theta, the spheres that fit it are one family, centre
+//!    s d and radius s sin(theta) along the outline's central ray d; every
+//!    laser point votes for the s that puts it on the surface, and the
+//!    densest vote starts a joint least-squares fit of the centre and
+//!    radius to the outline's rays and the laser points that agree.
+
+use alacs_calib::ransac::{Estimator, RansacOptions, ransac};
+use alacs_model::Camera;
+use image::RgbImage;
+use nalgebra::{Matrix4, Point2, Point3, Vector2, Vector3, Vector4};
+
+use crate::fit::{Circle, Sphere, circle_through, fit_circle, rms_mm};
+
+/// The fruit's silhouette found in the frames.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Outline {
+    /// Centre of the outline's circle, pixels.
+    pub centre_px: Point2<f64>,
+    /// Radius of the outline's circle, pixels.
+    pub radius_px: f64,
+    /// The edge points on the circle, pixels (between a fruit-coloured
+    /// pixel and its neighbour).
+    pub edges_px: Vec<Point2<f64>>,
+    /// Fraction of the circle's circumference the edges cover.
+    pub support: f64,
+    /// Fraction of the pixels inside the circle (and the searched box) that
+    /// are fruit-coloured.
+    pub fill: f64,
+}
+
+/// Darkest channel maximum (8-bit) of a fruit-coloured pixel: deep shade is
+/// too noisy to classify.
+const MIN_FRUIT_DN: u8 = 20;
+
+/// A fruit-coloured pixel has red at least this fraction of green (an
+/// apple's yellow-green ground: about 0.75; foliage: about 0.3).
+const MIN_RED_OVER_GREEN: f32 = 0.55;
+
+/// A fruit-coloured pixel has blue at most this fraction of its brightest
+/// channel (apples: under 0.25; sunlit bark 0.4-0.5; highlights and sky
+/// near 1).
+const MAX_BLUE_FRACTION: f32 = 0.35;
+
+/// Edge points per pixel of circumference along a circle's outline (the
+/// mean of |cos| + |sin| over a turn: 4 / pi).
+const EDGES_PER_PX: f64 = 4.0 / std::f64::consts::PI;
+
+/// An outline must cover at least this fraction of its circle.
+const MIN_SUPPORT: f64 = 0.25;
+
+/// At least this fraction of the pixels inside the outline must be
+/// fruit-coloured.
+const MIN_FILL: f64 = 0.3;
+
+/// An edge lies on the outline's circle within this, pixels.
+const EDGE_THRESHOLD_PX: f64 = 1.5;
+
+/// Whether a pixel is fruit-coloured (module docs, step 1).
+fn is_fruit_colour(rgb: [u8; 3]) -> bool {
+    let [r, g, b] = rgb.map(f32::from);
+    let max = r.max(g).max(b);
+    max >= f32::from(MIN_FRUIT_DN) && r >= MIN_RED_OVER_GREEN * g && b <= MAX_BLUE_FRACTION * max
+}
+
+/// A pixel box `[u0, v0, u1, v1)`.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct PixelBox {
+    pub u0: u32,
+    pub v0: u32,
+    pub u1: u32,
+    pub v1: u32,
+}
+
+/// An edge between a fruit-coloured pixel and its neighbour: where, and
+/// the unit direction from fruit to not fruit.
+struct Edge {
+    at_px: Point2<f64>,
+    outward: Vector2<f64>,
+}
+
+/// The fruit mask of the box: the per-pixel minimum over `images`
+/// classified by colour, row-major.
+fn fruit_mask(images: &[&RgbImage], area: PixelBox) -> Vec<bool> {
+    let (w, h) = (area.u1 - area.u0, area.v1 - area.v0);
+    let mut mask = Vec::with_capacity((w * h) as usize);
+    for v in area.v0..area.v1 {
+        for u in area.u0..area.u1 {
+            let mut least = [u8::MAX; 3];
+            for image in images {
+                let p = image.get_pixel(u, v).0;
+                for c in 0..3 {
+                    least[c] = least[c].min(p[c]);
+                }
+            }
+            mask.push(is_fruit_colour(least));
+        }
+    }
+    mask
+}
+
+/// Every edge of the mask (4-neighbours), at the pixels' shared border.
+fn mask_edges(mask: &[bool], area: PixelBox) -> Vec<Edge> {
+    let (w, h) = ((area.u1 - area.u0) as usize, (area.v1 - area.v0) as usize);
+    let mut edges = Vec::new();
+    let at = |x: usize, y: usize| mask[y * w + x];
+    for y in 0..h {
+        for x in 0..w {
+            let here = at(x, y);
+            let (u, v) = (f64::from(area.u0) + x as f64, f64::from(area.v0) + y as f64);
+            if x + 1 < w && here != at(x + 1, y) {
+                let sign = if here { 1.0 } else { -1.0 };
+                edges.push(Edge {
+                    at_px: Point2::new(u + 0.5, v),
+                    outward: Vector2::new(sign, 0.0),
+                });
+            }
+            if y + 1 < h && here != at(x, y + 1) {
+                let sign = if here { 1.0 } else { -1.0 };
+                edges.push(Edge {
+                    at_px: Point2::new(u, v + 0.5),
+                    outward: Vector2::new(0.0, sign),
+                });
+            }
+        }
+    }
+    edges
+}
+
+/// Circles through edge points whose edges face outwards, for RANSAC.
+struct OutlineEstimator<'a> {
+    edges: &'a [Edge],
+    points: Vec<Point2<f64>>,
+    radius_range_px: (f64, f64),
+}
+
+impl Estimator for OutlineEstimator<'_> {
+    type Model = Circle;
+
+    fn len(&self) -> usize {
+        self.edges.len()
+    }
+
+    fn sample_size(&self) -> usize {
+        3
+    }
+
+    fn fit_minimal(&self, indices: &[usize]) -> Option<Circle> {
+        let [a, b, c] = indices else { return None };
+        let circle = circle_through(&self.points[*a], &self.points[*b], &self.points[*c])?;
+        let (lo, hi) = self.radius_range_px;
+        (lo..=hi).contains(&circle.radius_mm).then_some(circle)
+    }
+
+    fn residual(&self, circle: &Circle, index: usize) -> f64 {
+        let edge = &self.edges[index];
+        let radial = edge.at_px - circle.centre;
+        // An edge whose fruit side faces away from the centre is no part of
+        // this silhouette.
+        if radial.dot(&edge.outward) <= 0.0 {
+            return f64::INFINITY;
+        }
+        circle.distance_mm(&edge.at_px)
+    }
+}
+
+/// The fruit's outline in `area` of the frames (module docs, steps 1-2):
+/// a circle of radius within `radius_range_px` whose centre passes
+/// `centre_ok`, or why there is none.
+pub(crate) fn find_outline(
+    images: &[&RgbImage],
+    area: PixelBox,
+    radius_range_px: (f64, f64),
+    centre_ok: impl Fn(&Point2<f64>) -> bool,
+    seed: u64,
+) -> std::result::Result<Outline, String> {
+    if images.is_empty() || area.u1 <= area.u0 + 2 || area.v1 <= area.v0 + 2 {
+        return Err("the search region is outside the image".into());
+    }
+    let mask = fruit_mask(images, area);
+    let edges = mask_edges(&mask, area);
+    let estimator = OutlineEstimator {
+        points: edges.iter().map(|e| e.at_px).collect(),
+        edges: &edges,
+        radius_range_px,
+    };
+    let options = RansacOptions {
+        threshold: EDGE_THRESHOLD_PX,
+        confidence: 0.999,
+        max_iterations: 2000,
+        seed,
+    };
+    let Some(outcome) = ransac(&estimator, &options) else {
+        return Err("no fruit-coloured outline in the search region".into());
+    };
+    let mut circle = outcome.model;
+    let mut inliers = outcome.inliers;
+    for _ in 0..2 {
+        let points: Vec<_> = inliers.iter().map(|&i| estimator.points[i]).collect();
+        let Some(refit) = fit_circle(&points) else { break };
+        circle = refit;
+        inliers = (0..edges.len())
+            .filter(|&i| estimator.residual(&circle, i) <= EDGE_THRESHOLD_PX)
+            .collect();
+    }
+    let radius_px = circle.radius_mm;
+    if !centre_ok(&circle.centre) {
+        return Err(format!(
+            "the fruit-coloured outline centred at ({:.0}, {:.0}) px is not the fruit near the rough position",
+            circle.centre.x, circle.centre.y
+        ));
+    }
+    if !(radius_range_px.0..=radius_range_px.1).contains(&radius_px) {
+        return Err(format!("the outline's radius {radius_px:.0} px is out of range"));
+    }
+    let support = inliers.len() as f64 / (EDGES_PER_PX * std::f64::consts::TAU * radius_px);
+    if support < MIN_SUPPORT {
+        return Err(format!(
+            "the fruit-coloured outline covers {:.0} % of its circle, less than {:.0} %",
+            100.0 * support,
+            100.0 * MIN_SUPPORT
+        ));
+    }
+    let w = (area.u1 - area.u0) as usize;
+    let (mut inside, mut fruit) = (0usize, 0usize);
+    for (i, &is_fruit) in mask.iter().enumerate() {
+        let p =
+            Point2::new(f64::from(area.u0) + (i % w) as f64, f64::from(area.v0) + (i / w) as f64);
+        if (p - circle.centre).norm() < radius_px {
+            inside += 1;
+            fruit += usize::from(is_fruit);
+        }
+    }
+    let fill = if inside == 0 { 0.0 } else { fruit as f64 / inside as f64 };
+    if fill < MIN_FILL {
+        return Err(format!(
+            "{:.0} % of the outline's inside is fruit-coloured, less than {:.0} %",
+            100.0 * fill,
+            100.0 * MIN_FILL
+        ));
+    }
+    Ok(Outline {
+        centre_px: circle.centre,
+        radius_px,
+        edges_px: inliers.iter().map(|&i| estimator.points[i]).collect(),
+        support: support.min(1.0),
+        fill,
+    })
+}
+
+/// A sphere fitted to an outline's rays and the laser points that agree
+/// with it (module docs, step 3).
+#[derive(Debug, Clone)]
+pub(crate) struct OutlineSphere {
+    pub sphere: Sphere,
+    /// Indices into the laser points of those on the sphere.
+    pub inliers: Vec<usize>,
+    /// RMS distance of those points from the sphere, mm.
+    pub rms_mm: f64,
+    /// RMS of the outline rays' distances from the sphere's surface, mm.
+    pub outline_rms_mm: f64,
+}
+
+/// Weight of the outline's rays against the laser points: the outline is
+/// a pixel's edge (about 0.4 mm at 1 m) and a fruit is not a perfect
+/// sphere, so a ray counts as a quarter of a laser point.
+const OUTLINE_WEIGHT: f64 = 0.25;
+
+/// Fits a sphere to `outline` and the laser `points` (camera frame, mm):
+/// the family along the outline's central ray, the densest vote of the
+/// points, then Gauss-Newton on centre and radius with the points within
+/// `threshold_mm`.
+pub(crate) fn fit_outline_sphere(
+    camera: &Camera,
+    outline: &Outline,
+    points: &[Point3<f64>],
+    threshold_mm: f64,
+) -> std::result::Result<OutlineSphere, String> {
+    let ray = |px: &Point2<f64>| -> Option<Vector3<f64>> {
+        let n = camera.undistort_pixel(px).ok()?;
+        Some(Vector3::new(n.x, n.y, 1.0).normalize())
+    };
+    let rays: Vec<Vector3<f64>> = outline.edges_px.iter().filter_map(ray).collect();
+    let Some(axis) = ray(&outline.centre_px) else {
+        return Err("the outline's centre does not undistort".into());
+    };
+    // The outline's angular radius: the mean angle of its rays from the axis.
+    let theta = rays.iter().map(|r| r.dot(&axis).clamp(-1.0, 1.0).acos()).sum::<f64>()
+        / rays.len().max(1) as f64;
+    let (sin_t, cos_t) = theta.sin_cos();
+    // Each point's s: |p - s d| = s sin(theta), the root on the near side.
+    let mut votes: Vec<f64> = points
+        .iter()
+        .filter_map(|p| {
+            let pd = p.coords.dot(&axis);
+            let disc = pd * pd - cos_t * cos_t * p.coords.norm_squared();
+            (disc >= 0.0).then(|| (pd + disc.sqrt()) / (cos_t * cos_t))
+        })
+        .filter(|s| s.is_finite() && *s > 0.0)
+        .collect();
+    votes.sort_by(f64::total_cmp);
+    // The densest window: a change ds of s moves the surface by ds (1 - sin theta).
+    let window = 2.0 * threshold_mm / (1.0 - sin_t).max(0.1);
+    let mut best: Option<(usize, f64)> = None;
+    let mut end = 0;
+    for start in 0..votes.len() {
+        while end < votes.len() && votes[end] - votes[start] <= window {
+            end += 1;
+        }
+        if best.is_none_or(|(n, _)| end - start > n) {
+            best = Some((end - start, 0.5 * (votes[start] + votes[end - 1])));
+        }
+    }
+    let Some((_, s)) = best else {
+        return Err("no laser point lies on a sphere within the outline".into());
+    };
+    let mut centre = Point3::from(axis * s);
+    let mut radius = s * sin_t;
+    let mut inliers = Vec::new();
+    for _ in 0..3 {
+        inliers = (0..points.len())
+            .filter(|&i| ((points[i] - centre).norm() - radius).abs() <= threshold_mm)
+            .collect();
+        for _ in 0..10 {
+            let mut jtj = Matrix4::<f64>::zeros();
+            let mut jtr = Vector4::<f64>::zeros();
+            let mut add = |j: Vector4<f64>, r: f64, w: f64| {
+                jtj += j * j.transpose() * w;
+                jtr += j * r * w;
+            };
+            for &i in &inliers {
+                let d = points[i] - centre;
+                let n = d.norm();
+                if n > 0.0 {
+                    let g = -d / n;
+                    add(Vector4::new(g.x, g.y, g.z, -1.0), n - radius, 1.0);
+                }
+            }
+            for r in &rays {
+                // Distance of the centre from the ray: |(I - r r^T) c|.
+                let off = centre.coords - r * r.dot(&centre.coords);
+                let n = off.norm();
+                if n > 0.0 {
+                    let g = off / n;
+                    add(Vector4::new(g.x, g.y, g.z, -1.0), n - radius, OUTLINE_WEIGHT);
+                }
+            }
+            let Some(step) = jtj.lu().solve(&(-jtr)) else { break };
+            centre += step.xyz();
+            radius += step.w;
+            if step.norm() < 1e-6 {
+                break;
+            }
+        }
+        if !(centre.coords.iter().all(|c| c.is_finite()) && radius.is_finite() && radius > 0.0) {
+            return Err("the outline and the laser points do not fit one sphere".into());
+        }
+    }
+    let sphere = Sphere { centre, radius_mm: radius };
+    let rms = rms_mm(inliers.iter().map(|&i| sphere.distance_mm(&points[i])));
+    let outline_rms_mm = rms_mm(rays.iter().map(|r| {
+        let off = centre.coords - r * r.dot(&centre.coords);
+        off.norm() - radius
+    }));
+    Ok(OutlineSphere { sphere, inliers, rms_mm: rms, outline_rms_mm })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fruit_colours_and_not() {
+        assert!(is_fruit_colour([233, 98, 48]), "red blush");
+        assert!(is_fruit_colour([148, 195, 44]), "yellow-green ground");
+        assert!(!is_fruit_colour([41, 107, 38]), "leaf");
+        assert!(!is_fruit_colour([130, 111, 89]), "bark");
+        assert!(!is_fruit_colour([91, 68, 43]), "sunlit bark");
+        assert!(!is_fruit_colour([250, 250, 245]), "highlight");
+        assert!(!is_fruit_colour([10, 6, 2]), "deep shade");
+    }
+
+    #[test]
+    fn outline_of_a_disk_half_hidden() {
+        let mut image = RgbImage::from_pixel(200, 200, image::Rgb([30, 90, 25]));
+        for (u, v, p) in image.enumerate_pixels_mut() {
+            let (x, y) = (f64::from(u) - 90.3, f64::from(v) - 110.7);
+            // A disk of radius 50 px with its left part behind a leaf.
+            if x * x + y * y < 2500.0 && x > -10.0 {
+                *p = image::Rgb([200, 60, 40]);
+            }
+        }
+        let area = PixelBox { u0: 0, v0: 0, u1: 200, v1: 200 };
+        let outline = find_outline(&[&image], area, (20.0, 80.0), |_| true, 1).unwrap();
+        assert!((outline.centre_px - Point2::new(90.3, 110.7)).norm() < 1.0, "{outline:?}");
+        assert!((outline.radius_px - 50.0).abs() < 1.0);
+        assert!(outline.support > 0.4 && outline.support < 0.8, "{}", outline.support);
+    }
+
+    #[test]
+    fn no_outline_in_foliage() {
+        let image = RgbImage::from_pixel(100, 100, image::Rgb([30, 90, 25]));
+        let area = PixelBox { u0: 0, v0: 0, u1: 100, v1: 100 };
+        assert!(find_outline(&[&image], area, (10.0, 40.0), |_| true, 1).is_err());
+    }
+}
