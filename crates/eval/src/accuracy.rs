@@ -1,0 +1,361 @@
+//! The seed paper's localization-accuracy experiment (Section 4.2): views of
+//! a checkerboard at several slide positions d; per laser pixel on the board
+//!
+//! - the true point: its camera ray intersected with the board plane of the
+//!   board pose (PnP), as `alacs-calib`'s laser samples are made
+//!   ([`alacs_calib::view_samples`]),
+//! - the estimated point: the laser model's triangulation of the same pixel
+//!   (eqs. (7)-(8) with L = L0 - d),
+//!
+//! and per slide position the distribution of the errors in x, y and z.
+//!
+//! # The noise floor
+//! A stripe centre off by sigma_px pixels moves u_n by sigma_px / f, and
+//! since z = L / D with dD/du_n = -cos(alpha) (eq. (7)), the depth by
+//!
+//! ```text
+//! sigma_z = z^2 cos(alpha) sigma_px / (f L),    L = L0 - d,
+//! ```
+//!
+//! which grows as the laser slides towards the camera (L shrinks). Each
+//! slide position's summary carries this prediction at its median depth.
+
+use alacs_calib::{ViewSamples, view_samples};
+use alacs_model::{Camera, LaserModel, Session};
+use alacs_vision::StripeOptions;
+use nalgebra::{Point3, Vector3};
+use rayon::prelude::*;
+use serde_json::{Value, json};
+
+use crate::stats::median;
+use crate::{BoxStats, Error, Result};
+
+/// Stripe-centre noise assumed for the predicted noise floor when none is
+/// given: 0.06 px, the RMS error of the Steger stripe centre on simulated
+/// board views (README, "Sub-pixel stripe centre": 0.061 px).
+pub const DEFAULT_SIGMA_PX: f64 = 0.06;
+
+/// Which laser points of a view are evaluated.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PointsPerView {
+    /// Every stripe pixel on the board (one per image row), the default.
+    #[default]
+    All,
+    /// Three per view, as the seed paper: the stripe's points at 1/6, 3/6
+    /// and 5/6 of its length on the board (the centres of its thirds).
+    Three,
+}
+
+impl PointsPerView {
+    /// `all` or `3`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            PointsPerView::All => "all",
+            PointsPerView::Three => "3",
+        }
+    }
+}
+
+/// Settings of [`evaluate_accuracy`].
+#[derive(Debug, Clone)]
+pub struct AccuracyOptions {
+    /// Which points of each view.
+    pub points: PointsPerView,
+    /// Stripe-centre noise (px) for the predicted noise floor.
+    pub sigma_px: f64,
+    /// Stripe extraction (as the laser calibration's).
+    pub stripe: StripeOptions,
+}
+
+impl Default for AccuracyOptions {
+    fn default() -> Self {
+        Self {
+            points: PointsPerView::All,
+            sigma_px: DEFAULT_SIGMA_PX,
+            stripe: StripeOptions::default(),
+        }
+    }
+}
+
+/// One evaluated laser point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AccuracyPoint {
+    /// Index of its view in the session.
+    pub view: usize,
+    /// The view's slide position d, mm.
+    pub slide_mm: f64,
+    /// The true point: its ray on the board plane, camera frame, mm.
+    pub point_true_in_camera: Point3<f64>,
+    /// The laser model's triangulation, camera frame, mm.
+    pub point_estimated_in_camera: Point3<f64>,
+}
+
+impl AccuracyPoint {
+    /// Estimated minus true, camera frame, mm.
+    pub fn error_mm(&self) -> Vector3<f64> {
+        self.point_estimated_in_camera - self.point_true_in_camera
+    }
+}
+
+/// The errors at one slide position.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SlideAccuracy {
+    /// The slide position d, mm.
+    pub slide_mm: f64,
+    /// The laser-camera distance L = L0 - d of the evaluated laser, mm.
+    pub laser_distance_mm: f64,
+    /// The median true depth of the points, mm.
+    pub median_depth_mm: f64,
+    /// The predicted noise floor sigma_z at that depth (module docs), mm.
+    pub predicted_sigma_z_mm: f64,
+    /// Error statistics along x, y and z (estimated - true), mm.
+    pub error_mm: [BoxStats; 3],
+}
+
+/// The result of [`evaluate_accuracy`].
+#[derive(Debug, Clone)]
+pub struct AccuracyEvaluation {
+    /// Every evaluated point, in view order.
+    pub points: Vec<AccuracyPoint>,
+    /// Every view, in session order, with its board pose or why it gave nothing.
+    pub views: Vec<ViewSamples>,
+    /// Per slide position, ascending.
+    pub slides: Vec<SlideAccuracy>,
+    /// The evaluated laser.
+    pub laser: LaserModel,
+    /// The camera's focal length along u used for the noise floor, px.
+    pub focal_px: f64,
+    /// The options it ran with.
+    pub points_per_view: PointsPerView,
+    /// The stripe-centre noise assumed for the noise floor, px.
+    pub sigma_px: f64,
+}
+
+/// The predicted depth noise sigma_z = z^2 cos(alpha) sigma_px / (f L) (module docs), mm.
+pub fn noise_floor_mm(
+    depth_mm: f64,
+    alpha_rad: f64,
+    sigma_px: f64,
+    focal_px: f64,
+    laser_distance_mm: f64,
+) -> f64 {
+    depth_mm * depth_mm * alpha_rad.cos() * sigma_px / (focal_px * laser_distance_mm)
+}
+
+/// The indices of `n` points a view keeps under `points`.
+fn chosen(n: usize, points: PointsPerView) -> Vec<usize> {
+    match points {
+        PointsPerView::All => (0..n).collect(),
+        PointsPerView::Three if n <= 3 => (0..n).collect(),
+        PointsPerView::Three => {
+            [1.0, 3.0, 5.0].iter().map(|k| ((k / 6.0) * n as f64).floor() as usize).collect()
+        }
+    }
+}
+
+/// Evaluates `laser` on a session's views with `camera` (see the module
+/// docs). `progress` is called once per view. A view without a board or a
+/// stripe is reported in `views` and skipped; no points at all is an error.
+pub fn evaluate_accuracy(
+    session: &Session,
+    camera: &Camera,
+    laser: &LaserModel,
+    options: &AccuracyOptions,
+    progress: &(dyn Fn() + Sync),
+) -> Result<AccuracyEvaluation> {
+    if !(options.sigma_px >= 0.0 && options.sigma_px.is_finite()) {
+        return Err(Error::InvalidOptions(format!(
+            "the stripe-centre noise must be a finite number of px >= 0, got {}",
+            options.sigma_px
+        )));
+    }
+    let per_view: Vec<Result<_>> = session
+        .views
+        .par_iter()
+        .map(|view| {
+            let result = view_samples(session, view, camera, &options.stripe);
+            progress();
+            Ok(result?)
+        })
+        .collect();
+    let prepared = laser.prepare();
+    let mut points = Vec::new();
+    let mut views = Vec::with_capacity(per_view.len());
+    for (index, result) in per_view.into_iter().enumerate() {
+        let (samples, report) = result?;
+        for i in chosen(samples.len(), options.points) {
+            let sample = &samples[i];
+            let normalized = sample.normalized();
+            let point_true_in_camera =
+                Point3::new(sample.u_n * sample.z_mm, sample.v_n * sample.z_mm, sample.z_mm);
+            // A ray that misses the evaluated laser plane has no estimate.
+            let Ok(point_estimated_in_camera) = prepared.triangulate(&normalized, sample.slide_mm)
+            else {
+                continue;
+            };
+            points.push(AccuracyPoint {
+                view: index,
+                slide_mm: sample.slide_mm,
+                point_true_in_camera,
+                point_estimated_in_camera,
+            });
+        }
+        views.push(report);
+    }
+    if points.is_empty() {
+        let reasons: Vec<String> = views
+            .iter()
+            .filter_map(|v| v.rejected.as_ref().map(|r| format!("{}: {r}", v.image)))
+            .collect();
+        return Err(Error::NoData(format!(
+            "no view of the session gave a laser point on the board{}",
+            if reasons.is_empty() { String::new() } else { format!(" ({})", reasons.join("; ")) }
+        )));
+    }
+    let slides = per_slide(&points, laser, camera.fx_px, options.sigma_px);
+    Ok(AccuracyEvaluation {
+        points,
+        views,
+        slides,
+        laser: *laser,
+        focal_px: camera.fx_px,
+        points_per_view: options.points,
+        sigma_px: options.sigma_px,
+    })
+}
+
+/// Groups the points by slide position and summarizes each group.
+fn per_slide(
+    points: &[AccuracyPoint],
+    laser: &LaserModel,
+    focal_px: f64,
+    sigma_px: f64,
+) -> Vec<SlideAccuracy> {
+    let mut slides_mm: Vec<f64> = points.iter().map(|p| p.slide_mm).collect();
+    slides_mm.sort_by(f64::total_cmp);
+    slides_mm.dedup();
+    slides_mm
+        .into_iter()
+        .filter_map(|slide_mm| {
+            let group: Vec<&AccuracyPoint> =
+                points.iter().filter(|p| p.slide_mm == slide_mm).collect();
+            let axis = |a: usize| -> Option<BoxStats> {
+                let values: Vec<f64> = group.iter().map(|p| p.error_mm()[a]).collect();
+                BoxStats::from_values(&values)
+            };
+            let depths: Vec<f64> = group.iter().map(|p| p.point_true_in_camera.z).collect();
+            let median_depth_mm = median(&depths);
+            let laser_distance_mm = laser.laser_distance_mm(slide_mm);
+            Some(SlideAccuracy {
+                slide_mm,
+                laser_distance_mm,
+                median_depth_mm,
+                predicted_sigma_z_mm: noise_floor_mm(
+                    median_depth_mm,
+                    laser.alpha_rad,
+                    sigma_px,
+                    focal_px,
+                    laser_distance_mm,
+                ),
+                error_mm: [axis(0)?, axis(1)?, axis(2)?],
+            })
+        })
+        .collect()
+}
+
+impl AccuracyEvaluation {
+    /// The errors (estimated - true, mm) along `axis` (0 x, 1 y, 2 z) of the
+    /// points at `slide_mm`: what one box of the plot shows.
+    pub fn errors_at(&self, slide_mm: f64, axis: usize) -> Vec<f64> {
+        self.points
+            .iter()
+            .filter(|p| p.slide_mm == slide_mm)
+            .map(|p| p.error_mm()[axis.min(2)])
+            .collect()
+    }
+
+    /// The summary as JSON: the laser, the noise-floor inputs, per view the
+    /// points and the board pose's RMS, and per slide position `n`, the
+    /// laser-camera distance, the median depth, the predicted sigma_z and
+    /// the box-plot statistics of the x, y and z errors (`x`, `y`, `z`:
+    /// n, median, q1, q3, min, max, mean, rms, all mm).
+    pub fn to_json(&self) -> Value {
+        let stats = |s: &BoxStats| {
+            json!({
+                "n": s.n, "median_mm": s.median, "q1_mm": s.q1, "q3_mm": s.q3,
+                "min_mm": s.min, "max_mm": s.max, "mean_mm": s.mean, "rms_mm": s.rms,
+                "iqr_mm": s.iqr(),
+            })
+        };
+        json!({
+            "laser": {
+                "model": self.laser.fidelity.as_str(),
+                "alpha_deg": self.laser.alpha_deg(),
+                "beta_deg": self.laser.beta_deg(),
+                "l0_mm": self.laser.l0_mm,
+            },
+            "points_per_view": self.points_per_view.as_str(),
+            "n_points": self.points.len(),
+            "noise_floor": {
+                "formula": "sigma_z = z^2 cos(alpha) sigma_px / (f L), L = L0 - d, z the median depth",
+                "sigma_px": self.sigma_px,
+                "focal_px": self.focal_px,
+            },
+            "views": self.views.iter().enumerate().map(|(i, v)| json!({
+                "image": v.image,
+                "slide_mm": v.slide_mm,
+                "n_points": self.points.iter().filter(|p| p.view == i).count(),
+                "board_pose_rms_px": v.pose_rms_px,
+                "rejected": v.rejected,
+            })).collect::<Vec<_>>(),
+            "slides": self.slides.iter().map(|s| json!({
+                "slide_mm": s.slide_mm,
+                "laser_distance_mm": s.laser_distance_mm,
+                "n": s.error_mm[2].n,
+                "median_depth_mm": s.median_depth_mm,
+                "predicted_sigma_z_mm": s.predicted_sigma_z_mm,
+                "x": stats(&s.error_mm[0]),
+                "y": stats(&s.error_mm[1]),
+                "z": stats(&s.error_mm[2]),
+            })).collect::<Vec<_>>(),
+        })
+    }
+
+    /// Every point as CSV: `view,slide_mm,x_true_mm,y_true_mm,z_true_mm,x_error_mm,y_error_mm,z_error_mm`.
+    pub fn points_csv(&self) -> String {
+        let mut out = String::from(
+            "view,slide_mm,x_true_mm,y_true_mm,z_true_mm,x_error_mm,y_error_mm,z_error_mm\n",
+        );
+        for p in &self.points {
+            let t = p.point_true_in_camera;
+            let e = p.error_mm();
+            out.push_str(&format!(
+                "{},{},{},{},{},{},{},{}\n",
+                p.view, p.slide_mm, t.x, t.y, t.z, e.x, e.y, e.z
+            ));
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn three_points_are_the_centres_of_the_thirds() {
+        assert_eq!(chosen(600, PointsPerView::Three), vec![100, 300, 500]);
+        assert_eq!(chosen(2, PointsPerView::Three), vec![0, 1]);
+        assert_eq!(chosen(4, PointsPerView::All), vec![0, 1, 2, 3]);
+    }
+
+    #[test]
+    fn noise_floor_grows_as_the_laser_nears_the_camera() {
+        let alpha = 19.07f64.to_radians();
+        // z = 900 mm, f = 2320 px, 0.06 px: 0.052 mm at L = 382 mm, 0.110 mm at L = 182 mm.
+        let near = noise_floor_mm(900.0, alpha, 0.06, 2320.0, 381.98);
+        let far = noise_floor_mm(900.0, alpha, 0.06, 2320.0, 181.98);
+        assert!((near - 0.0519).abs() < 1e-3, "{near}");
+        assert!((far / near - 381.98 / 181.98).abs() < 1e-12);
+    }
+}
