@@ -19,6 +19,15 @@
 //!
 //! which grows as the laser slides towards the camera (L shrinks). Each
 //! slide position's summary carries this prediction at its median depth.
+//!
+//! sigma_px is measured from the session itself unless given: each point's
+//! depth error minus its view's median (which removes the board pose's own
+//! error, common to a view's points), scaled to pixels by f L / (z^2
+//! cos(alpha)), has a robust spread (1.4826 times the median absolute
+//! deviation) over all points: that is the stripe centre's noise as the
+//! depths show it. Per slide position the same spread in mm
+//! (`within_view_sigma_z_mm`) is what the prediction is to be compared with;
+//! the box plots' quartiles also hold the board poses' errors.
 
 use alacs_calib::{ViewSamples, view_samples};
 use alacs_model::{Camera, LaserModel, Session};
@@ -30,10 +39,9 @@ use serde_json::{Value, json};
 use crate::stats::median;
 use crate::{BoxStats, Error, Result};
 
-/// Stripe-centre noise assumed for the predicted noise floor when none is
-/// given: 0.06 px, the RMS error of the Steger stripe centre on simulated
-/// board views (README, "Sub-pixel stripe centre": 0.061 px).
-pub const DEFAULT_SIGMA_PX: f64 = 0.06;
+/// Scale from the median absolute deviation to the standard deviation of a
+/// normal distribution.
+const MAD_TO_SIGMA: f64 = 1.4826;
 
 /// Which laser points of a view are evaluated.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -61,19 +69,16 @@ impl PointsPerView {
 pub struct AccuracyOptions {
     /// Which points of each view.
     pub points: PointsPerView,
-    /// Stripe-centre noise (px) for the predicted noise floor.
-    pub sigma_px: f64,
+    /// Stripe-centre noise (px) for the predicted noise floor; `None`:
+    /// measured from the session (module docs).
+    pub sigma_px: Option<f64>,
     /// Stripe extraction (as the laser calibration's).
     pub stripe: StripeOptions,
 }
 
 impl Default for AccuracyOptions {
     fn default() -> Self {
-        Self {
-            points: PointsPerView::All,
-            sigma_px: DEFAULT_SIGMA_PX,
-            stripe: StripeOptions::default(),
-        }
+        Self { points: PointsPerView::All, sigma_px: None, stripe: StripeOptions::default() }
     }
 }
 
@@ -108,6 +113,12 @@ pub struct SlideAccuracy {
     pub median_depth_mm: f64,
     /// The predicted noise floor sigma_z at that depth (module docs), mm.
     pub predicted_sigma_z_mm: f64,
+    /// The measured spread of the depth errors about each view's median
+    /// (1.4826 MAD), mm: the stripe's share of the error, to compare with
+    /// `predicted_sigma_z_mm`.
+    pub within_view_sigma_z_mm: f64,
+    /// The same spread scaled to pixels point by point (module docs), px.
+    pub within_view_sigma_px: f64,
     /// Error statistics along x, y and z (estimated - true), mm.
     pub error_mm: [BoxStats; 3],
 }
@@ -127,8 +138,12 @@ pub struct AccuracyEvaluation {
     pub focal_px: f64,
     /// The options it ran with.
     pub points_per_view: PointsPerView,
-    /// The stripe-centre noise assumed for the noise floor, px.
+    /// The stripe-centre noise of the noise floor, px.
     pub sigma_px: f64,
+    /// Whether `sigma_px` was measured from the session (else given).
+    pub sigma_px_measured: bool,
+    /// The stripe-centre noise the session shows over all points, px.
+    pub measured_sigma_px: f64,
 }
 
 /// The predicted depth noise sigma_z = z^2 cos(alpha) sigma_px / (f L) (module docs), mm.
@@ -163,10 +178,11 @@ pub fn evaluate_accuracy(
     options: &AccuracyOptions,
     progress: &(dyn Fn() + Sync),
 ) -> Result<AccuracyEvaluation> {
-    if !(options.sigma_px >= 0.0 && options.sigma_px.is_finite()) {
+    if let Some(sigma_px) = options.sigma_px
+        && !(sigma_px >= 0.0 && sigma_px.is_finite())
+    {
         return Err(Error::InvalidOptions(format!(
-            "the stripe-centre noise must be a finite number of px >= 0, got {}",
-            options.sigma_px
+            "the stripe-centre noise must be a finite number of px >= 0, got {sigma_px}"
         )));
     }
     let per_view: Vec<Result<_>> = session
@@ -212,7 +228,11 @@ pub fn evaluate_accuracy(
             if reasons.is_empty() { String::new() } else { format!(" ({})", reasons.join("; ")) }
         )));
     }
-    let slides = per_slide(&points, laser, camera.fx_px, options.sigma_px);
+    let residuals = within_view_residuals(&points, laser, camera.fx_px);
+    let measured_sigma_px =
+        robust_sigma(&residuals.iter().map(|r| r.1).collect::<Vec<_>>()).unwrap_or(f64::NAN);
+    let sigma_px = options.sigma_px.unwrap_or(measured_sigma_px);
+    let slides = per_slide(&points, &residuals, laser, camera.fx_px, sigma_px);
     Ok(AccuracyEvaluation {
         points,
         views,
@@ -220,13 +240,59 @@ pub fn evaluate_accuracy(
         laser: *laser,
         focal_px: camera.fx_px,
         points_per_view: options.points,
-        sigma_px: options.sigma_px,
+        sigma_px,
+        sigma_px_measured: options.sigma_px.is_none(),
+        measured_sigma_px,
     })
+}
+
+/// 1.4826 times the median absolute deviation from the median; `None` for
+/// fewer than two values.
+fn robust_sigma(values: &[f64]) -> Option<f64> {
+    if values.len() < 2 {
+        return None;
+    }
+    let centre = median(values);
+    let deviations: Vec<f64> = values.iter().map(|v| (v - centre).abs()).collect();
+    Some(MAD_TO_SIGMA * median(&deviations))
+}
+
+/// Per point, its depth error minus its view's median depth error, in mm
+/// and scaled to stripe pixels by f L / (z^2 cos(alpha)) (module docs).
+fn within_view_residuals(
+    points: &[AccuracyPoint],
+    laser: &LaserModel,
+    focal_px: f64,
+) -> Vec<(f64, f64)> {
+    let mut view_median = std::collections::HashMap::new();
+    for p in points {
+        view_median.entry(p.view).or_insert_with(|| {
+            let errors: Vec<f64> =
+                points.iter().filter(|q| q.view == p.view).map(|q| q.error_mm().z).collect();
+            median(&errors)
+        });
+    }
+    points
+        .iter()
+        .map(|p| {
+            let residual_mm = p.error_mm().z - view_median.get(&p.view).copied().unwrap_or(0.0);
+            let z_mm = p.point_true_in_camera.z;
+            let mm_per_px = noise_floor_mm(
+                z_mm,
+                laser.alpha_rad,
+                1.0,
+                focal_px,
+                laser.laser_distance_mm(p.slide_mm),
+            );
+            (residual_mm, residual_mm / mm_per_px)
+        })
+        .collect()
 }
 
 /// Groups the points by slide position and summarizes each group.
 fn per_slide(
     points: &[AccuracyPoint],
+    residuals: &[(f64, f64)],
     laser: &LaserModel,
     focal_px: f64,
     sigma_px: f64,
@@ -237,8 +303,16 @@ fn per_slide(
     slides_mm
         .into_iter()
         .filter_map(|slide_mm| {
-            let group: Vec<&AccuracyPoint> =
-                points.iter().filter(|p| p.slide_mm == slide_mm).collect();
+            let in_group: Vec<usize> =
+                (0..points.len()).filter(|&i| points[i].slide_mm == slide_mm).collect();
+            let group: Vec<&AccuracyPoint> = in_group.iter().map(|&i| &points[i]).collect();
+            let spread = |k: usize| {
+                let values: Vec<f64> = in_group
+                    .iter()
+                    .map(|&i| if k == 0 { residuals[i].0 } else { residuals[i].1 })
+                    .collect();
+                robust_sigma(&values).unwrap_or(f64::NAN)
+            };
             let axis = |a: usize| -> Option<BoxStats> {
                 let values: Vec<f64> = group.iter().map(|p| p.error_mm()[a]).collect();
                 BoxStats::from_values(&values)
@@ -257,6 +331,8 @@ fn per_slide(
                     focal_px,
                     laser_distance_mm,
                 ),
+                within_view_sigma_z_mm: spread(0),
+                within_view_sigma_px: spread(1),
                 error_mm: [axis(0)?, axis(1)?, axis(2)?],
             })
         })
@@ -299,6 +375,8 @@ impl AccuracyEvaluation {
             "noise_floor": {
                 "formula": "sigma_z = z^2 cos(alpha) sigma_px / (f L), L = L0 - d, z the median depth",
                 "sigma_px": self.sigma_px,
+                "sigma_px_source": if self.sigma_px_measured { "measured" } else { "given" },
+                "measured_sigma_px": self.measured_sigma_px,
                 "focal_px": self.focal_px,
             },
             "views": self.views.iter().enumerate().map(|(i, v)| json!({
@@ -314,6 +392,8 @@ impl AccuracyEvaluation {
                 "n": s.error_mm[2].n,
                 "median_depth_mm": s.median_depth_mm,
                 "predicted_sigma_z_mm": s.predicted_sigma_z_mm,
+                "within_view_sigma_z_mm": s.within_view_sigma_z_mm,
+                "within_view_sigma_px": s.within_view_sigma_px,
                 "x": stats(&s.error_mm[0]),
                 "y": stats(&s.error_mm[1]),
                 "z": stats(&s.error_mm[2]),

@@ -34,8 +34,8 @@ mod report;
 mod stats;
 
 pub use accuracy::{
-    AccuracyEvaluation, AccuracyOptions, AccuracyPoint, DEFAULT_SIGMA_PX, PointsPerView,
-    SlideAccuracy, evaluate_accuracy, noise_floor_mm,
+    AccuracyEvaluation, AccuracyOptions, AccuracyPoint, PointsPerView, SlideAccuracy,
+    evaluate_accuracy, noise_floor_mm,
 };
 pub use calibration::{
     CalibrationEvaluation, MethodEvaluation, calibration_json, evaluate_calibration, table_1,

@@ -25,7 +25,7 @@ static FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
 const FAMILY: &str = "sans-serif";
 
 /// Size of a box-plot figure (three panels side by side), px.
-const BOXPLOT_SIZE: (u32, u32) = (1500, 520);
+const BOXPLOT_SIZE: (u32, u32) = (1500, 900);
 
 /// Size of a residual figure, px.
 const RESIDUAL_SIZE: (u32, u32) = (900, 560);
@@ -95,9 +95,153 @@ fn padded(lo: f64, hi: f64, min_pad: f64) -> (f64, f64) {
     (lo - pad, hi + pad)
 }
 
-/// The accuracy figure: per axis a panel, per slide position a box.
+/// The accuracy figure: per axis a panel, per slide position a box; the top
+/// row to the extremes, the bottom row zoomed to the boxes (whiskers cut at
+/// the panel's edge).
 struct BoxPlots<'a> {
     eval: &'a AccuracyEvaluation,
+}
+
+/// How far beyond the quartiles the zoomed row reaches, in IQRs.
+const ZOOM_IQRS: f64 = 2.0;
+
+impl BoxPlots<'_> {
+    /// The predicted quartiles median +- 0.6745 sigma_z of a slide position's z errors.
+    fn predicted(s: &crate::SlideAccuracy) -> (f64, f64) {
+        let offset = QUARTILE_IN_SIGMAS * s.predicted_sigma_z_mm;
+        (s.error_mm[2].median - offset, s.error_mm[2].median + offset)
+    }
+
+    /// One panel: the errors along `axis`, zoomed to the boxes or not.
+    fn panel<DB: DrawingBackend>(
+        &self,
+        panel: &DrawingArea<DB, Shift>,
+        axis: usize,
+        zoom: bool,
+    ) -> Drawn
+    where
+        DB::ErrorType: 'static,
+    {
+        let name = ["x", "y", "z"][axis];
+        let slides: Vec<f64> = self.eval.slides.iter().map(|s| s.slide_mm).collect();
+        let spacing = if slides.len() > 1 {
+            slides.windows(2).map(|w| w[1] - w[0]).fold(f64::INFINITY, f64::min)
+        } else {
+            50.0
+        };
+        let half_width = 0.25 * spacing;
+        let first = slides.first().copied().unwrap_or(0.0);
+        let last = slides.last().copied().unwrap_or(0.0);
+        let x_range = (first - 0.7 * spacing)..(last + 0.7 * spacing);
+        let (mut lo, mut hi) = self.eval.slides.iter().fold((0.0f64, 0.0f64), |(lo, hi), s| {
+            let b = &s.error_mm[axis];
+            if zoom {
+                (lo.min(b.q1 - ZOOM_IQRS * b.iqr()), hi.max(b.q3 + ZOOM_IQRS * b.iqr()))
+            } else {
+                (lo.min(b.min), hi.max(b.max))
+            }
+        });
+        if axis == 2 {
+            for s in &self.eval.slides {
+                let (a, b) = Self::predicted(s);
+                lo = lo.min(a);
+                hi = hi.max(b);
+            }
+        }
+        let (lo, hi) = padded(lo, hi, 0.01);
+        let clamp = |v: f64| v.clamp(lo, hi);
+        let caption = if zoom {
+            format!("{name} error, zoomed to the boxes")
+        } else {
+            format!("{name} error (estimated - true)")
+        };
+        let mut chart = ChartBuilder::on(panel)
+            .margin(10)
+            .caption(caption, (FAMILY, 19))
+            .x_label_area_size(42)
+            .y_label_area_size(64)
+            .build_cartesian_2d(x_range.clone(), lo..hi)?;
+        chart
+            .configure_mesh()
+            .disable_x_mesh()
+            .light_line_style(WHITE)
+            .x_labels(slides.len().max(2))
+            .x_label_formatter(&|x| format!("{x:.0}"))
+            .x_desc("slide position d (mm)")
+            .y_desc(format!("{name} error (mm)"))
+            .label_style((FAMILY, 15))
+            .axis_desc_style((FAMILY, 16))
+            .draw()?;
+        chart.draw_series(std::iter::once(PathElement::new(
+            vec![(x_range.start, 0.0), (x_range.end, 0.0)],
+            BLACK.mix(0.3),
+        )))?;
+        let line = BOX_LINE.stroke_width(2);
+        for s in &self.eval.slides {
+            let b = &s.error_mm[axis];
+            let x = s.slide_mm;
+            let cap = 0.5 * half_width;
+            let (bottom, top) = (clamp(b.min), clamp(b.max));
+            chart.draw_series([
+                PathElement::new(vec![(x, bottom), (x, clamp(b.q1))], line),
+                PathElement::new(vec![(x, clamp(b.q3)), (x, top)], line),
+            ])?;
+            // Caps only where the whisker really ends inside the panel.
+            for (end, value) in [(bottom, b.min), (top, b.max)] {
+                if end == value {
+                    chart.draw_series(std::iter::once(PathElement::new(
+                        vec![(x - cap, end), (x + cap, end)],
+                        line,
+                    )))?;
+                }
+            }
+            let corners = [(x - half_width, clamp(b.q1)), (x + half_width, clamp(b.q3))];
+            chart.draw_series([
+                Rectangle::new(corners, BOX_FILL.filled()),
+                Rectangle::new(corners, line),
+            ])?;
+            chart.draw_series(std::iter::once(PathElement::new(
+                vec![(x - half_width, clamp(b.median)), (x + half_width, clamp(b.median))],
+                BLACK.stroke_width(3),
+            )))?;
+        }
+        if axis == 2 {
+            let marks: Vec<PathElement<(f64, f64)>> = self
+                .eval
+                .slides
+                .iter()
+                .flat_map(|s| {
+                    let (a, b) = Self::predicted(s);
+                    let x = s.slide_mm;
+                    let w = 1.3 * half_width;
+                    [
+                        PathElement::new(vec![(x - w, a), (x + w, a)], PREDICTED.stroke_width(2)),
+                        PathElement::new(vec![(x - w, b), (x + w, b)], PREDICTED.stroke_width(2)),
+                    ]
+                })
+                .collect();
+            chart
+                .draw_series(marks)?
+                .label(format!(
+                    "noise floor: median +- 0.674 sigma_z ({:.3} px)",
+                    self.eval.sigma_px
+                ))
+                .legend(|(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 20, y)], PREDICTED.stroke_width(2))
+                });
+            if !zoom {
+                return Ok(());
+            }
+            chart
+                .configure_series_labels()
+                .position(SeriesLabelPosition::LowerRight)
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK.mix(0.4))
+                .label_font((FAMILY, 13))
+                .draw()?;
+        }
+        Ok(())
+    }
 }
 
 impl Figure for BoxPlots<'_> {
@@ -106,129 +250,18 @@ impl Figure for BoxPlots<'_> {
         DB::ErrorType: 'static,
     {
         root.fill(&WHITE)?;
-        let (title, body) = root.split_vertically(44);
+        let (title, body) = root.split_vertically(40);
         title.draw(&Text::new(
             format!(
-                "Localization error per slide position ({} points, {} per view; whiskers to the extremes)",
+                "Localization error per slide position: {} points ({} per view), boxes: quartiles and median, whiskers: extremes",
                 self.eval.points.len(),
                 self.eval.points_per_view.as_str()
             ),
-            (20, 12),
-            (FAMILY, 22).into_font(),
+            (16, 12),
+            (FAMILY, 20).into_font(),
         ))?;
-        let slides: Vec<f64> = self.eval.slides.iter().map(|s| s.slide_mm).collect();
-        let spacing = slides
-            .windows(2)
-            .map(|w| w[1] - w[0])
-            .fold(f64::INFINITY, f64::min)
-            .min(if slides.len() > 1 { f64::INFINITY } else { 50.0 });
-        let half_width = 0.25 * spacing;
-        let first = slides.first().copied().unwrap_or(0.0);
-        let last = slides.last().copied().unwrap_or(0.0);
-        let x_range = (first - 0.7 * spacing)..(last + 0.7 * spacing);
-        for (axis, panel) in body.split_evenly((1, 3)).iter().enumerate() {
-            let name = ["x", "y", "z"][axis];
-            let predicted = |s: &crate::SlideAccuracy| {
-                let offset = QUARTILE_IN_SIGMAS * s.predicted_sigma_z_mm;
-                (s.error_mm[2].median - offset, s.error_mm[2].median + offset)
-            };
-            let (mut lo, mut hi) = self.eval.slides.iter().fold((0.0f64, 0.0f64), |(lo, hi), s| {
-                (lo.min(s.error_mm[axis].min), hi.max(s.error_mm[axis].max))
-            });
-            if axis == 2 {
-                for s in &self.eval.slides {
-                    let (a, b) = predicted(s);
-                    lo = lo.min(a);
-                    hi = hi.max(b);
-                }
-            }
-            let (lo, hi) = padded(lo, hi, 0.01);
-            let mut chart = ChartBuilder::on(panel)
-                .margin(12)
-                .caption(format!("{name} error (estimated - true)"), (FAMILY, 20))
-                .x_label_area_size(44)
-                .y_label_area_size(64)
-                .build_cartesian_2d(x_range.clone(), lo..hi)?;
-            chart
-                .configure_mesh()
-                .disable_x_mesh()
-                .x_labels(slides.len().max(2))
-                .x_label_formatter(&|x| format!("{x:.0}"))
-                .x_desc("slide position d (mm)")
-                .y_desc(format!("{name} error (mm)"))
-                .label_style((FAMILY, 15))
-                .axis_desc_style((FAMILY, 16))
-                .draw()?;
-            chart.draw_series(std::iter::once(PathElement::new(
-                vec![(x_range.start, 0.0), (x_range.end, 0.0)],
-                BLACK.mix(0.3),
-            )))?;
-            for s in &self.eval.slides {
-                let b = &s.error_mm[axis];
-                let x = s.slide_mm;
-                let line = BOX_LINE.stroke_width(2);
-                chart.draw_series([
-                    PathElement::new(vec![(x, b.min), (x, b.q1)], line),
-                    PathElement::new(vec![(x, b.q3), (x, b.max)], line),
-                    PathElement::new(
-                        vec![(x - 0.5 * half_width, b.min), (x + 0.5 * half_width, b.min)],
-                        line,
-                    ),
-                    PathElement::new(
-                        vec![(x - 0.5 * half_width, b.max), (x + 0.5 * half_width, b.max)],
-                        line,
-                    ),
-                ])?;
-                chart.draw_series([
-                    Rectangle::new(
-                        [(x - half_width, b.q1), (x + half_width, b.q3)],
-                        BOX_FILL.filled(),
-                    ),
-                    Rectangle::new([(x - half_width, b.q1), (x + half_width, b.q3)], line),
-                ])?;
-                chart.draw_series(std::iter::once(PathElement::new(
-                    vec![(x - half_width, b.median), (x + half_width, b.median)],
-                    BLACK.stroke_width(3),
-                )))?;
-            }
-            if axis == 2 {
-                let marks: Vec<PathElement<(f64, f64)>> = self
-                    .eval
-                    .slides
-                    .iter()
-                    .flat_map(|s| {
-                        let (a, b) = predicted(s);
-                        let x = s.slide_mm;
-                        let w = 1.3 * half_width;
-                        [
-                            PathElement::new(
-                                vec![(x - w, a), (x + w, a)],
-                                PREDICTED.stroke_width(2),
-                            ),
-                            PathElement::new(
-                                vec![(x - w, b), (x + w, b)],
-                                PREDICTED.stroke_width(2),
-                            ),
-                        ]
-                    })
-                    .collect();
-                chart
-                    .draw_series(marks)?
-                    .label(format!(
-                        "quartiles of the noise floor (sigma_px {} px)",
-                        self.eval.sigma_px
-                    ))
-                    .legend(|(x, y)| {
-                        PathElement::new(vec![(x, y), (x + 20, y)], PREDICTED.stroke_width(2))
-                    });
-                chart
-                    .configure_series_labels()
-                    .position(SeriesLabelPosition::UpperLeft)
-                    .background_style(WHITE.mix(0.85))
-                    .border_style(BLACK.mix(0.4))
-                    .label_font((FAMILY, 14))
-                    .draw()?;
-            }
+        for (k, panel) in body.split_evenly((2, 3)).iter().enumerate() {
+            self.panel(panel, k % 3, k >= 3)?;
         }
         Ok(())
     }
