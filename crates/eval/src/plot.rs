@@ -309,6 +309,7 @@ impl Figure for Residuals<'_> {
             .build_cartesian_2d(z_lo..z_hi, r_lo..r_hi)?;
         chart
             .configure_mesh()
+            .light_line_style(WHITE)
             .x_desc("depth z from the board pose (mm)")
             .y_desc("z - z_hat (mm)")
             .label_style((FAMILY, 15))
