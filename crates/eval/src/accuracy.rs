@@ -114,8 +114,8 @@ pub struct SlideAccuracy {
     /// The predicted noise floor sigma_z at that depth (module docs), mm.
     pub predicted_sigma_z_mm: f64,
     /// The measured spread of the depth errors about each view's median
-    /// (1.4826 MAD), mm: the stripe's share of the error, to compare with
-    /// `predicted_sigma_z_mm`.
+    /// (1.4826 MAD) over all the views' points, mm: the stripe's share of
+    /// the error, to compare with `predicted_sigma_z_mm`.
     pub within_view_sigma_z_mm: f64,
     /// The same spread scaled to pixels point by point (module docs), px.
     pub within_view_sigma_px: f64,
@@ -142,7 +142,8 @@ pub struct AccuracyEvaluation {
     pub sigma_px: f64,
     /// Whether `sigma_px` was measured from the session (else given).
     pub sigma_px_measured: bool,
-    /// The stripe-centre noise the session shows over all points, px.
+    /// The stripe-centre noise the session shows over all its points
+    /// (whichever are evaluated), px.
     pub measured_sigma_px: f64,
 }
 
@@ -195,12 +196,18 @@ pub fn evaluate_accuracy(
         })
         .collect();
     let prepared = laser.prepare();
+    // The evaluated points, and every point of every view: the stripe noise
+    // is measured on all of them, whichever are evaluated.
     let mut points = Vec::new();
+    let mut all_points = Vec::new();
     let mut views = Vec::with_capacity(per_view.len());
     for (index, result) in per_view.into_iter().enumerate() {
         let (samples, report) = result?;
+        let mut keep = vec![false; samples.len()];
         for i in chosen(samples.len(), options.points) {
-            let sample = &samples[i];
+            keep[i] = true;
+        }
+        for (sample, keep) in samples.iter().zip(keep) {
             let normalized = sample.normalized();
             let point_true_in_camera =
                 Point3::new(sample.u_n * sample.z_mm, sample.v_n * sample.z_mm, sample.z_mm);
@@ -209,12 +216,16 @@ pub fn evaluate_accuracy(
             else {
                 continue;
             };
-            points.push(AccuracyPoint {
+            let point = AccuracyPoint {
                 view: index,
                 slide_mm: sample.slide_mm,
                 point_true_in_camera,
                 point_estimated_in_camera,
-            });
+            };
+            all_points.push(point);
+            if keep {
+                points.push(point);
+            }
         }
         views.push(report);
     }
@@ -228,11 +239,11 @@ pub fn evaluate_accuracy(
             if reasons.is_empty() { String::new() } else { format!(" ({})", reasons.join("; ")) }
         )));
     }
-    let residuals = within_view_residuals(&points, laser, camera.fx_px);
+    let residuals = within_view_residuals(&all_points, laser, camera.fx_px);
     let measured_sigma_px =
         robust_sigma(&residuals.iter().map(|r| r.1).collect::<Vec<_>>()).unwrap_or(f64::NAN);
     let sigma_px = options.sigma_px.unwrap_or(measured_sigma_px);
-    let slides = per_slide(&points, &residuals, laser, camera.fx_px, sigma_px);
+    let slides = per_slide(&points, &all_points, &residuals, laser, camera.fx_px, sigma_px);
     Ok(AccuracyEvaluation {
         points,
         views,
@@ -292,6 +303,7 @@ fn within_view_residuals(
 /// Groups the points by slide position and summarizes each group.
 fn per_slide(
     points: &[AccuracyPoint],
+    all_points: &[AccuracyPoint],
     residuals: &[(f64, f64)],
     laser: &LaserModel,
     focal_px: f64,
@@ -303,9 +315,10 @@ fn per_slide(
     slides_mm
         .into_iter()
         .filter_map(|slide_mm| {
+            let group: Vec<&AccuracyPoint> =
+                points.iter().filter(|p| p.slide_mm == slide_mm).collect();
             let in_group: Vec<usize> =
-                (0..points.len()).filter(|&i| points[i].slide_mm == slide_mm).collect();
-            let group: Vec<&AccuracyPoint> = in_group.iter().map(|&i| &points[i]).collect();
+                (0..all_points.len()).filter(|&i| all_points[i].slide_mm == slide_mm).collect();
             let spread = |k: usize| {
                 let values: Vec<f64> = in_group
                     .iter()
