@@ -89,6 +89,13 @@ fn write_png_and_svg(stem: &Path, size: (u32, u32), figure: &impl Figure) -> Res
     Ok(vec![png, svg])
 }
 
+/// A tick label: at most three decimals, trailing zeros dropped, no "-0".
+fn tick_label(value: &f64) -> String {
+    let text = format!("{value:.3}");
+    let text = text.trim_end_matches('0').trim_end_matches('.');
+    if text == "-0" { "0".to_string() } else { text.to_string() }
+}
+
 /// A range [lo, hi] padded by 6 % (or by `min_pad` when it is empty).
 fn padded(lo: f64, hi: f64, min_pad: f64) -> (f64, f64) {
     let pad = ((hi - lo) * 0.06).max(min_pad);
@@ -167,6 +174,7 @@ impl BoxPlots<'_> {
             .light_line_style(WHITE)
             .x_labels(slides.len().max(2))
             .x_label_formatter(&|x| format!("{x:.0}"))
+            .y_label_formatter(&tick_label)
             .x_desc("slide position d (mm)")
             .y_desc(format!("{name} error (mm)"))
             .label_style((FAMILY, 15))
@@ -310,6 +318,8 @@ impl Figure for Residuals<'_> {
         chart
             .configure_mesh()
             .light_line_style(WHITE)
+            .x_label_formatter(&tick_label)
+            .y_label_formatter(&tick_label)
             .x_desc("depth z from the board pose (mm)")
             .y_desc("z - z_hat (mm)")
             .label_style((FAMILY, 15))
@@ -363,4 +373,18 @@ pub fn write_residual_plot(
     depths_mm: &[f64],
 ) -> Result<Vec<PathBuf>> {
     write_png_and_svg(stem, RESIDUAL_SIZE, &Residuals { eval: method, depths_mm })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::tick_label;
+
+    #[test]
+    fn tick_labels_are_short() {
+        assert_eq!(tick_label(&-0.0000001), "0");
+        assert_eq!(tick_label(&0.05), "0.05");
+        assert_eq!(tick_label(&2.0), "2");
+        assert_eq!(tick_label(&-1.5), "-1.5");
+        assert_eq!(tick_label(&600.0), "600");
+    }
 }
