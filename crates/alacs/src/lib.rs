@@ -6,7 +6,8 @@
 //! - [`model`]: the camera model and the ALACS laser model (eqs. (1)-(10) of the seed paper),
 //! - [`calib`]: robust laser calibration (eq. (9), Algorithm 1, the four methods of Table 1),
 //! - [`sim`]: the seeded simulator with ground truth,
-//! - [`scanner`]: the scan controller (slide, camera and laser behind small traits; a simulated rig).
+//! - [`scanner`]: the scan controller (slide, camera and laser behind small traits; a simulated rig),
+//! - [`eval`]: the seed paper's experiments as reports (Table 1, the accuracy box plots).
 //!
 //! # Example
 //! ```
@@ -22,6 +23,7 @@
 //! ```
 
 pub use alacs_calib as calib;
+pub use alacs_eval as eval;
 pub use alacs_locate as locate;
 pub use alacs_model as model;
 pub use alacs_scanner as scanner;

@@ -27,6 +27,10 @@ pub enum Command {
     Stripe(StripeArgs),
     /// Locate the target fruit from a scan folder (scan.yaml and its frames).
     Localize(LocalizeArgs),
+    /// Reproduce the seed paper's experiments as reports: Table 1 with
+    /// residual plots, the accuracy box plots per slide position.
+    #[command(subcommand)]
+    Evaluate(EvaluateCommand),
     /// Generate simulated data with ground truth.
     #[command(subcommand)]
     Simulate(SimulateCommand),
@@ -45,6 +49,89 @@ pub enum CalibrateCommand {
     Laser(CalibrateLaserArgs),
     /// Calibrate the camera (intrinsics, plumb_bob distortion) from a session's board views.
     Camera(CalibrateCameraArgs),
+}
+
+/// `alacs evaluate ...`
+#[derive(Debug, Subcommand)]
+pub enum EvaluateCommand {
+    /// The seed paper's Table 1: all four calibration methods on samples (or on
+    /// a session's dense samples), as text, JSON and a residual plot per method.
+    Calibration(EvaluateCalibrationArgs),
+    /// The seed paper's accuracy experiment: a session's board views at several
+    /// slide positions, each laser point triangulated with the laser model and
+    /// compared with its ray on the board plane; box plots per slide position.
+    Accuracy(EvaluateAccuracyArgs),
+}
+
+/// `alacs evaluate calibration`
+#[derive(Debug, Args)]
+pub struct EvaluateCalibrationArgs {
+    /// Samples CSV: header u_n,v_n,z_mm and optionally slide_mm.
+    #[arg(
+        long,
+        value_name = "FILE",
+        required_unless_present = "session",
+        conflicts_with = "session"
+    )]
+    pub samples: Option<PathBuf>,
+    /// Session folder: dense laser samples from its images (as `calibrate laser --session`).
+    #[arg(long, value_name = "DIR")]
+    pub session: Option<PathBuf>,
+    /// The calibrated camera.yaml of the session (default: calibrate the camera
+    /// from the session's board views first).
+    #[arg(long, value_name = "FILE", requires = "session")]
+    pub camera: Option<PathBuf>,
+    /// Folder for the artefacts (created): calibration_table1.txt,
+    /// calibration.json, calibration_residuals_method{1..4}.png and .svg.
+    #[arg(long, value_name = "DIR", default_value = "evaluation")]
+    pub out: PathBuf,
+    /// RANSAC inlier threshold epsilon on |z - z_hat|, in mm.
+    #[arg(long, value_name = "E", default_value_t = alacs::calib::DEFAULT_THRESHOLD_MM)]
+    pub threshold_mm: f64,
+    /// RANSAC seed (same seed, same result).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Print one JSON object on standard output instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Which laser points of a view `evaluate accuracy` uses.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum PointsArg {
+    /// Every stripe pixel on the board (one per image row).
+    All,
+    /// Three per view, evenly spaced along the stripe, as the seed paper.
+    #[value(name = "3")]
+    Three,
+}
+
+/// `alacs evaluate accuracy`
+#[derive(Debug, Args)]
+pub struct EvaluateAccuracyArgs {
+    /// Session folder (session.yaml beside the images) with views at several slide positions.
+    #[arg(long, value_name = "DIR")]
+    pub session: PathBuf,
+    /// The calibrated camera (camera.yaml).
+    #[arg(long, value_name = "FILE")]
+    pub camera: PathBuf,
+    /// The calibrated laser to evaluate (laser.yaml).
+    #[arg(long, value_name = "FILE")]
+    pub laser: PathBuf,
+    /// Folder for the artefacts (created): accuracy.json, accuracy_points.csv,
+    /// accuracy_boxplots.png and .svg.
+    #[arg(long, value_name = "DIR", default_value = "evaluation")]
+    pub out: PathBuf,
+    /// Points per view: all, or 3 as the seed paper.
+    #[arg(long, value_enum, default_value = "all")]
+    pub points: PointsArg,
+    /// Stripe-centre noise (px) for the predicted noise floor
+    /// sigma_z = z^2 cos(alpha) sigma_px / (f L); default: measured from the session.
+    #[arg(long, value_name = "PX")]
+    pub sigma_px: Option<f64>,
+    /// Print one JSON object on standard output instead of text.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// `alacs calibrate camera`
@@ -360,6 +447,10 @@ pub struct DemoArgs {
     /// Seed of the simulated data.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// Folder for the evaluation artefacts (created): Table 1 with residual
+    /// plots, the accuracy box plots and their JSON.
+    #[arg(long, value_name = "DIR", default_value = "alacs-demo")]
+    pub out: PathBuf,
     /// Print one JSON object on standard output instead of text.
     #[arg(long)]
     pub json: bool,

@@ -85,3 +85,15 @@ impl From<alacs::scanner::Error> for Failure {
         }
     }
 }
+
+impl From<alacs::eval::Error> for Failure {
+    fn from(error: alacs::eval::Error) -> Self {
+        use alacs::eval::Error as E;
+        match error {
+            E::Calib(e) => e.into(),
+            E::Model(e) => e.into(),
+            e if e.is_bad_input() => Self::bad_input(e),
+            e => Self::job_failed(e),
+        }
+    }
+}

@@ -18,6 +18,10 @@ fn main() -> ExitCode {
     let result = match cli.command {
         args::Command::Calibrate(args::CalibrateCommand::Laser(a)) => cmd::calibrate::laser(&a),
         args::Command::Calibrate(args::CalibrateCommand::Camera(a)) => cmd::calibrate::camera(&a),
+        args::Command::Evaluate(args::EvaluateCommand::Calibration(a)) => {
+            cmd::evaluate::calibration(&a)
+        }
+        args::Command::Evaluate(args::EvaluateCommand::Accuracy(a)) => cmd::evaluate::accuracy(&a),
         args::Command::Triangulate(a) => cmd::triangulate::run(&a),
         args::Command::Stripe(a) => cmd::stripe::run(&a),
         args::Command::Localize(a) => cmd::localize::run(&a),

@@ -9,30 +9,7 @@ use alacs::locate::{Localization, Status};
 use alacs::model::Fidelity;
 use serde_json::{Value, json};
 
-/// One calibration as FORMATS.md's `calibrate laser --json` object, with
-/// `method`, `name` and the fit's statistics added.
-pub fn calibration_json(c: &LaserCalibration) -> Value {
-    json!({
-        "model": c.laser.fidelity.as_str(),
-        "alpha_deg": c.laser.alpha_deg(),
-        "beta_deg": c.laser.beta_deg(),
-        "l0_mm": c.laser.l0_mm,
-        "inliers": c.inliers,
-        "mean_abs_error_mm": c.mean_abs_error_mm,
-        "mean_abs_error_all_mm": c.mean_abs_error_all_mm,
-        "n_samples": c.n_samples,
-        "method": c.method.number(),
-        "name": c.method.name(),
-        "rms_error_mm": c.rms_error_mm,
-        "residual": c.residual.as_str(),
-        "ransac_iterations": c.ransac_iterations,
-        "std_dev": c.std_dev.map(|s| json!({
-            "alpha_deg": s.alpha_deg,
-            "l0_mm": s.l0_mm,
-            "beta_deg": s.beta_deg,
-        })),
-    })
-}
+pub use alacs::eval::{calibration_json, table_1};
 
 /// Prints `value` as the one JSON object on standard output.
 pub fn print_json(value: &Value) {
@@ -44,33 +21,6 @@ pub fn print_json(value: &Value) {
 pub fn print_text(text: &str) {
     use std::io::Write as _;
     let _ = std::io::stdout().lock().write_all(text.as_bytes());
-}
-
-/// The seed paper's Table 1 for `results`.
-pub fn table_1(results: &[LaserCalibration]) -> String {
-    let mut out = String::new();
-    let _ = writeln!(
-        out,
-        "{:<44} {:>11} {:>9} {:>10} {:>15} {:>9}",
-        "", "alpha (deg)", "L0 (mm)", "beta (deg)", "Mean error (mm)", "inliers"
-    );
-    for c in results {
-        let beta = match c.laser.fidelity {
-            Fidelity::Low => "/".to_string(),
-            Fidelity::High => format!("{:.2}", c.laser.beta_deg()),
-        };
-        let _ = writeln!(
-            out,
-            "{:<44} {:>11.2} {:>9.2} {:>10} {:>15.2} {:>9}",
-            format!("Method {} ({})", c.method.number(), c.method.name()),
-            c.laser.alpha_deg(),
-            c.laser.l0_mm,
-            beta,
-            c.mean_abs_error_mm,
-            format!("{}/{}", c.inliers.len(), c.n_samples)
-        );
-    }
-    out
 }
 
 /// A readable summary of one calibration, with standard deviations.
@@ -227,4 +177,65 @@ pub fn localization_summary(answer: &Localization) -> String {
         );
     }
     out
+}
+
+/// The accuracy evaluation per slide position, as a table: the z errors'
+/// median, quartile range and extremes, their spread within views against
+/// the predicted noise floor, and the x and y errors' medians and ranges.
+pub fn accuracy_table(eval: &alacs::eval::AccuracyEvaluation) -> String {
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "{:>6} {:>6} {:>6} {:>7} | {:>7} {:>6} {:>7} {:>7} | {:>8} {:>9} | {:>13} {:>13}",
+        "d (mm)",
+        "L (mm)",
+        "points",
+        "depth",
+        "z med",
+        "IQR",
+        "min",
+        "max",
+        "sigma_z",
+        "predicted",
+        "x med / IQR",
+        "y med / IQR"
+    );
+    for s in &eval.slides {
+        let [x, y, z] = &s.error_mm;
+        let _ = writeln!(
+            out,
+            "{:>6.0} {:>6.0} {:>6} {:>7.0} | {:>7.3} {:>6.3} {:>7.2} {:>7.2} | {:>8.3} {:>9.3} | {:>6.3} {:>6.3} {:>6.3} {:>6.3}",
+            s.slide_mm,
+            s.laser_distance_mm,
+            z.n,
+            s.median_depth_mm,
+            z.median,
+            z.iqr(),
+            z.min,
+            z.max,
+            s.within_view_sigma_z_mm,
+            s.predicted_sigma_z_mm,
+            x.median,
+            x.iqr(),
+            y.median,
+            y.iqr()
+        );
+    }
+    let _ = writeln!(
+        out,
+        "(errors estimated - true, mm; sigma_z: the depth error's spread within each view (1.4826 MAD),\n\
+         predicted: z^2 cos(alpha) sigma_px / (f L) at the median depth with sigma_px {:.3} px{})",
+        eval.sigma_px,
+        if eval.sigma_px_measured { ", measured from the session" } else { ", given" }
+    );
+    out
+}
+
+/// "wrote N files to DIR (a, b, ...)".
+pub fn files_written(dir: &std::path::Path, files: &[std::path::PathBuf]) -> String {
+    let names: Vec<String> = files
+        .iter()
+        .map(|f| f.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default())
+        .collect();
+    format!("wrote {} files to {} ({})", files.len(), dir.display(), names.join(", "))
 }

@@ -136,6 +136,67 @@ fn unreadable_input_exits_2_naming_the_file() {
 }
 
 #[test]
+fn evaluate_bad_input_exits_2_naming_the_file() {
+    let dir = scratch("evaluate_bad_input");
+    let out = dir.join("evaluation");
+    let out = out.to_str().unwrap();
+    let missing = dir.join("missing.csv");
+    let output =
+        alacs(&["evaluate", "calibration", "--samples", missing.to_str().unwrap(), "--out", out]);
+    assert_eq!(output.status.code(), Some(2));
+    assert!(stderr(&output).contains("missing.csv"), "{}", stderr(&output));
+    // A session folder without session.yaml.
+    let output = alacs(&[
+        "evaluate",
+        "accuracy",
+        "--session",
+        dir.to_str().unwrap(),
+        "--camera",
+        "camera.yaml",
+        "--laser",
+        "laser.yaml",
+        "--out",
+        out,
+    ]);
+    assert_eq!(output.status.code(), Some(2));
+    assert!(stderr(&output).contains("session.yaml"), "{}", stderr(&output));
+    // Neither --samples nor --session: usage.
+    let output = alacs(&["evaluate", "calibration", "--out", out]);
+    assert_eq!(output.status.code(), Some(2));
+    assert!(!Path::new(out).exists(), "nothing written on bad input");
+}
+
+#[test]
+fn evaluate_calibration_writes_table_1_and_residual_plots() {
+    let dir = scratch("evaluate_calibration");
+    let samples = simulated_samples(&dir, "5");
+    let out = dir.join("evaluation");
+    let output =
+        alacs(&["evaluate", "calibration", "--samples", &samples, "--out", out.to_str().unwrap()]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let text = String::from_utf8(output.stdout).unwrap();
+    assert!(text.contains("Method 4 (High-fidelity model + RANSAC)"), "{text}");
+    assert!(text.contains("wrote 10 files"), "{text}");
+    let json: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("calibration.json")).unwrap())
+            .unwrap();
+    let methods = json["methods"].as_array().unwrap();
+    assert_eq!(methods.len(), 4);
+    // Method 4's fitted residuals: its inliers, small (0.5 mm depth noise).
+    let stats = &methods[3]["residual_stats_mm"];
+    assert_eq!(stats["n"], methods[3]["inliers"].as_array().unwrap().len());
+    assert!(stats["rms"].as_f64().unwrap() < 1.0, "{stats}");
+    for k in 1..=4 {
+        for ext in ["png", "svg"] {
+            let file = out.join(format!("calibration_residuals_method{k}.{ext}"));
+            assert!(std::fs::metadata(&file).unwrap().len() > 1000, "{}", file.display());
+        }
+    }
+    let png = image::open(out.join("calibration_residuals_method4.png")).unwrap();
+    assert_eq!((png.width(), png.height()), (900, 560));
+}
+
+#[test]
 fn degenerate_samples_exit_1_with_a_reason() {
     let dir = scratch("degenerate");
     let path = dir.join("one_depth.csv");
@@ -226,8 +287,36 @@ fn simulate_samples_is_deterministic() {
 
 #[test]
 fn demo_json_reports_four_methods_and_accuracy() {
-    let json = stdout_json(&alacs(&["demo", "--json"]));
+    let dir = scratch("demo");
+    let out = dir.join("artefacts");
+    let json = stdout_json(&alacs(&["demo", "--json", "--out", out.to_str().unwrap()]));
     assert_eq!(json["methods"].as_array().unwrap().len(), 4);
+    // The evaluation artefacts: Table 1, 4 residual plots and the accuracy
+    // box plots (PNG and SVG), the JSON files and the points CSV.
+    let files = json["files"].as_array().unwrap();
+    assert_eq!(files.len(), 14, "{files:?}");
+    for name in [
+        "calibration_table1.txt",
+        "calibration.json",
+        "calibration_residuals_method1.png",
+        "calibration_residuals_method4.svg",
+        "accuracy.json",
+        "accuracy_points.csv",
+        "accuracy_boxplots.png",
+        "accuracy_boxplots.svg",
+    ] {
+        let len = std::fs::metadata(out.join(name)).map(|m| m.len()).unwrap_or(0);
+        assert!(len > 0, "{name} missing or empty");
+    }
+    // The accuracy experiment from images: 5 slide positions, medians within
+    // 0.1 mm and the middle half within 0.5 mm in z (measured: 0.006-0.021
+    // and 0.09-0.15 mm).
+    let slides = json["images"]["accuracy"]["slides"].as_array().unwrap();
+    assert_eq!(slides.len(), 5);
+    for s in slides {
+        assert!(s["z"]["median_mm"].as_f64().unwrap().abs() < 0.1, "{s}");
+        assert!(s["z"]["iqr_mm"].as_f64().unwrap() < 0.5, "{s}");
+    }
     let accuracy = json["accuracy"].as_array().unwrap();
     assert_eq!(accuracy.len(), 5);
     for a in accuracy {
@@ -392,6 +481,46 @@ fn calibrate_from_a_simulated_session_end_to_end() {
         "--json",
     ]));
     assert_eq!(again["alpha_deg"], json["alpha_deg"]);
+    // Evaluate: Table 1 on the session's samples, then the accuracy experiment.
+    let eval_dir = dir.join("evaluation");
+    let eval_out = eval_dir.to_str().unwrap();
+    let table = stdout_json(&alacs(&[
+        "evaluate",
+        "calibration",
+        "--session",
+        out,
+        "--camera",
+        camera,
+        "--out",
+        eval_out,
+        "--json",
+    ]));
+    assert_eq!(table["methods"].as_array().unwrap().len(), 4);
+    assert_eq!(table["methods"][3]["alpha_deg"], json["alpha_deg"]);
+    let accuracy = stdout_json(&alacs(&[
+        "evaluate",
+        "accuracy",
+        "--session",
+        out,
+        "--camera",
+        camera,
+        "--laser",
+        laser.to_str().unwrap(),
+        "--out",
+        eval_out,
+        "--points",
+        "3",
+        "--json",
+    ]));
+    assert_eq!(accuracy["points_per_view"], "3");
+    assert_eq!(accuracy["slides"].as_array().unwrap().len(), 3, "{accuracy}");
+    assert_eq!(accuracy["n_points"], 3 * 18);
+    for file in
+        accuracy["files"].as_array().unwrap().iter().chain(table["files"].as_array().unwrap())
+    {
+        let len = std::fs::metadata(file.as_str().unwrap()).unwrap().len();
+        assert!(len > 0, "{file}");
+    }
     // Stripe of one view: CSV with a header, one row per stripe row.
     let stripe = alacs(&["stripe", "--image", dir.join("view01_slide1.png").to_str().unwrap()]);
     assert!(stripe.status.success(), "{}", stderr(&stripe));

@@ -2,6 +2,7 @@
 
 pub mod calibrate;
 pub mod demo;
+pub mod evaluate;
 pub mod localize;
 pub mod scan;
 pub mod simulate;

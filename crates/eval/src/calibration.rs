@@ -1,0 +1,193 @@
+//! The seed paper's calibration evaluation (Section 4.1, Table 1): the four
+//! methods on one set of samples, each with its depth residuals
+//! z - z_hat (eq. (9)) per sample and which samples it kept.
+//!
+//! The calibrations themselves are `alacs-calib`'s ([`alacs_calib::compare`]);
+//! this module only measures and reports them.
+
+use std::fmt::Write as _;
+
+use alacs_calib::{CalibrationOptions, LaserCalibration, LaserSample, compare, depth_error_mm};
+use alacs_model::Fidelity;
+use serde_json::{Value, json};
+
+use crate::{BoxStats, Result};
+
+/// One method of Table 1 with its residuals.
+#[derive(Debug, Clone)]
+pub struct MethodEvaluation {
+    /// The calibration.
+    pub calibration: LaserCalibration,
+    /// z - z_hat of every sample (eq. (9)), mm, in sample order.
+    pub residuals_mm: Vec<f64>,
+    /// Whether each sample is one the final fit used (an inlier).
+    pub is_inlier: Vec<bool>,
+}
+
+impl MethodEvaluation {
+    /// The statistics of the residuals of the fitted samples (the inliers).
+    pub fn inlier_stats(&self) -> Option<BoxStats> {
+        let inliers: Vec<f64> = self
+            .residuals_mm
+            .iter()
+            .zip(&self.is_inlier)
+            .filter(|(_, inlier)| **inlier)
+            .map(|(r, _)| *r)
+            .collect();
+        BoxStats::from_values(&inliers)
+    }
+}
+
+/// The four methods of Table 1 on one set of samples.
+#[derive(Debug, Clone)]
+pub struct CalibrationEvaluation {
+    /// The samples, in input order.
+    pub samples: Vec<LaserSample>,
+    /// Methods 1 to 4, in the paper's order.
+    pub methods: Vec<MethodEvaluation>,
+    /// The options every method ran with.
+    pub options: CalibrationOptions,
+}
+
+/// Runs the paper's four methods on `samples` and measures every sample's
+/// depth residual under each.
+pub fn evaluate_calibration(
+    samples: &[LaserSample],
+    options: &CalibrationOptions,
+) -> Result<CalibrationEvaluation> {
+    let results = compare(samples, options)?;
+    let methods = results
+        .into_iter()
+        .map(|calibration| {
+            let residuals_mm =
+                samples.iter().map(|s| depth_error_mm(&calibration.laser, s)).collect();
+            let mut is_inlier = vec![false; samples.len()];
+            for &i in &calibration.inliers {
+                if let Some(flag) = is_inlier.get_mut(i) {
+                    *flag = true;
+                }
+            }
+            MethodEvaluation { calibration, residuals_mm, is_inlier }
+        })
+        .collect();
+    Ok(CalibrationEvaluation { samples: samples.to_vec(), methods, options: *options })
+}
+
+/// One calibration as FORMATS.md's `calibrate laser --json` object, with
+/// `method`, `name` and the fit's statistics added.
+pub fn calibration_json(c: &LaserCalibration) -> Value {
+    json!({
+        "model": c.laser.fidelity.as_str(),
+        "alpha_deg": c.laser.alpha_deg(),
+        "beta_deg": c.laser.beta_deg(),
+        "l0_mm": c.laser.l0_mm,
+        "inliers": c.inliers,
+        "mean_abs_error_mm": c.mean_abs_error_mm,
+        "mean_abs_error_all_mm": c.mean_abs_error_all_mm,
+        "n_samples": c.n_samples,
+        "method": c.method.number(),
+        "name": c.method.name(),
+        "rms_error_mm": c.rms_error_mm,
+        "residual": c.residual.as_str(),
+        "ransac_iterations": c.ransac_iterations,
+        "std_dev": c.std_dev.map(|s| json!({
+            "alpha_deg": s.alpha_deg,
+            "l0_mm": s.l0_mm,
+            "beta_deg": s.beta_deg,
+        })),
+    })
+}
+
+/// The seed paper's Table 1 for `results`, as text.
+pub fn table_1(results: &[LaserCalibration]) -> String {
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "{:<44} {:>11} {:>9} {:>10} {:>15} {:>9}",
+        "", "alpha (deg)", "L0 (mm)", "beta (deg)", "Mean error (mm)", "inliers"
+    );
+    for c in results {
+        let beta = match c.laser.fidelity {
+            Fidelity::Low => "/".to_string(),
+            Fidelity::High => format!("{:.2}", c.laser.beta_deg()),
+        };
+        let _ = writeln!(
+            out,
+            "{:<44} {:>11.2} {:>9.2} {:>10} {:>15.2} {:>9}",
+            format!("Method {} ({})", c.method.number(), c.method.name()),
+            c.laser.alpha_deg(),
+            c.laser.l0_mm,
+            beta,
+            c.mean_abs_error_mm,
+            format!("{}/{}", c.inliers.len(), c.n_samples)
+        );
+    }
+    out
+}
+
+impl CalibrationEvaluation {
+    /// The calibrations, in the paper's order.
+    pub fn calibrations(&self) -> Vec<LaserCalibration> {
+        self.methods.iter().map(|m| m.calibration.clone()).collect()
+    }
+
+    /// Table 1 as text.
+    pub fn table_1(&self) -> String {
+        table_1(&self.calibrations())
+    }
+
+    /// The evaluation as JSON: `{"methods": [...]}` as `calibrate laser
+    /// --compare --json` prints it, each method with the statistics of its
+    /// inliers' residuals (`residual_stats_mm`: n, median, q1, q3, min, max,
+    /// mean, rms), and `n_samples`, `threshold_mm`.
+    pub fn to_json(&self) -> Value {
+        json!({
+            "n_samples": self.samples.len(),
+            "threshold_mm": self.options.threshold_mm,
+            "methods": self.methods.iter().map(|m| {
+                let mut value = calibration_json(&m.calibration);
+                if let Value::Object(map) = &mut value {
+                    map.insert("residual_stats_mm".into(), json!(m.inlier_stats()));
+                }
+                value
+            }).collect::<Vec<_>>(),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use alacs_model::LaserModel;
+    use nalgebra::Point2;
+
+    #[test]
+    fn residuals_are_depth_errors_and_inliers_are_flagged() {
+        let truth = LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98);
+        let mut samples = Vec::new();
+        for i in 0..40 {
+            let v_n = -0.4 + 0.8 * f64::from(i % 8) / 7.0;
+            let u_n = -0.3 + 0.015 * f64::from(i);
+            let mut z_mm = truth.depth_mm(&Point2::new(u_n, v_n), 0.0).unwrap();
+            if i % 10 == 3 {
+                z_mm += 30.0; // a gross outlier
+            }
+            samples.push(LaserSample { u_n, v_n, z_mm, slide_mm: 0.0 });
+        }
+        let eval = evaluate_calibration(&samples, &CalibrationOptions::default()).unwrap();
+        assert_eq!(eval.methods.len(), 4);
+        let method4 = &eval.methods[3];
+        for (i, (&r, &inlier)) in method4.residuals_mm.iter().zip(&method4.is_inlier).enumerate() {
+            assert_eq!(inlier, i % 10 != 3, "sample {i}");
+            if inlier {
+                assert!(r.abs() < 1e-6, "sample {i}: {r}");
+            } else {
+                assert!((r - 30.0).abs() < 1e-6, "sample {i}: {r}");
+            }
+        }
+        let json = eval.to_json();
+        assert_eq!(json["methods"][3]["method"], 4);
+        assert_eq!(json["methods"][3]["residual_stats_mm"]["n"], 36);
+        assert!(eval.table_1().contains("Method 4 (High-fidelity model + RANSAC)"));
+    }
+}

@@ -1,0 +1,58 @@
+//! The one error type of `alacs-eval`.
+
+use std::path::PathBuf;
+
+/// Result with this crate's [`Error`].
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// Everything that can go wrong while evaluating or writing a report.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// Calibration (or reading its samples or a session's images) failed.
+    #[error(transparent)]
+    Calib(#[from] alacs_calib::Error),
+    /// A camera, laser or session file could not be used.
+    #[error(transparent)]
+    Model(#[from] alacs_model::Error),
+    /// A report file could not be written.
+    #[error("{path}: {error}")]
+    Io {
+        /// The file or folder.
+        path: PathBuf,
+        /// What the operating system said.
+        error: std::io::Error,
+    },
+    /// A plot could not be drawn or encoded.
+    #[error("{path}: cannot draw the plot: {message}")]
+    Plot {
+        /// The plot's file.
+        path: PathBuf,
+        /// What went wrong.
+        message: String,
+    },
+    /// The evaluation has nothing to evaluate (no view gave a point, say).
+    #[error("nothing to evaluate: {0}")]
+    NoData(String),
+    /// An option is out of range.
+    #[error("invalid option: {0}")]
+    InvalidOptions(String),
+}
+
+impl Error {
+    /// Whether the error is about unreadable or invalid input (exit code 2 in
+    /// FORMATS.md) rather than an evaluation that failed on readable data (1).
+    pub fn is_bad_input(&self) -> bool {
+        match self {
+            Error::Calib(e) => e.is_bad_input(),
+            Error::Model(e) => matches!(
+                e,
+                alacs_model::Error::Io { .. }
+                    | alacs_model::Error::Parse { .. }
+                    | alacs_model::Error::InvalidParameters { .. }
+            ),
+            Error::InvalidOptions(_) => true,
+            Error::Io { .. } | Error::Plot { .. } | Error::NoData(_) => false,
+        }
+    }
+}

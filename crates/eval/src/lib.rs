@@ -1,0 +1,46 @@
+//! Evaluation of ALACS calibrations, the seed paper's experiments as reports
+//! a user can read:
+//!
+//! - [`evaluate_calibration`]: Table 1 (Section 4.1), the four methods of
+//!   `alacs-calib` on one set of samples with every sample's depth residual
+//!   z - z_hat (eq. (9)) and whether the method kept it;
+//! - [`evaluate_accuracy`]: the localization experiment (Section 4.2), board
+//!   views at several slide positions d, each laser pixel's triangulation
+//!   (eqs. (7)-(8)) against its ray on the board plane, with the errors in
+//!   x, y and z per slide position as box-plot statistics ([`BoxStats`]:
+//!   median, quartiles, whiskers to the extremes, as the paper's figure)
+//!   and the predicted noise floor sigma_z = z^2 cos(alpha) sigma_px / (f L);
+//! - [`write_calibration_report`], [`write_accuracy_report`]: text, JSON,
+//!   CSV and plots (PNG and SVG, plotters with a built-in font).
+//!
+//! # Conventions
+//! Camera frame as OpenCV's (x right, y down, z forward); errors are
+//! estimated minus true, in millimetres; radians inside, degrees in files.
+//!
+//! # Example
+//! ```
+//! use alacs_eval::BoxStats;
+//!
+//! let s = BoxStats::from_values(&[0.3, -0.1, 0.2, 0.0, 5.0]).unwrap();
+//! assert_eq!((s.min, s.median, s.max), (-0.1, 0.2, 5.0)); // whiskers to the extremes
+//! assert!((s.q1 - 0.0).abs() < 1e-12 && (s.q3 - 0.3).abs() < 1e-12);
+//! ```
+
+mod accuracy;
+mod calibration;
+mod error;
+mod plot;
+mod report;
+mod stats;
+
+pub use accuracy::{
+    AccuracyEvaluation, AccuracyOptions, AccuracyPoint, PointsPerView, SlideAccuracy,
+    evaluate_accuracy, noise_floor_mm,
+};
+pub use calibration::{
+    CalibrationEvaluation, MethodEvaluation, calibration_json, evaluate_calibration, table_1,
+};
+pub use error::{Error, Result};
+pub use plot::{write_accuracy_boxplots, write_residual_plot};
+pub use report::{write_accuracy_report, write_calibration_report};
+pub use stats::{BoxStats, median, quantile_sorted};

@@ -1,0 +1,390 @@
+//! Plots as PNG and SVG (plotters): the accuracy box plots (one panel per
+//! axis, one box per slide position, whiskers to the extremes) and a residual
+//! scatter per calibration method.
+//!
+//! Text uses DejaVu Sans compiled into the binary (`assets/`, Bitstream Vera
+//! licence) through plotters' pure-Rust `ab_glyph` feature: no system font
+//! library is needed.
+
+use std::error::Error as StdError;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use plotters::style::{FontStyle, register_font};
+
+use crate::accuracy::AccuracyEvaluation;
+use crate::calibration::MethodEvaluation;
+use crate::{Error, Result};
+
+/// The font every plot's text is set in.
+static FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
+
+/// The family name plots ask for.
+const FAMILY: &str = "sans-serif";
+
+/// Size of a box-plot figure (three panels side by side), px.
+const BOXPLOT_SIZE: (u32, u32) = (1500, 900);
+
+/// Size of a residual figure, px.
+const RESIDUAL_SIZE: (u32, u32) = (900, 560);
+
+/// A normal distribution's quartiles lie 0.6745 standard deviations from its median.
+const QUARTILE_IN_SIGMAS: f64 = 0.6745;
+
+/// Box fill and outline.
+const BOX_FILL: RGBColor = RGBColor(166, 206, 227);
+const BOX_LINE: RGBColor = RGBColor(31, 120, 180);
+/// The predicted-noise marks.
+const PREDICTED: RGBColor = RGBColor(51, 160, 44);
+
+type Drawn = std::result::Result<(), Box<dyn StdError>>;
+
+/// Registers the built-in font once.
+fn ensure_font() -> Result<()> {
+    static REGISTERED: OnceLock<bool> = OnceLock::new();
+    let ok = *REGISTERED.get_or_init(|| register_font(FAMILY, FontStyle::Normal, FONT).is_ok());
+    if ok {
+        Ok(())
+    } else {
+        Err(Error::Plot { path: PathBuf::from("DejaVuSans.ttf"), message: "invalid font".into() })
+    }
+}
+
+/// Something drawn on any plotters backend.
+trait Figure {
+    /// Draws the figure on `root`.
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Drawn
+    where
+        DB::ErrorType: 'static;
+}
+
+/// Draws `figure` into `stem`.png and `stem`.svg; returns both paths.
+fn write_png_and_svg(stem: &Path, size: (u32, u32), figure: &impl Figure) -> Result<Vec<PathBuf>> {
+    ensure_font()?;
+    let png = stem.with_extension("png");
+    let svg = stem.with_extension("svg");
+    let plot_error = |path: &Path, e: Box<dyn StdError>| Error::Plot {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    };
+
+    let mut pixels = vec![0u8; size.0 as usize * size.1 as usize * 3];
+    {
+        let root = BitMapBackend::with_buffer(&mut pixels, size).into_drawing_area();
+        figure.draw(&root).map_err(|e| plot_error(&png, e))?;
+        root.present().map_err(|e| plot_error(&png, e.into()))?;
+    }
+    image::save_buffer(&png, &pixels, size.0, size.1, image::ExtendedColorType::Rgb8)
+        .map_err(|e| Error::Plot { path: png.clone(), message: e.to_string() })?;
+
+    let mut text = String::new();
+    {
+        let root = SVGBackend::with_string(&mut text, size).into_drawing_area();
+        figure.draw(&root).map_err(|e| plot_error(&svg, e))?;
+        root.present().map_err(|e| plot_error(&svg, e.into()))?;
+    }
+    std::fs::write(&svg, text).map_err(|error| Error::Io { path: svg.clone(), error })?;
+    Ok(vec![png, svg])
+}
+
+/// A tick label: at most three decimals, trailing zeros dropped, no "-0".
+fn tick_label(value: &f64) -> String {
+    let text = format!("{value:.3}");
+    let text = text.trim_end_matches('0').trim_end_matches('.');
+    if text == "-0" { "0".to_string() } else { text.to_string() }
+}
+
+/// A range [lo, hi] padded by 6 % (or by `min_pad` when it is empty).
+fn padded(lo: f64, hi: f64, min_pad: f64) -> (f64, f64) {
+    let pad = ((hi - lo) * 0.06).max(min_pad);
+    (lo - pad, hi + pad)
+}
+
+/// The accuracy figure: per axis a panel, per slide position a box; the top
+/// row to the extremes, the bottom row zoomed to the boxes (whiskers cut at
+/// the panel's edge).
+struct BoxPlots<'a> {
+    eval: &'a AccuracyEvaluation,
+}
+
+/// How far beyond the quartiles the zoomed row reaches, in IQRs.
+const ZOOM_IQRS: f64 = 2.0;
+
+impl BoxPlots<'_> {
+    /// The predicted quartiles median +- 0.6745 sigma_z of a slide position's z errors.
+    fn predicted(s: &crate::SlideAccuracy) -> (f64, f64) {
+        let offset = QUARTILE_IN_SIGMAS * s.predicted_sigma_z_mm;
+        (s.error_mm[2].median - offset, s.error_mm[2].median + offset)
+    }
+
+    /// One panel: the errors along `axis`, zoomed to the boxes or not.
+    fn panel<DB: DrawingBackend>(
+        &self,
+        panel: &DrawingArea<DB, Shift>,
+        axis: usize,
+        zoom: bool,
+    ) -> Drawn
+    where
+        DB::ErrorType: 'static,
+    {
+        let name = ["x", "y", "z"][axis];
+        let slides: Vec<f64> = self.eval.slides.iter().map(|s| s.slide_mm).collect();
+        let spacing = if slides.len() > 1 {
+            slides.windows(2).map(|w| w[1] - w[0]).fold(f64::INFINITY, f64::min)
+        } else {
+            50.0
+        };
+        let half_width = 0.25 * spacing;
+        let first = slides.first().copied().unwrap_or(0.0);
+        let last = slides.last().copied().unwrap_or(0.0);
+        let x_range = (first - 0.7 * spacing)..(last + 0.7 * spacing);
+        let (mut lo, mut hi) = self.eval.slides.iter().fold((0.0f64, 0.0f64), |(lo, hi), s| {
+            let b = &s.error_mm[axis];
+            if zoom {
+                (lo.min(b.q1 - ZOOM_IQRS * b.iqr()), hi.max(b.q3 + ZOOM_IQRS * b.iqr()))
+            } else {
+                (lo.min(b.min), hi.max(b.max))
+            }
+        });
+        if axis == 2 {
+            for s in &self.eval.slides {
+                let (a, b) = Self::predicted(s);
+                lo = lo.min(a);
+                hi = hi.max(b);
+            }
+        }
+        let (lo, hi) = padded(lo, hi, 0.01);
+        let clamp = |v: f64| v.clamp(lo, hi);
+        let caption = if zoom {
+            format!("{name} error, zoomed to the boxes")
+        } else {
+            format!("{name} error (estimated - true)")
+        };
+        let mut chart = ChartBuilder::on(panel)
+            .margin(10)
+            .caption(caption, (FAMILY, 19))
+            .x_label_area_size(42)
+            .y_label_area_size(64)
+            .build_cartesian_2d(x_range.clone(), lo..hi)?;
+        chart
+            .configure_mesh()
+            .disable_x_mesh()
+            .light_line_style(WHITE)
+            .x_labels(slides.len().max(2))
+            .x_label_formatter(&|x| format!("{x:.0}"))
+            .y_label_formatter(&tick_label)
+            .x_desc("slide position d (mm)")
+            .y_desc(format!("{name} error (mm)"))
+            .label_style((FAMILY, 15))
+            .axis_desc_style((FAMILY, 16))
+            .draw()?;
+        chart.draw_series(std::iter::once(PathElement::new(
+            vec![(x_range.start, 0.0), (x_range.end, 0.0)],
+            BLACK.mix(0.3),
+        )))?;
+        let line = BOX_LINE.stroke_width(2);
+        for s in &self.eval.slides {
+            let b = &s.error_mm[axis];
+            let x = s.slide_mm;
+            let cap = 0.5 * half_width;
+            let (bottom, top) = (clamp(b.min), clamp(b.max));
+            chart.draw_series([
+                PathElement::new(vec![(x, bottom), (x, clamp(b.q1))], line),
+                PathElement::new(vec![(x, clamp(b.q3)), (x, top)], line),
+            ])?;
+            // Caps only where the whisker really ends inside the panel.
+            for (end, value) in [(bottom, b.min), (top, b.max)] {
+                if end == value {
+                    chart.draw_series(std::iter::once(PathElement::new(
+                        vec![(x - cap, end), (x + cap, end)],
+                        line,
+                    )))?;
+                }
+            }
+            let corners = [(x - half_width, clamp(b.q1)), (x + half_width, clamp(b.q3))];
+            chart.draw_series([
+                Rectangle::new(corners, BOX_FILL.filled()),
+                Rectangle::new(corners, line),
+            ])?;
+            chart.draw_series(std::iter::once(PathElement::new(
+                vec![(x - half_width, clamp(b.median)), (x + half_width, clamp(b.median))],
+                BLACK.stroke_width(3),
+            )))?;
+        }
+        if axis == 2 {
+            let marks: Vec<PathElement<(f64, f64)>> = self
+                .eval
+                .slides
+                .iter()
+                .flat_map(|s| {
+                    let (a, b) = Self::predicted(s);
+                    let x = s.slide_mm;
+                    let w = 1.3 * half_width;
+                    [
+                        PathElement::new(vec![(x - w, a), (x + w, a)], PREDICTED.stroke_width(2)),
+                        PathElement::new(vec![(x - w, b), (x + w, b)], PREDICTED.stroke_width(2)),
+                    ]
+                })
+                .collect();
+            chart
+                .draw_series(marks)?
+                .label(format!(
+                    "noise floor: median +- 0.674 sigma_z ({:.3} px)",
+                    self.eval.sigma_px
+                ))
+                .legend(|(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 20, y)], PREDICTED.stroke_width(2))
+                });
+            if !zoom {
+                return Ok(());
+            }
+            chart
+                .configure_series_labels()
+                .position(SeriesLabelPosition::LowerRight)
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK.mix(0.4))
+                .label_font((FAMILY, 13))
+                .draw()?;
+        }
+        Ok(())
+    }
+}
+
+impl Figure for BoxPlots<'_> {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Drawn
+    where
+        DB::ErrorType: 'static,
+    {
+        root.fill(&WHITE)?;
+        let (title, body) = root.split_vertically(40);
+        title.draw(&Text::new(
+            format!(
+                "Localization error per slide position: {} points ({} per view), boxes: quartiles and median, whiskers: extremes",
+                self.eval.points.len(),
+                self.eval.points_per_view.as_str()
+            ),
+            (16, 12),
+            (FAMILY, 20).into_font(),
+        ))?;
+        for (k, panel) in body.split_evenly((2, 3)).iter().enumerate() {
+            self.panel(panel, k % 3, k >= 3)?;
+        }
+        Ok(())
+    }
+}
+
+/// One method's residuals against depth, inliers and outliers marked.
+struct Residuals<'a> {
+    eval: &'a MethodEvaluation,
+    depths_mm: &'a [f64],
+}
+
+impl Figure for Residuals<'_> {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Drawn
+    where
+        DB::ErrorType: 'static,
+    {
+        root.fill(&WHITE)?;
+        let c = &self.eval.calibration;
+        let (z_lo, z_hi) = self
+            .depths_mm
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &z| (lo.min(z), hi.max(z)));
+        let (r_lo, r_hi) = self
+            .eval
+            .residuals_mm
+            .iter()
+            .fold((0.0f64, 0.0f64), |(lo, hi), &r| (lo.min(r), hi.max(r)));
+        let (z_lo, z_hi) = padded(z_lo, z_hi, 1.0);
+        let (r_lo, r_hi) = padded(r_lo, r_hi, 0.01);
+        let mut chart = ChartBuilder::on(root)
+            .margin(14)
+            .caption(
+                format!(
+                    "Method {} ({}): mean |z - z_hat| {:.3} mm, {} of {} samples fitted",
+                    c.method.number(),
+                    c.method.name(),
+                    c.mean_abs_error_mm,
+                    c.inliers.len(),
+                    c.n_samples
+                ),
+                (FAMILY, 19),
+            )
+            .x_label_area_size(46)
+            .y_label_area_size(70)
+            .build_cartesian_2d(z_lo..z_hi, r_lo..r_hi)?;
+        chart
+            .configure_mesh()
+            .light_line_style(WHITE)
+            .x_label_formatter(&tick_label)
+            .y_label_formatter(&tick_label)
+            .x_desc("depth z from the board pose (mm)")
+            .y_desc("z - z_hat (mm)")
+            .label_style((FAMILY, 15))
+            .axis_desc_style((FAMILY, 16))
+            .draw()?;
+        chart.draw_series(std::iter::once(PathElement::new(
+            vec![(z_lo, 0.0), (z_hi, 0.0)],
+            BLACK.mix(0.4),
+        )))?;
+        let points = |inlier: bool| {
+            self.depths_mm
+                .iter()
+                .zip(&self.eval.residuals_mm)
+                .zip(&self.eval.is_inlier)
+                .filter(move |(_, flag)| **flag == inlier)
+                .map(|((&z, &r), _)| (z, r))
+        };
+        let n_in = points(true).count();
+        let n_out = points(false).count();
+        chart
+            .draw_series(points(true).map(|p| Circle::new(p, 2, BOX_LINE.filled())))?
+            .label(format!("fitted (inlier), {n_in}"))
+            .legend(|(x, y)| Circle::new((x + 10, y), 3, BOX_LINE.filled()));
+        if n_out > 0 {
+            chart
+                .draw_series(points(false).map(|p| Cross::new(p, 4, RED.stroke_width(2))))?
+                .label(format!("rejected (outlier), {n_out}"))
+                .legend(|(x, y)| Cross::new((x + 10, y), 4, RED.stroke_width(2)));
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK.mix(0.4))
+            .label_font((FAMILY, 14))
+            .draw()?;
+        Ok(())
+    }
+}
+
+/// Writes the accuracy box plots to `stem`.png and `stem`.svg.
+pub fn write_accuracy_boxplots(stem: &Path, eval: &AccuracyEvaluation) -> Result<Vec<PathBuf>> {
+    write_png_and_svg(stem, BOXPLOT_SIZE, &BoxPlots { eval })
+}
+
+/// Writes one method's residual scatter (z - z_hat against z, inliers and
+/// outliers marked) to `stem`.png and `stem`.svg.
+pub fn write_residual_plot(
+    stem: &Path,
+    method: &MethodEvaluation,
+    depths_mm: &[f64],
+) -> Result<Vec<PathBuf>> {
+    write_png_and_svg(stem, RESIDUAL_SIZE, &Residuals { eval: method, depths_mm })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::tick_label;
+
+    #[test]
+    fn tick_labels_are_short() {
+        assert_eq!(tick_label(&-0.0000001), "0");
+        assert_eq!(tick_label(&0.05), "0.05");
+        assert_eq!(tick_label(&2.0), "2");
+        assert_eq!(tick_label(&-1.5), "-1.5");
+        assert_eq!(tick_label(&600.0), "600");
+    }
+}

@@ -1,0 +1,141 @@
+//! Box-plot statistics: what one box of the seed paper's accuracy figure
+//! shows (median, quartiles, whiskers to the extremes) plus the mean and the
+//! root mean square.
+
+use serde::Serialize;
+
+/// The statistics of one set of values (errors in mm, say), as one box of a
+/// box plot with whiskers to the extremes.
+///
+/// Quartiles interpolate linearly between order statistics (the "type 7"
+/// definition of Hyndman and Fan, NumPy's and R's default): the q-quantile of
+/// n sorted values is at position q (n - 1).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct BoxStats {
+    /// How many values.
+    pub n: usize,
+    /// The median (the 0.5 quantile).
+    pub median: f64,
+    /// The lower quartile (the 0.25 quantile).
+    pub q1: f64,
+    /// The upper quartile (the 0.75 quantile).
+    pub q3: f64,
+    /// The smallest value: the lower whisker's end.
+    pub min: f64,
+    /// The largest value: the upper whisker's end.
+    pub max: f64,
+    /// The arithmetic mean.
+    pub mean: f64,
+    /// The root mean square (about zero, not about the mean).
+    pub rms: f64,
+}
+
+impl BoxStats {
+    /// The statistics of `values`; `None` when there are none or one of
+    /// them is not finite.
+    pub fn from_values(values: &[f64]) -> Option<Self> {
+        if values.is_empty() || values.iter().any(|v| !v.is_finite()) {
+            return None;
+        }
+        let mut sorted = values.to_vec();
+        sorted.sort_by(f64::total_cmp);
+        let n = sorted.len();
+        let sum: f64 = sorted.iter().sum();
+        let sum_squares: f64 = sorted.iter().map(|v| v * v).sum();
+        Some(Self {
+            n,
+            median: quantile_sorted(&sorted, 0.5),
+            q1: quantile_sorted(&sorted, 0.25),
+            q3: quantile_sorted(&sorted, 0.75),
+            min: sorted[0],
+            max: sorted[n - 1],
+            mean: sum / n as f64,
+            rms: (sum_squares / n as f64).sqrt(),
+        })
+    }
+
+    /// The interquartile range q3 - q1.
+    pub fn iqr(&self) -> f64 {
+        self.q3 - self.q1
+    }
+}
+
+/// The `q`-quantile (0 to 1) of ascending `sorted` values, interpolated
+/// linearly (see [`BoxStats`]); NaN for no values.
+pub fn quantile_sorted(sorted: &[f64], q: f64) -> f64 {
+    match sorted.len() {
+        0 => f64::NAN,
+        1 => sorted[0],
+        n => {
+            let position = q.clamp(0.0, 1.0) * (n - 1) as f64;
+            let below = position.floor() as usize;
+            let above = (below + 1).min(n - 1);
+            let fraction = position - below as f64;
+            sorted[below] + fraction * (sorted[above] - sorted[below])
+        }
+    }
+}
+
+/// The median of `values` (any order); NaN for none.
+pub fn median(values: &[f64]) -> f64 {
+    let mut sorted = values.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    quantile_sorted(&sorted, 0.5)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn odd_count_matches_numpy() {
+        // numpy.percentile([7, 1, 3, 9, 5], [25, 50, 75]) = [3, 5, 7]
+        let s = BoxStats::from_values(&[7.0, 1.0, 3.0, 9.0, 5.0]).unwrap();
+        assert_eq!((s.n, s.q1, s.median, s.q3), (5, 3.0, 5.0, 7.0));
+        assert_eq!((s.min, s.max), (1.0, 9.0));
+        assert_eq!(s.mean, 5.0);
+        assert!((s.rms - (165.0f64 / 5.0).sqrt()).abs() < 1e-12);
+        assert_eq!(s.iqr(), 4.0);
+    }
+
+    #[test]
+    fn even_count_interpolates() {
+        // numpy.percentile([1, 2, 3, 4], [25, 50, 75]) = [1.75, 2.5, 3.25]
+        let s = BoxStats::from_values(&[4.0, 3.0, 2.0, 1.0]).unwrap();
+        assert!((s.q1 - 1.75).abs() < 1e-12);
+        assert!((s.median - 2.5).abs() < 1e-12);
+        assert!((s.q3 - 3.25).abs() < 1e-12);
+    }
+
+    #[test]
+    fn whiskers_reach_the_extremes_even_for_outliers() {
+        // A 1.5-IQR whisker would stop at 4; the paper's figure shows 100.
+        let s = BoxStats::from_values(&[1.0, 2.0, 2.0, 3.0, 100.0]).unwrap();
+        assert_eq!(s.max, 100.0);
+        assert_eq!(s.min, 1.0);
+        assert_eq!(s.median, 2.0);
+    }
+
+    #[test]
+    fn one_value_and_none() {
+        let s = BoxStats::from_values(&[-2.5]).unwrap();
+        assert_eq!((s.min, s.q1, s.median, s.q3, s.max), (-2.5, -2.5, -2.5, -2.5, -2.5));
+        assert_eq!(s.rms, 2.5);
+        assert!(BoxStats::from_values(&[]).is_none());
+        assert!(BoxStats::from_values(&[1.0, f64::NAN]).is_none());
+        assert!(median(&[]).is_nan());
+    }
+
+    #[test]
+    fn order_does_not_matter() {
+        let values: Vec<f64> = (0..101).map(|i| ((i * 37) % 101) as f64 * 0.1 - 3.0).collect();
+        let mut reversed = values.clone();
+        reversed.reverse();
+        assert_eq!(BoxStats::from_values(&values), BoxStats::from_values(&reversed));
+        let s = BoxStats::from_values(&values).unwrap();
+        // 0..=100 scaled: quartiles at 25, 50, 75 exactly.
+        assert!((s.q1 - (2.5 - 3.0)).abs() < 1e-12);
+        assert!((s.median - (5.0 - 3.0)).abs() < 1e-12);
+        assert!((s.q3 - (7.5 - 3.0)).abs() < 1e-12);
+    }
+}
