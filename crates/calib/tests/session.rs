@@ -82,7 +82,12 @@ fn simulated_session_calibrates_camera_and_laser_to_the_truth() {
         assert!((l.alpha_deg() - truth.alpha_deg()).abs() < 0.05);
         assert!((l.beta_deg() - truth.beta_deg()).abs() < 0.05);
         assert!((l.l0_mm - truth.l0_mm).abs() < 0.3);
-        assert!(laser.views.iter().all(|v| v.n_samples > 50), "{:?}", laser.views);
+        // Every view gives samples; half-scale boards 4-213 per view once the
+        // points with a square's edge under the stripe are dropped (a stripe
+        // along a column of squares loses most), 9 in 10 views over 30.
+        assert!(laser.views.iter().all(|v| v.n_samples > 0), "{:?}", laser.views);
+        let many = laser.views.iter().filter(|v| v.n_samples > 30).count();
+        assert!(10 * many >= 9 * laser.views.len(), "{:?}", laser.views);
         assert!(laser.warnings.is_empty(), "{:?}", laser.warnings);
         let _ = std::fs::remove_dir_all(&dir);
     }

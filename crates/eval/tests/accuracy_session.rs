@@ -106,6 +106,10 @@ fn five_slide_positions_agree_with_the_noise_floor() {
         assert!(z.iqr() < 0.6 && x.iqr() < 0.2 && y.iqr() < 0.2, "d = {}", slide.slide_mm);
         // The stripe's share of the depth error is the noise floor's
         // prediction within 25 % (measured ratios 0.89-1.15).
+        // Regression, stripe points with a square's edge under the profile:
+        // their biased centres made the worst depth errors 7-14 mm here;
+        // dropped, the worst are 1.3-4.0 mm.
+        assert!(z.min.abs().max(z.max.abs()) < 5.0, "d = {}: worst z", slide.slide_mm);
         let ratio = slide.within_view_sigma_z_mm / slide.predicted_sigma_z_mm;
         assert!((0.75..1.33).contains(&ratio), "d = {}: ratio {ratio}", slide.slide_mm);
     }
@@ -124,11 +128,11 @@ fn five_slide_positions_agree_with_the_noise_floor() {
     assert!(sigma(4) > 1.3 * sigma(0), "{} vs {}", sigma(4), sigma(0));
     assert!(sigma(3) + sigma(4) > 1.2 * (sigma(0) + sigma(1)));
 
-    // Points per view: 3 gives 3 per view that has a stripe.
+    // Points per view: 3 gives 3 per view (fewer where the stripe has fewer).
     let three = AccuracyOptions { points: PointsPerView::Three, ..AccuracyOptions::default() };
     let eval3 = evaluate_accuracy(&session, &simulated.camera, &truth, &three, &|| {}).unwrap();
-    let views_with_points = eval.views.iter().filter(|v| v.n_samples > 0).count();
-    assert_eq!(eval3.points.len(), 3 * views_with_points);
+    let expected: usize = eval.views.iter().map(|v| v.n_samples.min(3)).sum();
+    assert_eq!(eval3.points.len(), expected);
     if std::env::var_os("ALACS_EVAL_KEEP").is_none() {
         std::fs::remove_dir_all(&dir).ok();
     }
