@@ -465,6 +465,17 @@ fn check_inputs(
                 camera.height_px
             ));
         }
+        if let Some(off) = frame.image_laser_off
+            && off.dimensions() != frame.image.dimensions()
+        {
+            return invalid(format!(
+                "frame {i}: the laser-off image is {} x {} px, the frame {} x {} px",
+                off.width(),
+                off.height(),
+                frame.image.width(),
+                frame.image.height()
+            ));
+        }
         if !frame.slide_mm.is_finite() {
             return invalid(format!("frame {i}: slide_mm {} is not finite", frame.slide_mm));
         }

@@ -105,6 +105,10 @@ fn frames_that_do_not_fit_the_camera_are_refused() {
     assert!(matches!(error, Error::InvalidInput(ref m) if m.contains("frame 0")), "{error}");
     let error = locate(&camera, &laser(), &prior, &[], &LocateOptions::default()).unwrap_err();
     assert!(error.to_string().contains("no frames"), "{error}");
+    let fits = image::RgbImage::new(camera.width_px, camera.height_px);
+    let frames = [FrameImages { image: &fits, image_laser_off: Some(&image), slide_mm: 0.0 }];
+    let error = locate(&camera, &laser(), &prior, &frames, &LocateOptions::default()).unwrap_err();
+    assert!(error.to_string().contains("laser-off image"), "{error}");
     let behind = Prior { rough_position_mm: Point3::new(0.0, 0.0, -5.0), ..prior };
     let frames = [];
     assert!(locate(&camera, &laser(), &behind, &frames, &LocateOptions::default()).is_err());
