@@ -46,4 +46,4 @@ pub use geometry::{Plane, Ray};
 pub use laser::{Fidelity, LaserModel, PreparedLaser, SLIDE_STROKE_MM, SlideTarget};
 pub use scan::{DEFAULT_FRUIT_RADIUS_MM, SCAN_FILE, Scan, ScanFrameSpec};
 pub use scan_plan::{ScanPlan, ScanStrategy};
-pub use session::{BoardSpec, SESSION_FILE, Session, SessionView};
+pub use session::{BoardSpec, SESSION_FILE, Session, SessionView, image_entry_yaml};

@@ -60,6 +60,34 @@ pub struct SessionView {
     pub image_laser_off: Option<PathBuf>,
 }
 
+/// One entry of session.yaml's `views` or scan.yaml's `frames` (FORMATS.md),
+/// for the programs that write them; the names are quoted, so any file name
+/// reads back as written. A writer may append keys of its own to the entry,
+/// indented by four spaces.
+pub fn image_entry_yaml(image: &str, slide_mm: f64, image_laser_off: Option<&str>) -> String {
+    let mut text = format!("  - image: {}\n    slide_mm: {slide_mm:?}\n", yaml_quoted(image));
+    if let Some(off) = image_laser_off {
+        text.push_str(&format!("    image_laser_off: {}\n", yaml_quoted(off)));
+    }
+    text
+}
+
+/// `text` as a YAML double-quoted scalar.
+fn yaml_quoted(text: &str) -> String {
+    let mut quoted = String::with_capacity(text.len() + 2);
+    quoted.push('"');
+    for c in text.chars() {
+        match c {
+            '"' => quoted.push_str("\\\""),
+            '\\' => quoted.push_str("\\\\"),
+            c if c.is_control() => quoted.push_str(&format!("\\u{:04x}", u32::from(c))),
+            c => quoted.push(c),
+        }
+    }
+    quoted.push('"');
+    quoted
+}
+
 /// A calibration session as read from session.yaml.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Session {
@@ -178,6 +206,21 @@ mod tests {
 
     fn parse(text: &str) -> Result<Session> {
         Session::parse(text, Path::new("/data/s"), Path::new("/data/s/session.yaml"))
+    }
+
+    #[test]
+    fn written_entries_read_back_whatever_the_file_names() {
+        let names = ["view01.png", "a: b #c.png", "say \"hi\"\\x.png", "tab\there.png", "- 01.png"];
+        let mut text = String::from("board: {inner_corners: [9, 6], square_mm: 25.0}\nviews:\n");
+        for (k, name) in names.iter().enumerate() {
+            text.push_str(&image_entry_yaml(name, k as f64 * 10.5, Some(name)));
+        }
+        let session = parse(&text).unwrap();
+        for (k, (view, name)) in session.views.iter().zip(names).enumerate() {
+            assert_eq!(view.image, Path::new(name));
+            assert_eq!(view.image_laser_off.as_deref(), Some(Path::new(name)));
+            assert_eq!(view.slide_mm, k as f64 * 10.5);
+        }
     }
 
     #[test]

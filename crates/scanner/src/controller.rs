@@ -18,7 +18,10 @@ use std::path::Path;
 use std::time::Duration;
 
 use alacs_locate::{FrameImages, Localization, LocateOptions, Prior, locate};
-use alacs_model::{Camera, DEFAULT_FRUIT_RADIUS_MM, LaserModel, SCAN_FILE, ScanPlan, ScanStrategy};
+use alacs_model::{
+    Camera, DEFAULT_FRUIT_RADIUS_MM, LaserModel, SCAN_FILE, ScanPlan, ScanStrategy,
+    image_entry_yaml,
+};
 use image::RgbImage;
 use nalgebra::{Isometry3, Point3};
 
@@ -336,15 +339,13 @@ impl CapturedScan {
             r.x, r.y, r.z, g.x, g.y, g.z, self.fruit_radius_mm, self.plan.shifted
         );
         for (index, frame) in self.frames.iter().enumerate() {
-            text.push_str(&format!(
-                "  - image: {}\n    slide_mm: {:?}\n    planned_slide_mm: {:?}\n",
-                frame_file(index, true),
+            let off = frame.image_laser_off.as_ref().map(|_| frame_file(index, false));
+            text.push_str(&image_entry_yaml(
+                &frame_file(index, true),
                 frame.slide_mm,
-                frame.planned_slide_mm
+                off.as_deref(),
             ));
-            if frame.image_laser_off.is_some() {
-                text.push_str(&format!("    image_laser_off: {}\n", frame_file(index, false)));
-            }
+            text.push_str(&format!("    planned_slide_mm: {:?}\n", frame.planned_slide_mm));
         }
         text
     }

@@ -13,7 +13,7 @@
 
 use std::path::Path;
 
-use alacs_model::{Camera, LaserModel, Ray, ScanPlan, ScanStrategy};
+use alacs_model::{Camera, LaserModel, Ray, ScanPlan, ScanStrategy, image_entry_yaml};
 use image::RgbImage;
 use nalgebra::{Point3, Vector3};
 use rand::{Rng, SeedableRng};
@@ -26,7 +26,6 @@ use crate::orchard::{CameraRayGrid, Hit, OrchardOptions, OrchardScene, orchard_s
 use crate::render::{
     LaserLight, LaserStripe, Lighting, RayMap, RenderOptions, Scene, Sensor, SurfaceHit, mix_seed,
 };
-use crate::truth::image_entry_yaml;
 use crate::{Error, Result, camera_to_json, laser_to_json};
 
 /// How to simulate a scan. `Default`: an unoccluded apple at 0.6-1.2 m in

@@ -6,7 +6,7 @@
 use std::path::Path;
 use std::sync::Arc;
 
-use alacs_model::{Camera, LaserModel};
+use alacs_model::{Camera, LaserModel, image_entry_yaml};
 use image::RgbImage;
 use nalgebra::{Isometry3, Point2, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use rand::{Rng, SeedableRng};
@@ -17,7 +17,6 @@ use crate::board::{BoardScene, Checkerboard};
 use crate::error::{check_positive_range, check_slides, io_error, save_image};
 use crate::render::{LaserStripe, RayMap, RenderOptions, mix_seed};
 use crate::samples::random_tilt;
-use crate::truth::image_entry_yaml;
 use crate::{Error, Result, camera_to_json, laser_to_json};
 
 /// How to generate a calibration session. `Default`: 10 poses at 0.6-1.2 m,

@@ -18,16 +18,3 @@ pub fn laser_to_json(laser: &LaserModel) -> Value {
         "l0_mm": laser.l0_mm,
     })
 }
-
-/// One entry of session.yaml's `views` or scan.yaml's `frames` (FORMATS.md).
-pub(crate) fn image_entry_yaml(
-    image: &str,
-    slide_mm: f64,
-    image_laser_off: Option<&str>,
-) -> String {
-    let mut text = format!("  - image: {image}\n    slide_mm: {slide_mm:?}\n");
-    if let Some(off) = image_laser_off {
-        text.push_str(&format!("    image_laser_off: {off}\n"));
-    }
-    text
-}
