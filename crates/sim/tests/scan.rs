@@ -24,8 +24,8 @@ fn small(seed: u64, occlusion: f64, sun: bool) -> ScanOptions {
 fn fruit_is_placed_within_the_slides_reach_unless_asked() {
     let mut shifted_anywhere = 0;
     for seed in 0..16 {
-        let scan = simulate_scan(&Camera::blackfly_s_5mp(), &laser(), &small(seed, 0.0, false))
-            .unwrap();
+        let scan =
+            simulate_scan(&Camera::blackfly_s_5mp(), &laser(), &small(seed, 0.0, false)).unwrap();
         assert!(!scan.plan.shifted, "seed {seed}: {:?}", scan.plan);
         let anywhere = ScanOptions { within_reach: false, ..small(seed, 0.0, false) };
         let scan = simulate_scan(&Camera::blackfly_s_5mp(), &laser(), &anywhere).unwrap();
