@@ -46,8 +46,8 @@ pub use calibration::{
 };
 pub use error::{Error, Result};
 pub use html::{
-    CalibrationReport, ScanReport, ScanReportFrame, calibration_report, write_calibration_html,
-    write_scan_html,
+    CalibrationReport, ScanReport, ScanReportFrame, calibration_report,
+    calibration_report_from_views, write_calibration_html, write_scan_html,
 };
 pub use plot::{write_accuracy_boxplots, write_residual_plot};
 pub use report::{write_accuracy_report, write_calibration_report};

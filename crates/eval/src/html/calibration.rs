@@ -109,7 +109,6 @@ pub fn calibration_report(
 ) -> Result<CalibrationReport> {
     camera.validate()?;
     laser.validate()?;
-    let (_, boards) = detect_session_boards(session, progress)?;
     let stripe = StripeOptions::default();
     let per_view: Vec<(Vec<LaserSample>, ViewSamples)> = session
         .views
@@ -120,6 +119,29 @@ pub fn calibration_report(
             result
         })
         .collect::<std::result::Result<_, _>>()?;
+    calibration_report_from_views(session, camera, laser, per_view, progress)
+}
+
+/// [`calibration_report`] on the views' samples as a laser calibration of
+/// the same session with the same camera already took them (in session
+/// order, as [`view_samples`] gives them; [`alacs_calib::calibrate_laser_session`]'s
+/// `samples` split by its `views`' `n_samples`), which saves finding every
+/// stripe again. `progress` is called once per board image searched.
+pub fn calibration_report_from_views(
+    session: &Session,
+    camera: &Camera,
+    laser: &LaserModel,
+    per_view: Vec<(Vec<LaserSample>, ViewSamples)>,
+    progress: &(dyn Fn() + Sync),
+) -> Result<CalibrationReport> {
+    if per_view.len() != session.views.len() {
+        return Err(crate::Error::InvalidOptions(format!(
+            "{} views' samples for a session of {} views",
+            per_view.len(),
+            session.views.len()
+        )));
+    }
+    let (_, boards) = detect_session_boards(session, progress)?;
     let options = CalibrationOptions::default();
     let threshold_mm = options.threshold_mm;
     let mut views = Vec::with_capacity(per_view.len());
@@ -261,7 +283,7 @@ pub fn write_calibration_html(
     page.grid_start();
     for (i, (view, name)) in report.views.iter().zip(&image_names).enumerate() {
         let caption = format!(
-            "{}. {} (slide {} mm): {} corners, pose RMS {} px, {} samples, mean |residual| {} mm",
+            "{}. {} (slide {:.1} mm): {} corners, pose RMS {} px, {} samples, mean |residual| {} mm",
             i + 1,
             view.view.image,
             view.view.slide_mm,
@@ -409,7 +431,7 @@ fn views_table(page: &mut Page, report: &CalibrationReport) {
                 vec![
                     num((i + 1).to_string()),
                     txt(v.view.image.clone()),
-                    num(format!("{}", v.view.slide_mm)),
+                    num(format!("{:.1}", v.view.slide_mm)),
                     num(v.corners_px.len().to_string()),
                     num(fixed(v.view.pose_rms_px, 3)),
                     num(v.view.n_samples.to_string()),

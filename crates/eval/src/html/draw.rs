@@ -20,6 +20,8 @@ pub const GREEN: Rgb<u8> = Rgb([0, 230, 0]);
 pub const RED: Rgb<u8> = Rgb([255, 40, 40]);
 /// Stripe points that do not agree (outliers, points off the fruit).
 pub const BLUE: Rgb<u8> = Rgb([40, 140, 255]);
+/// Fruit points (the laser on a red fruit is red already).
+pub const LIME: Rgb<u8> = Rgb([120, 255, 0]);
 /// Search regions.
 pub const YELLOW: Rgb<u8> = Rgb([255, 230, 0]);
 /// Fitted spheres' silhouettes.
@@ -63,6 +65,11 @@ impl Canvas {
     /// The whole frame, downscaled to at most `max_width_px` wide.
     pub fn whole(frame: &RgbImage, max_width_px: u32) -> Self {
         Self::crop(frame, [0, 0, frame.width(), frame.height()], max_width_px)
+    }
+
+    /// Canvas pixels per frame pixel.
+    pub fn scale(&self) -> f64 {
+        self.scale
     }
 
     /// The canvas position of frame pixel `p`.

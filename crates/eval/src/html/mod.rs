@@ -18,7 +18,8 @@ mod page;
 mod scan;
 
 pub use calibration::{
-    CalibrationReport, CalibrationReportView, calibration_report, write_calibration_html,
+    CalibrationReport, CalibrationReportView, calibration_report, calibration_report_from_views,
+    write_calibration_html,
 };
 pub use page::escape;
 pub use scan::{ScanReport, ScanReportFrame, sphere_silhouette_px, write_scan_html};

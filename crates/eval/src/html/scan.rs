@@ -11,7 +11,7 @@ use image::RgbImage;
 use nalgebra::{Point2, Point3, Vector3};
 use rayon::prelude::*;
 
-use super::draw::{BLUE, CYAN, Canvas, MAGENTA, ORANGE, RED, WHITE, YELLOW};
+use super::draw::{BLUE, CYAN, Canvas, LIME, MAGENTA, ORANGE, WHITE, YELLOW};
 use super::page::{Page, fixed, num, txt};
 use crate::{Error, Result};
 
@@ -123,7 +123,7 @@ fn draw_frame(canvas: &mut Canvas, report: &ScanReport, index: usize, silhouette
     }
     for (point, fruit) in frame.stripe.iter().zip(&on_fruit) {
         let p = Point2::new(point.u_px, point.v_px);
-        canvas.dot(&p, 1, if *fruit { RED } else { BLUE });
+        canvas.dot(&p, 1, if *fruit { LIME } else { BLUE });
     }
     let project = |p: &Point3<f64>| report.camera.project(p).ok();
     if let Some(candidate) = &frame.candidate
@@ -132,7 +132,7 @@ fn draw_frame(canvas: &mut Canvas, report: &ScanReport, index: usize, silhouette
         let chosen = answer.holistic.and_then(|h| answer.candidates.get(h)) == Some(candidate);
         canvas.cross(&p, if chosen { 9.0 } else { 6.0 }, CYAN);
         if chosen {
-            canvas.circle(&p, 10.0 / 1.0, CYAN);
+            canvas.circle(&p, 12.0 / canvas.scale(), CYAN);
         }
     }
     if let Some(p) = answer.position_mm.as_ref().and_then(project) {
@@ -201,7 +201,7 @@ pub fn write_scan_html(dir: &Path, report: &ScanReport) -> Result<Vec<PathBuf>> 
     candidates(&mut page, answer);
     page.heading("Frames");
     page.raw(
-        "<p class=\"legend\"><span style=\"color:#c90\">&#9645; search region</span><span style=\"color:#28f\">&bull; stripe</span><span style=\"color:#e22\">&bull; fruit points</span><span style=\"color:#0bb\">+ candidate (circled: the holistic choice)</span><span style=\"color:#c0c\">&#9675; fitted sphere's silhouette</span><span style=\"color:#e80\">&#9675; outline in the image, + rough position</span><span>&times; the answer (white)</span></p>",
+        "<p class=\"legend\"><span style=\"color:#c90\">&#9645; search region</span><span style=\"color:#28f\">&bull; stripe</span><span style=\"color:#3c3\">&bull; fruit points</span><span style=\"color:#0bb\">+ candidate (circled: the holistic choice)</span><span style=\"color:#c0c\">&#9675; fitted sphere's silhouette</span><span style=\"color:#e80\">&#9675; outline in the image, + rough position</span><span>&times; the answer (white)</span></p>",
     );
     if n > 0 {
         page.figure(
@@ -214,7 +214,7 @@ pub fn write_scan_html(dir: &Path, report: &ScanReport) -> Result<Vec<PathBuf>> 
     for (i, frame) in answer.frames.iter().enumerate().take(n) {
         let name = format!("images/frame{:02}.jpg", i + 1);
         let caption = format!(
-            "Frame {} ({}, slide {} mm): {} stripe points, {} triangulated, {} on the fruit{}",
+            "Frame {} ({}, slide {:.1} mm): {} stripe points, {} triangulated, {} on the fruit{}",
             i + 1,
             report.frames[i].name,
             frame.slide_mm,
@@ -334,7 +334,7 @@ fn candidates(page: &mut Page, answer: &Localization) {
             (
                 vec![
                     num((c.frame + 1).to_string()),
-                    num(format!("{}", c.slide_mm)),
+                    num(format!("{:.1}", c.slide_mm)),
                     num(xyz(&c.position_mm)),
                     num(format!("{:.2}", c.circle_radius_mm)),
                     num(c.n_points.to_string()),
