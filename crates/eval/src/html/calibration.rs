@@ -168,12 +168,10 @@ pub fn calibration_report_from_views(
             Some(format!(
                 "the board pose reprojects its corners at {rms:.2} px RMS (> {FLAG_POSE_RMS_PX} px): a wrong detection or a poor camera"
             ))
-        } else if let Some(mean) = mean_abs.filter(|&m| m > threshold_mm) {
-            Some(format!(
+        } else {
+            mean_abs.filter(|&m| m > threshold_mm).map(|mean| format!(
                 "mean |z - z_hat| {mean:.2} mm exceeds the {threshold_mm} mm inlier threshold: the stripe or the laser disagrees with the board"
             ))
-        } else {
-            None
         };
         views.push(CalibrationReportView {
             view: view.clone(),

@@ -49,8 +49,8 @@ impl Canvas {
         let [u0, v0, width, height] = rect;
         let u0 = u0.min(frame.width().saturating_sub(1));
         let v0 = v0.min(frame.height().saturating_sub(1));
-        let width = width.clamp(1, frame.width() - u0);
-        let height = height.clamp(1, frame.height() - v0);
+        let width = width.min(frame.width() - u0).max(1);
+        let height = height.min(frame.height() - v0).max(1);
         let cut = imageops::crop_imm(frame, u0, v0, width, height).to_image();
         let (image, scale) = if width > max_width_px {
             let scale = f64::from(max_width_px) / f64::from(width);
@@ -73,29 +73,59 @@ impl Canvas {
     }
 
     /// The canvas position of frame pixel `p`.
-    fn at(&self, p: &Point2<f64>) -> (f32, f32) {
-        (((p.x - self.u0_px) * self.scale) as f32, ((p.y - self.v0_px) * self.scale) as f32)
+    fn at(&self, p: &Point2<f64>) -> (f64, f64) {
+        ((p.x - self.u0_px) * self.scale, (p.y - self.v0_px) * self.scale)
+    }
+
+    /// Draws the part of the segment a-b (canvas pixels) on the canvas:
+    /// clipped first (Liang-Barsky), so that a point projected far outside
+    /// costs nothing (imageproc walks every pixel of a segment).
+    fn segment(&mut self, a: (f64, f64), b: (f64, f64), colour: Rgb<u8>) {
+        if !(a.0.is_finite() && a.1.is_finite() && b.0.is_finite() && b.1.is_finite()) {
+            return;
+        }
+        let (lo, hi_x, hi_y) =
+            (-2.0, f64::from(self.image.width()) + 2.0, f64::from(self.image.height()) + 2.0);
+        let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+        let (mut t0, mut t1) = (0.0f64, 1.0f64);
+        for (p, q) in [(-dx, a.0 - lo), (dx, hi_x - a.0), (-dy, a.1 - lo), (dy, hi_y - a.1)] {
+            if p == 0.0 {
+                if q < 0.0 {
+                    return;
+                }
+            } else {
+                let t = q / p;
+                if p < 0.0 {
+                    t0 = t0.max(t);
+                } else {
+                    t1 = t1.min(t);
+                }
+            }
+        }
+        if t0 <= t1 {
+            let start = ((a.0 + t0 * dx) as f32, (a.1 + t0 * dy) as f32);
+            let end = ((a.0 + t1 * dx) as f32, (a.1 + t1 * dy) as f32);
+            draw_line_segment_mut(&mut self.image, start, end, colour);
+        }
     }
 
     /// A cross of half-size `half_px` (canvas pixels) at frame pixel `p`.
-    pub fn cross(&mut self, p: &Point2<f64>, half_px: f32, colour: Rgb<u8>) {
+    pub fn cross(&mut self, p: &Point2<f64>, half_px: f64, colour: Rgb<u8>) {
         let (x, y) = self.at(p);
-        draw_line_segment_mut(&mut self.image, (x - half_px, y), (x + half_px, y), colour);
-        draw_line_segment_mut(&mut self.image, (x, y - half_px), (x, y + half_px), colour);
+        self.segment((x - half_px, y), (x + half_px, y), colour);
+        self.segment((x, y - half_px), (x, y + half_px), colour);
     }
 
     /// A diagonal cross (an x) of half-size `half_px` at frame pixel `p`.
-    pub fn x_mark(&mut self, p: &Point2<f64>, half_px: f32, colour: Rgb<u8>) {
+    pub fn x_mark(&mut self, p: &Point2<f64>, half_px: f64, colour: Rgb<u8>) {
         let (x, y) = self.at(p);
-        for offset in [-0.5f32, 0.0, 0.5] {
-            draw_line_segment_mut(
-                &mut self.image,
+        for offset in [-0.5, 0.0, 0.5] {
+            self.segment(
                 (x - half_px + offset, y - half_px),
                 (x + half_px + offset, y + half_px),
                 colour,
             );
-            draw_line_segment_mut(
-                &mut self.image,
+            self.segment(
                 (x - half_px + offset, y + half_px),
                 (x + half_px + offset, y - half_px),
                 colour,
@@ -106,7 +136,7 @@ impl Canvas {
     /// A filled dot of `radius_px` (canvas pixels) at frame pixel `p`.
     pub fn dot(&mut self, p: &Point2<f64>, radius_px: i32, colour: Rgb<u8>) {
         let (x, y) = self.at(p);
-        if x.is_finite() && y.is_finite() {
+        if self.near(x, y, f64::from(radius_px)) {
             draw_filled_circle_mut(
                 &mut self.image,
                 (x.round() as i32, y.round() as i32),
@@ -120,7 +150,7 @@ impl Canvas {
     pub fn circle(&mut self, centre: &Point2<f64>, radius_px: f64, colour: Rgb<u8>) {
         let (x, y) = self.at(centre);
         let r = (radius_px * self.scale).round() as i32;
-        if x.is_finite() && y.is_finite() && r > 0 {
+        if r > 0 && self.near(x, y, f64::from(r)) {
             draw_hollow_circle_mut(
                 &mut self.image,
                 (x.round() as i32, y.round() as i32),
@@ -130,15 +160,23 @@ impl Canvas {
         }
     }
 
+    /// Whether a mark of `reach_px` around canvas position (x, y) can touch the canvas.
+    fn near(&self, x: f64, y: f64, reach_px: f64) -> bool {
+        x.is_finite()
+            && y.is_finite()
+            && x > -reach_px
+            && y > -reach_px
+            && x < f64::from(self.image.width()) + reach_px
+            && y < f64::from(self.image.height()) + reach_px
+    }
+
     /// A polyline through frame pixels, closed if `closed`.
     pub fn polyline(&mut self, points: &[Point2<f64>], closed: bool, colour: Rgb<u8>) {
         let n = points.len();
         let segments = if closed { n } else { n.saturating_sub(1) };
         for i in 0..segments {
             let (a, b) = (self.at(&points[i]), self.at(&points[(i + 1) % n]));
-            if a.0.is_finite() && a.1.is_finite() && b.0.is_finite() && b.1.is_finite() {
-                draw_line_segment_mut(&mut self.image, a, b, colour);
-            }
+            self.segment(a, b, colour);
         }
     }
 
@@ -150,5 +188,23 @@ impl Canvas {
         JpegEncoder::new_with_quality(&mut writer, JPEG_QUALITY)
             .encode_image(&self.image)
             .map_err(|e| Error::Image { path: path.to_path_buf(), message: e.to_string() })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn marks_far_outside_are_clipped_not_walked() {
+        let frame = RgbImage::new(40, 30);
+        let mut canvas = Canvas::whole(&frame, 100);
+        let far = [Point2::new(-1e12, 5.0), Point2::new(1e12, 5.0), Point2::new(1e12, 1e12)];
+        canvas.polyline(&far, true, RED);
+        canvas.circle(&Point2::new(1e12, 0.0), 1e3, RED);
+        canvas.dot(&Point2::new(f64::NAN, 0.0), 2, RED);
+        // The horizontal segment through the image is drawn, and only it.
+        assert_eq!(canvas.image.get_pixel(20, 5), &RED);
+        assert_eq!(canvas.image.get_pixel(20, 20), &Rgb([0, 0, 0]));
     }
 }

@@ -56,7 +56,8 @@ pub struct ScanReport<'a> {
 pub fn sphere_silhouette_px(camera: &Camera, sphere: &Sphere) -> Vec<Point2<f64>> {
     let centre = sphere.centre.coords;
     let distance_mm = centre.norm();
-    if !(distance_mm > sphere.radius_mm) {
+    // Also the NaN of a degenerate sphere.
+    if distance_mm.partial_cmp(&sphere.radius_mm) != Some(std::cmp::Ordering::Greater) {
         return Vec::new();
     }
     let axis = centre / distance_mm;
@@ -85,7 +86,8 @@ fn crop_rect(points: &[Point2<f64>], fallback: Option<Point2<f64>>, half_px: f64
         lo = Point2::new(lo.x.min(p.x), lo.y.min(p.y));
         hi = Point2::new(hi.x.max(p.x), hi.y.max(p.y));
     }
-    if !(lo.x <= hi.x) {
+    // No finite point: a box around the fallback.
+    if lo.x > hi.x {
         let centre = fallback.unwrap_or(Point2::new(half_px, half_px));
         lo = centre - nalgebra::Vector2::repeat(half_px);
         hi = centre + nalgebra::Vector2::repeat(half_px);
