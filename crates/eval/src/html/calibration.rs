@@ -260,7 +260,7 @@ pub fn write_calibration_html(
     let mut page = Page::new(title);
     page.paragraph(
         &format!(
-            "Session {source}: {} views of a {} x {} board. Camera {} ({} x {} px) and laser {} reported against it.",
+            "Session {source}: {} views of a {} x {} board. The camera \"{}\" ({} x {} px) and a {} laser reported against it.",
             report.views.len(),
             report.board_corners.0,
             report.board_corners.1,

@@ -194,7 +194,7 @@ pub fn write_scan_html(dir: &Path, report: &ScanReport) -> Result<Vec<PathBuf>> 
     let title = "alacs scan report";
     let mut page = Page::new(title);
     page.paragraph(
-        &format!("Scan {}: {} frames, located with camera {} and a {} laser (alpha {:.3} deg, beta {:.3} deg, L0 {:.2} mm).",
+        &format!("Scan {}: {} frames, located with the camera \"{}\" and a {} laser (alpha {:.3} deg, beta {:.3} deg, L0 {:.2} mm).",
             report.source, report.frames.len(), report.camera.name, report.laser.fidelity.as_str(),
             report.laser.alpha_deg(), report.laser.beta_deg(), report.laser.l0_mm),
         None,
