@@ -34,7 +34,7 @@ pub const CYAN: Rgb<u8> = Rgb([0, 240, 240]);
 pub const WHITE: Rgb<u8> = Rgb([255, 255, 255]);
 
 /// A region of a frame to draw on: frame pixel (u, v) maps to canvas
-/// ((u - u0) * scale, (v - v0) * scale).
+/// ((u - u0 + 1/2) scale - 1/2, (v - v0 + 1/2) scale - 1/2).
 pub struct Canvas {
     image: RgbImage,
     u0_px: f64,
@@ -44,8 +44,9 @@ pub struct Canvas {
 
 impl Canvas {
     /// The frame's pixels `u0..u0 + width`, `v0..v0 + height` (clamped to the
-    /// frame), downscaled to at most `max_width_px` wide.
-    pub fn crop(frame: &RgbImage, rect: [u32; 4], max_width_px: u32) -> Self {
+    /// frame), scaled to `min_width_px..=max_width_px` wide (enlarged pixels
+    /// stay sharp squares, so that a small crop's marks do not hide it).
+    pub fn crop(frame: &RgbImage, rect: [u32; 4], min_width_px: u32, max_width_px: u32) -> Self {
         let [u0, v0, width, height] = rect;
         let u0 = u0.min(frame.width().saturating_sub(1));
         let v0 = v0.min(frame.height().saturating_sub(1));
@@ -56,6 +57,15 @@ impl Canvas {
             let scale = f64::from(max_width_px) / f64::from(width);
             let new_height = ((f64::from(height) * scale).round() as u32).max(1);
             (imageops::thumbnail(&cut, max_width_px, new_height), scale)
+        } else if width < min_width_px {
+            let factor = min_width_px.div_ceil(width);
+            let enlarged = imageops::resize(
+                &cut,
+                width * factor,
+                height * factor,
+                imageops::FilterType::Nearest,
+            );
+            (enlarged, f64::from(factor))
         } else {
             (cut, 1.0)
         };
@@ -64,7 +74,7 @@ impl Canvas {
 
     /// The whole frame, downscaled to at most `max_width_px` wide.
     pub fn whole(frame: &RgbImage, max_width_px: u32) -> Self {
-        Self::crop(frame, [0, 0, frame.width(), frame.height()], max_width_px)
+        Self::crop(frame, [0, 0, frame.width(), frame.height()], 0, max_width_px)
     }
 
     /// Canvas pixels per frame pixel.
@@ -73,8 +83,10 @@ impl Canvas {
     }
 
     /// The canvas position of frame pixel `p`.
+    /// Pixel centres map to pixel centres: a canvas pixel covers 1 / scale
+    /// frame pixels.
     fn at(&self, p: &Point2<f64>) -> (f64, f64) {
-        ((p.x - self.u0_px) * self.scale, (p.y - self.v0_px) * self.scale)
+        ((p.x - self.u0_px + 0.5) * self.scale - 0.5, (p.y - self.v0_px + 0.5) * self.scale - 0.5)
     }
 
     /// Draws the part of the segment a-b (canvas pixels) on the canvas:

@@ -19,6 +19,9 @@ use crate::{Error, Result};
 const MAX_OVERVIEW_WIDTH_PX: u32 = 1224;
 /// Widest frame crop on the page (px).
 const MAX_CROP_WIDTH_PX: u32 = 900;
+/// Narrower crops (a far fruit, a low-resolution camera) are enlarged by a
+/// whole factor to at least this width (px).
+const MIN_CROP_WIDTH_PX: u32 = 320;
 /// Margin around the search region in a crop, as a fraction of its size.
 const CROP_MARGIN: f64 = 0.15;
 /// Points on a projected sphere silhouette.
@@ -164,7 +167,8 @@ pub fn write_scan_html(dir: &Path, report: &ScanReport) -> Result<Vec<PathBuf>> 
             let mut outline = answer.frames[i].region_outline_px.clone();
             outline.extend_from_slice(&silhouette);
             let rect = crop_rect(&outline, rough_px, search_half_px);
-            let mut canvas = Canvas::crop(report.frames[i].image, rect, MAX_CROP_WIDTH_PX);
+            let mut canvas =
+                Canvas::crop(report.frames[i].image, rect, MIN_CROP_WIDTH_PX, MAX_CROP_WIDTH_PX);
             draw_frame(&mut canvas, report, i, &silhouette);
             let path = dir.join(format!("images/frame{:02}.jpg", i + 1));
             canvas.write_jpeg(&path)?;
