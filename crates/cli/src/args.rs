@@ -31,6 +31,10 @@ pub enum Command {
     /// residual plots, the accuracy box plots per slide position.
     #[command(subcommand)]
     Evaluate(EvaluateCommand),
+    /// Write a self-contained HTML report (a page with its images beside it):
+    /// a calibration against its session, or a scan's localization.
+    #[command(subcommand)]
+    Report(ReportCommand),
     /// Generate simulated data with ground truth.
     #[command(subcommand)]
     Simulate(SimulateCommand),
@@ -104,6 +108,64 @@ pub enum PointsArg {
     /// Three per view, evenly spaced along the stripe, as the seed paper.
     #[value(name = "3")]
     Three,
+}
+
+/// `alacs report ...`
+#[derive(Debug, Subcommand)]
+pub enum ReportCommand {
+    /// A camera and a laser against a calibration session: intrinsics, the
+    /// laser and Table 1 on the session's samples, per view the corners, the
+    /// board pose's RMS and the residuals, residual and accuracy plots, and
+    /// every view's image with the corners and the stripe drawn over it.
+    Calibration(ReportCalibrationArgs),
+    /// A scan's localization: the result, the candidates, and every frame
+    /// with its search region, stripe, fruit points, candidate and the
+    /// fitted sphere drawn over it.
+    Scan(ReportScanArgs),
+}
+
+/// `alacs report calibration`
+#[derive(Debug, Args)]
+pub struct ReportCalibrationArgs {
+    /// Session folder (session.yaml beside the images).
+    #[arg(long, value_name = "DIR")]
+    pub session: PathBuf,
+    /// The calibrated camera (camera.yaml).
+    #[arg(long, value_name = "FILE")]
+    pub camera: PathBuf,
+    /// The calibrated laser (laser.yaml).
+    #[arg(long, value_name = "FILE")]
+    pub laser: PathBuf,
+    /// Folder for the report (created): index.html, images/, plots.
+    #[arg(long, value_name = "DIR", default_value = "report")]
+    pub out: PathBuf,
+    /// Print one JSON object on standard output: {"html": .., "files": [..], ..}.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `alacs report scan`
+#[derive(Debug, Args)]
+pub struct ReportScanArgs {
+    /// Scan folder (scan.yaml beside the frames).
+    #[arg(long, value_name = "DIR")]
+    pub scan: PathBuf,
+    /// The calibrated camera (camera.yaml).
+    #[arg(long, value_name = "FILE")]
+    pub camera: PathBuf,
+    /// The calibrated laser (laser.yaml).
+    #[arg(long, value_name = "FILE")]
+    pub laser: PathBuf,
+    /// How the final position is chosen.
+    #[arg(long, value_enum, default_value_t = LocalizeMethodArg::Fused)]
+    pub method: LocalizeMethodArg,
+    /// Folder for the report (created): index.html and images/.
+    #[arg(long, value_name = "DIR", default_value = "report")]
+    pub out: PathBuf,
+    /// Print one JSON object on standard output: {"html": .., "files": [..],
+    /// "localization": {...as localize --json}}.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// `alacs evaluate accuracy`
@@ -448,7 +510,8 @@ pub struct DemoArgs {
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Folder for the evaluation artefacts (created): Table 1 with residual
-    /// plots, the accuracy box plots and their JSON.
+    /// plots, the accuracy box plots and their JSON, and two HTML reports
+    /// (report_calibration/index.html, report_scan/index.html).
     #[arg(long, value_name = "DIR", default_value = "alacs-demo")]
     pub out: PathBuf,
     /// Print one JSON object on standard output instead of text.

@@ -22,6 +22,8 @@ fn main() -> ExitCode {
             cmd::evaluate::calibration(&a)
         }
         args::Command::Evaluate(args::EvaluateCommand::Accuracy(a)) => cmd::evaluate::accuracy(&a),
+        args::Command::Report(args::ReportCommand::Calibration(a)) => cmd::report::calibration(&a),
+        args::Command::Report(args::ReportCommand::Scan(a)) => cmd::report::scan(&a),
         args::Command::Triangulate(a) => cmd::triangulate::run(&a),
         args::Command::Stripe(a) => cmd::stripe::run(&a),
         args::Command::Localize(a) => cmd::localize::run(&a),

@@ -335,6 +335,17 @@ fn demo_json_reports_four_methods_and_accuracy() {
     for c in conditions {
         assert_eq!(c["found"], c["within_15_mm"], "{c}");
     }
+    // The two HTML reports, each page with its images beside it.
+    let reports: Vec<&str> =
+        json["reports"].as_array().unwrap().iter().map(|r| r.as_str().unwrap()).collect();
+    assert_eq!(reports.len(), 2, "{reports:?}");
+    for (page, images) in [("report_calibration", "view01.jpg"), ("report_scan", "frame01.jpg")] {
+        let index = out.join(page).join("index.html");
+        assert!(reports.contains(&index.to_str().unwrap()), "{reports:?}");
+        let html = std::fs::read_to_string(&index).unwrap();
+        assert!(html.contains(&format!("images/{images}")), "{page}");
+        assert!(std::fs::metadata(out.join(page).join("images").join(images)).unwrap().len() > 0);
+    }
 }
 
 #[test]
@@ -521,6 +532,34 @@ fn calibrate_from_a_simulated_session_end_to_end() {
         let len = std::fs::metadata(file.as_str().unwrap()).unwrap().len();
         assert!(len > 0, "{file}");
     }
+    // The HTML report of that camera and laser against the session.
+    let report_dir = dir.join("report");
+    let report = stdout_json(&alacs(&[
+        "report",
+        "calibration",
+        "--session",
+        out,
+        "--camera",
+        camera,
+        "--laser",
+        laser.to_str().unwrap(),
+        "--out",
+        report_dir.to_str().unwrap(),
+        "--json",
+    ]));
+    assert_eq!(report["views"], 18, "{report}");
+    // A far board at d = 200 mm whose stripe crosses dark squares may be
+    // flagged (its mean |z - z_hat| beyond the 2 mm threshold; seed 7: 1 of 18).
+    let flagged = report["flagged"].as_array().unwrap();
+    assert!(flagged.len() <= 2, "{report}");
+    let html = std::fs::read_to_string(report_dir.join("index.html")).unwrap();
+    for view in flagged {
+        assert!(html.contains(view.as_str().unwrap()), "{view}");
+    }
+    for name in ["images/view01.jpg", "images/view18.jpg", "calibration_residuals_method4.png"] {
+        assert!(html.contains(name), "{name}");
+        assert!(std::fs::metadata(report_dir.join(name)).unwrap().len() > 0, "{name}");
+    }
     // Stripe of one view: CSV with a header, one row per stripe row.
     let stripe = alacs(&["stripe", "--image", dir.join("view01_slide1.png").to_str().unwrap()]);
     assert!(stripe.status.success(), "{}", stderr(&stripe));
@@ -642,6 +681,32 @@ fn scan_sim_json_localizes_the_simulated_apple_and_writes_a_scan_folder() {
     assert_eq!(text.status.code(), Some(0));
     assert!(String::from_utf8_lossy(&text.stdout).contains("fruit at"));
 
+    // `alacs report scan` on the written folder: the page, its images, the same answer.
+    let report_dir = dir.join("report");
+    let report = stdout_json(&alacs(&[
+        "report",
+        "scan",
+        "--scan",
+        out.to_str().unwrap(),
+        "--camera",
+        camera.to_str().unwrap(),
+        "--laser",
+        laser.to_str().unwrap(),
+        "--out",
+        report_dir.to_str().unwrap(),
+        "--json",
+    ]));
+    assert_eq!(report["html"], report_dir.join("index.html").to_str().unwrap(), "{report}");
+    assert_eq!(report["files"].as_array().unwrap().len(), 7, "{report}");
+    for file in report["files"].as_array().unwrap() {
+        assert!(std::fs::metadata(file.as_str().unwrap()).unwrap().len() > 0, "{file}");
+    }
+    assert_eq!(report["localization"]["status"], "ok");
+    for axis in 0..3 {
+        let p = report["localization"]["position_mm"][axis].as_f64().unwrap();
+        assert!((p - position[axis]).abs() < 1e-6, "{report}");
+    }
+
     // The stripe of an orchard frame, with the settings localize uses.
     let frame = scan.path_of(&scan.frames[2].image);
     let stripe = alacs(&["stripe", "--image", frame.to_str().unwrap(), "--orchard", "--json"]);
@@ -667,6 +732,46 @@ fn localize_bad_input_exits_2_naming_the_file() {
     assert_eq!(output.status.code(), Some(2));
     assert!(output.stdout.is_empty());
     assert!(stderr(&output).contains("scan.yaml"), "{}", stderr(&output));
+}
+
+#[test]
+fn report_bad_input_exits_2_naming_the_file() {
+    let dir = scratch("report_bad");
+    let missing = dir.join("no_such_scan");
+    let camera = dir.join("camera.yaml");
+    let out = dir.join("out");
+    let output = alacs(&[
+        "report",
+        "scan",
+        "--scan",
+        missing.to_str().unwrap(),
+        "--camera",
+        camera.to_str().unwrap(),
+        "--laser",
+        camera.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(output.status.code(), Some(2));
+    assert!(output.stdout.is_empty());
+    assert!(stderr(&output).contains("no_such_scan"), "{}", stderr(&output));
+    let missing = dir.join("no_such_session");
+    let output = alacs(&[
+        "report",
+        "calibration",
+        "--session",
+        missing.to_str().unwrap(),
+        "--camera",
+        camera.to_str().unwrap(),
+        "--laser",
+        camera.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(output.status.code(), Some(2));
+    assert!(stderr(&output).contains("no_such_session"), "{}", stderr(&output));
+    assert!(!out.exists(), "nothing written for unreadable input");
 }
 
 #[test]

@@ -29,7 +29,7 @@
 //! (`within_view_sigma_z_mm`) is what the prediction is to be compared with;
 //! the box plots' quartiles also hold the board poses' errors.
 
-use alacs_calib::{ViewSamples, view_samples};
+use alacs_calib::{LaserSample, ViewSamples, view_samples};
 use alacs_model::{Camera, LaserModel, Session};
 use alacs_vision::StripeOptions;
 use nalgebra::{Point3, Vector3};
@@ -186,23 +186,33 @@ pub fn evaluate_accuracy(
             "the stripe-centre noise must be a finite number of px >= 0, got {sigma_px}"
         )));
     }
-    let per_view: Vec<Result<_>> = session
+    let per_view: Vec<(Vec<LaserSample>, ViewSamples)> = session
         .views
         .par_iter()
         .map(|view| {
             let result = view_samples(session, view, camera, &options.stripe);
             progress();
-            Ok(result?)
+            result
         })
-        .collect();
+        .collect::<std::result::Result<_, _>>()?;
+    accuracy_from_views(per_view, camera, laser, options)
+}
+
+/// [`evaluate_accuracy`] on views whose samples are already taken (in
+/// session order, as [`view_samples`] gives them).
+pub(crate) fn accuracy_from_views(
+    per_view: Vec<(Vec<LaserSample>, ViewSamples)>,
+    camera: &Camera,
+    laser: &LaserModel,
+    options: &AccuracyOptions,
+) -> Result<AccuracyEvaluation> {
     let prepared = laser.prepare();
     // The evaluated points, and every point of every view: the stripe noise
     // is measured on all of them, whichever are evaluated.
     let mut points = Vec::new();
     let mut all_points = Vec::new();
     let mut views = Vec::with_capacity(per_view.len());
-    for (index, result) in per_view.into_iter().enumerate() {
-        let (samples, report) = result?;
+    for (index, (samples, report)) in per_view.into_iter().enumerate() {
         let mut keep = vec![false; samples.len()];
         for i in chosen(samples.len(), options.points) {
             keep[i] = true;

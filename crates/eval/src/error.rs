@@ -31,6 +31,14 @@ pub enum Error {
         /// What went wrong.
         message: String,
     },
+    /// A report image could not be encoded or written.
+    #[error("{path}: cannot write the image: {message}")]
+    Image {
+        /// The image's file.
+        path: PathBuf,
+        /// What went wrong.
+        message: String,
+    },
     /// The evaluation has nothing to evaluate (no view gave a point, say).
     #[error("nothing to evaluate: {0}")]
     NoData(String),
@@ -52,7 +60,7 @@ impl Error {
                     | alacs_model::Error::InvalidParameters { .. }
             ),
             Error::InvalidOptions(_) => true,
-            Error::Io { .. } | Error::Plot { .. } | Error::NoData(_) => false,
+            Error::Io { .. } | Error::Plot { .. } | Error::Image { .. } | Error::NoData(_) => false,
         }
     }
 }

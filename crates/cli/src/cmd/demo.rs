@@ -12,15 +12,19 @@
 //!    simulated fruit with that calibration.
 //!
 //! It writes the evaluation artefacts (Table 1 with residual plots, the
-//! accuracy box plots and their JSON; `alacs-eval`) into `--out`.
+//! accuracy box plots and their JSON; `alacs-eval`) into `--out`, and two
+//! HTML reports: the calibration against its rendered session
+//! (`report_calibration/index.html`) and the first sunlit, 40 %-hidden scan
+//! (`report_scan/index.html`).
 
 use alacs::Session;
 use alacs::calib::{
     IntrinsicsOptions, LaserSessionOptions, calibrate_camera_session, calibrate_laser_session,
 };
 use alacs::eval::{
-    AccuracyEvaluation, AccuracyOptions, evaluate_accuracy, evaluate_calibration,
-    write_accuracy_report, write_calibration_report,
+    AccuracyEvaluation, AccuracyOptions, ScanReport, ScanReportFrame,
+    calibration_report_from_views, evaluate_accuracy, evaluate_calibration, write_accuracy_report,
+    write_calibration_html, write_calibration_report, write_scan_html,
 };
 use alacs::locate::{FrameImages, LocateOptions, Prior, Status, locate};
 use alacs::sim::{
@@ -83,7 +87,6 @@ fn accuracy_at(
     Ok(AxisErrors { slide_mm, max_mm, mean_mm: sum_mm.map(|s| s / n as f64), n })
 }
 
-/// Runs `alacs demo`.
 /// Slide positions of the demo's calibration session (the paper's 0-20 cm).
 const SESSION_SLIDES_MM: [f64; 3] = [0.0, 100.0, 200.0];
 /// Board poses of the rendered accuracy session (the paper's 10), each at
@@ -97,6 +100,9 @@ const SCAN_CONDITIONS: [(&str, f64, bool); 3] = [
     ("40 % hidden, sun", 0.4, true),
 ];
 const SCANS_PER_CONDITION: u64 = 4;
+/// The scan the demo writes an HTML report of: (condition, scan) indices,
+/// the first sunlit, 40 %-hidden fruit.
+const REPORTED_SCAN: (usize, u64) = (2, 0);
 
 /// What the image pipeline measured.
 struct Pipeline {
@@ -106,6 +112,9 @@ struct Pipeline {
     laser_samples: usize,
     accuracy: AccuracyEvaluation,
     conditions: Vec<ConditionErrors>,
+    /// The HTML reports' pages (calibration, scan) and every file written for them.
+    reports: Vec<std::path::PathBuf>,
+    report_files: Vec<std::path::PathBuf>,
 }
 
 /// Localization errors of one scan condition.
@@ -144,7 +153,29 @@ fn image_pipeline(
     let laser_fit =
         calibrate_laser_session(&session, &fit.camera, &LaserSessionOptions::default(), &|| {})?;
     bar.inc(1);
+    bar.set_message("report: the calibration against its session");
+    // The laser calibration's samples split by view: the report needs not find the stripes again.
+    let mut samples = laser_fit.samples.iter();
+    let per_view = laser_fit
+        .views
+        .iter()
+        .map(|view| (samples.by_ref().take(view.n_samples).copied().collect(), view.clone()))
+        .collect();
+    let report = calibration_report_from_views(
+        &session,
+        &fit.camera,
+        &laser_fit.calibration.laser,
+        per_view,
+        &|| {},
+    );
+    let report_dir = args.out.join("report_calibration");
+    let report_files = report.and_then(|report| {
+        write_calibration_html(&report_dir, &session, &report, "the demo's rendered session")
+    });
     std::fs::remove_dir_all(&dir).ok();
+    let mut report_files = report_files?;
+    let mut reports = vec![report_dir.join("index.html")];
+    bar.inc(1);
 
     bar.set_message(format!(
         "rendering an accuracy session ({ACCURACY_SESSION_VIEWS} board poses x {} slide positions)",
@@ -205,6 +236,27 @@ fn image_pipeline(
                 &frames,
                 &LocateOptions::default(),
             )?;
+            if (c, k) == REPORTED_SCAN {
+                let report_frames: Vec<ScanReportFrame> = images
+                    .iter()
+                    .zip(&scan.frames)
+                    .map(|(image, f)| ScanReportFrame { name: &f.image, image })
+                    .collect();
+                let report_dir = args.out.join("report_scan");
+                let source = format!("simulated ({label}, fruit {})", k + 1);
+                report_files.extend(write_scan_html(
+                    &report_dir,
+                    &ScanReport {
+                        source: &source,
+                        camera: &fit.camera,
+                        laser: &laser_fit.calibration.laser,
+                        prior: &prior,
+                        frames: &report_frames,
+                        localization: &answer,
+                    },
+                )?);
+                reports.push(report_dir.join("index.html"));
+            }
             errors.scans += 1;
             if let (Status::Ok, Some(p)) = (answer.status, answer.position_mm) {
                 let e = p - scan.scene.fruit_centre;
@@ -223,6 +275,8 @@ fn image_pipeline(
         laser_samples: laser_fit.samples.len(),
         accuracy,
         conditions,
+        reports,
+        report_files,
     })
 }
 
@@ -233,12 +287,13 @@ fn mean_max(errors: &[[f64; 4]], axis: usize) -> (f64, f64) {
     (sum / n, errors.iter().map(|e| e[axis]).fold(0.0, f64::max))
 }
 
+/// Runs `alacs demo`.
 pub fn run(args: &DemoArgs) -> CmdResult {
     let camera = Camera::blackfly_s_5mp();
     let truth = LaserModel::from_degrees(Fidelity::High, TRUE_ALPHA_DEG, TRUE_BETA_DEG, TRUE_L0_MM);
     let bar = output::progress_bar(args.json, "calibrating");
     let scans = SCAN_CONDITIONS.len() * SCANS_PER_CONDITION as usize;
-    output::start_progress(&bar, 1 + ACCURACY_SLIDES_MM.len() + 5 + scans, "calibrating");
+    output::start_progress(&bar, 1 + ACCURACY_SLIDES_MM.len() + 6 + scans, "calibrating");
 
     bar.set_message("calibrating: four methods on simulated samples with 30 % outliers");
     let sample_options =
@@ -299,6 +354,8 @@ pub fn run(args: &DemoArgs) -> CmdResult {
             },
             "out": args.out.display().to_string(),
             "files": files.iter().map(|f| f.display().to_string()).collect::<Vec<_>>(),
+            "reports": pipeline.reports.iter().map(|f| f.display().to_string()).collect::<Vec<_>>(),
+            "report_files": pipeline.report_files.len(),
         });
         output::print_json(&value);
         return Ok(());
@@ -378,5 +435,9 @@ pub fn run(args: &DemoArgs) -> CmdResult {
         "Evaluation artefacts (Table 1, residual plots per method, accuracy box plots, JSON):\n{}",
         output::files_written(&args.out, &files)
     );
+    println!("HTML reports (open in a browser; images beside each page):");
+    for page in &pipeline.reports {
+        println!("  {}", page.display());
+    }
     Ok(())
 }

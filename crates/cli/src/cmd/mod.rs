@@ -4,6 +4,7 @@ pub mod calibrate;
 pub mod demo;
 pub mod evaluate;
 pub mod localize;
+pub mod report;
 pub mod scan;
 pub mod simulate;
 pub mod stripe;

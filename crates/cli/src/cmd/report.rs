@@ -1,0 +1,157 @@
+//! `alacs report calibration` and `alacs report scan`: self-contained HTML
+//! reports (`alacs-eval`'s `html` module); this is the loader around it.
+
+use std::path::{Path, PathBuf};
+
+use alacs::eval::{
+    ScanReport, ScanReportFrame, calibration_report, write_calibration_html, write_scan_html,
+};
+use alacs::locate::{FrameImages, LocateOptions, Method, Prior, locate};
+use alacs::vision::read_image;
+use alacs::{Camera, LaserModel, Scan, Session};
+use serde_json::{Value, json};
+
+use crate::args::{LocalizeMethodArg, ReportCalibrationArgs, ReportScanArgs};
+use crate::failure::{CmdResult, Failure};
+use crate::output;
+
+/// `failure` with `context` (a file or folder) in front of its message.
+fn with_context(failure: Failure, context: &Path) -> Failure {
+    Failure { error: failure.error.context(context.display().to_string()), ..failure }
+}
+
+/// The report's JSON: the page, every file, and `extra`'s keys.
+fn report_json(out: &Path, files: &[PathBuf], extra: Value) -> Value {
+    let mut value = json!({
+        "html": out.join("index.html").display().to_string(),
+        "out": out.display().to_string(),
+        "files": files.iter().map(|f| f.display().to_string()).collect::<Vec<_>>(),
+    });
+    if let (Value::Object(map), Value::Object(more)) = (&mut value, extra) {
+        map.extend(more);
+    }
+    value
+}
+
+/// Runs `alacs report calibration`.
+pub fn calibration(args: &ReportCalibrationArgs) -> CmdResult {
+    let session = Session::read(&args.session)?;
+    let camera = Camera::from_yaml_file(&args.camera)?;
+    let laser = LaserModel::from_yaml_file(&args.laser)?;
+    let bar = output::progress_bar(args.json, "views");
+    output::start_progress(&bar, 2 * session.views.len(), "views: corners, board pose, stripe");
+    let report = calibration_report(&session, &camera, &laser, &|| bar.inc(1));
+    let report = report.map_err(|e| with_context(Failure::from(e), &args.session));
+    let report = match report {
+        Ok(report) => report,
+        Err(failure) => {
+            bar.finish_and_clear();
+            return Err(failure);
+        }
+    };
+    bar.set_message("writing the page and its images");
+    let files =
+        write_calibration_html(&args.out, &session, &report, &args.session.display().to_string());
+    bar.finish_and_clear();
+    let files = files?;
+    let flagged: Vec<&str> =
+        report.views.iter().filter(|v| v.flag.is_some()).map(|v| v.view.image.as_str()).collect();
+    if args.json {
+        output::print_json(&report_json(
+            &args.out,
+            &files,
+            json!({
+                "views": report.views.len(),
+                "flagged": flagged,
+                "pose_rms_px": report.pose_rms_px(),
+                "mean_abs_error_mm": report.mean_abs_residual_mm(),
+            }),
+        ));
+    } else {
+        println!(
+            "Calibration report on {} views of {} ({} flagged{}): {}",
+            report.views.len(),
+            args.session.display(),
+            flagged.len(),
+            if flagged.is_empty() { String::new() } else { format!(": {}", flagged.join(", ")) },
+            args.out.join("index.html").display()
+        );
+        println!("{}", output::files_written(&args.out, &files));
+    }
+    Ok(())
+}
+
+/// Runs `alacs report scan`.
+pub fn scan(args: &ReportScanArgs) -> CmdResult {
+    let scan = Scan::read(&args.scan)?;
+    let camera = Camera::from_yaml_file(&args.camera)?;
+    let laser = LaserModel::from_yaml_file(&args.laser)?;
+    let bar = output::progress_bar(args.json, "frames");
+    output::start_progress(&bar, scan.frames.len(), "frames read");
+    let mut images = Vec::with_capacity(scan.frames.len());
+    for frame in &scan.frames {
+        let on = read_image(&scan.path_of(&frame.image));
+        let off = frame.image_laser_off.as_ref().map(|off| read_image(&scan.path_of(off)));
+        match (on, off.transpose()) {
+            (Ok(on), Ok(off)) => images.push((on.to_rgb8(), off.map(|o| o.to_rgb8()))),
+            (Err(e), _) | (_, Err(e)) => {
+                bar.finish_and_clear();
+                return Err(e.into());
+            }
+        }
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let frames: Vec<FrameImages> = scan
+        .frames
+        .iter()
+        .zip(&images)
+        .map(|(frame, (on, off))| FrameImages {
+            image: on,
+            image_laser_off: off.as_ref(),
+            slide_mm: frame.slide_mm,
+        })
+        .collect();
+    let prior =
+        Prior { rough_position_mm: scan.rough_position_mm, fruit_radius_mm: scan.fruit_radius_mm };
+    let method = match args.method {
+        LocalizeMethodArg::Fused => Method::Fused,
+        LocalizeMethodArg::Holistic => Method::Holistic,
+    };
+    let options = LocateOptions { method, ..LocateOptions::default() };
+    let answer = locate(&camera, &laser, &prior, &frames, &options)
+        .map_err(|e| with_context(Failure::from(e), &args.scan))?;
+    let names: Vec<String> = scan.frames.iter().map(|f| f.image.display().to_string()).collect();
+    let report_frames: Vec<ScanReportFrame> = names
+        .iter()
+        .zip(&images)
+        .map(|(name, (image, _))| ScanReportFrame { name, image })
+        .collect();
+    let source = args.scan.display().to_string();
+    let files = write_scan_html(
+        &args.out,
+        &ScanReport {
+            source: &source,
+            camera: &camera,
+            laser: &laser,
+            prior: &prior,
+            frames: &report_frames,
+            localization: &answer,
+        },
+    )?;
+    if args.json {
+        output::print_json(&report_json(
+            &args.out,
+            &files,
+            json!({ "localization": output::localization_json(&answer) }),
+        ));
+    } else {
+        output::print_text(&output::localization_summary(&answer));
+        println!(
+            "Scan report: {}\n{}",
+            args.out.join("index.html").display(),
+            output::files_written(&args.out, &files)
+        );
+    }
+    Ok(())
+}

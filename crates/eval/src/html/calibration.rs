@@ -1,0 +1,481 @@
+//! The calibration report: a camera and a laser against a calibration
+//! session, per view the detected corners and the stripe drawn over the
+//! image, so that a bad view shows at a glance.
+
+use std::path::{Path, PathBuf};
+
+use alacs_calib::{
+    CalibrationOptions, LaserSample, ViewSamples, depth_error_mm, detect_session_boards,
+    view_samples,
+};
+use alacs_model::{Camera, LaserModel, Session};
+use alacs_vision::{StripeOptions, read_image};
+use nalgebra::Point2;
+use rayon::prelude::*;
+
+use super::draw::{BLUE, Canvas, GREEN, RED};
+use super::page::{Page, fixed, num, txt};
+use crate::accuracy::accuracy_from_views;
+use crate::{
+    AccuracyEvaluation, AccuracyOptions, CalibrationEvaluation, Result, evaluate_calibration,
+    write_accuracy_report, write_calibration_report,
+};
+
+/// Widest view image on the page (px): half the 5 MP camera's width.
+const MAX_VIEW_WIDTH_PX: u32 = 1224;
+
+/// A board pose whose corners reproject worse than this (px RMS) is
+/// flagged: a good detection with a good camera is well below 0.5 px.
+const FLAG_POSE_RMS_PX: f64 = 1.0;
+
+/// One view of a [`CalibrationReport`].
+#[derive(Debug, Clone)]
+pub struct CalibrationReportView {
+    /// What the laser calibration's per-view step gave with the reported
+    /// camera: the board pose, its reprojection RMS, the samples, why none.
+    pub view: ViewSamples,
+    /// The image the board corners were searched in.
+    pub board_image: String,
+    /// The detected board corners, px.
+    pub corners_px: Vec<Point2<f64>>,
+    /// The view's laser samples as pixels (their normalized coordinates
+    /// through the camera's distortion), px.
+    pub stripe_px: Vec<Point2<f64>>,
+    /// z - z_hat of each sample under the reported laser (eq. (9)), mm.
+    pub residuals_mm: Vec<f64>,
+    /// Why the view is flagged as bad, if it is.
+    pub flag: Option<String>,
+}
+
+impl CalibrationReportView {
+    /// Mean |z - z_hat| of the view's samples, mm.
+    pub fn mean_abs_residual_mm(&self) -> Option<f64> {
+        (!self.residuals_mm.is_empty()).then(|| {
+            self.residuals_mm.iter().map(|r| r.abs()).sum::<f64>() / self.residuals_mm.len() as f64
+        })
+    }
+}
+
+/// A camera and a laser reported against a calibration session.
+#[derive(Debug, Clone)]
+pub struct CalibrationReport {
+    /// The reported camera.
+    pub camera: Camera,
+    /// The reported laser.
+    pub laser: LaserModel,
+    /// Inner corners of the board (columns, rows).
+    pub board_corners: (usize, usize),
+    /// Every view, in session order.
+    pub views: Vec<CalibrationReportView>,
+    /// Every sample, in view order.
+    pub samples: Vec<LaserSample>,
+    /// Table 1: the four methods fitted on the session's samples, or why not.
+    pub table_1: std::result::Result<CalibrationEvaluation, String>,
+    /// The accuracy experiment on the session's own views with the reported
+    /// laser, or why not.
+    pub accuracy: std::result::Result<AccuracyEvaluation, String>,
+    /// The inlier threshold of Table 1 and of the views' flags, mm.
+    pub threshold_mm: f64,
+}
+
+impl CalibrationReport {
+    /// RMS of the board poses' reprojection errors over the views with a
+    /// pose (each view weighted alike), px.
+    pub fn pose_rms_px(&self) -> Option<f64> {
+        let rms: Vec<f64> = self.views.iter().filter_map(|v| v.view.pose_rms_px).collect();
+        (!rms.is_empty())
+            .then(|| (rms.iter().map(|r| r * r).sum::<f64>() / rms.len() as f64).sqrt())
+    }
+
+    /// Mean |z - z_hat| over every sample under the reported laser, mm.
+    pub fn mean_abs_residual_mm(&self) -> Option<f64> {
+        let n: usize = self.views.iter().map(|v| v.residuals_mm.len()).sum();
+        (n > 0).then(|| {
+            self.views.iter().flat_map(|v| &v.residuals_mm).map(|r| r.abs()).sum::<f64>() / n as f64
+        })
+    }
+}
+
+/// Measures `camera` and `laser` on `session`: per view the board corners
+/// (searched once per distinct board image), the board pose and the laser
+/// samples ([`view_samples`]) with their residuals under `laser`; Table 1
+/// on all samples; the accuracy experiment on the same views. `progress` is
+/// called once per board image searched and once per view.
+pub fn calibration_report(
+    session: &Session,
+    camera: &Camera,
+    laser: &LaserModel,
+    progress: &(dyn Fn() + Sync),
+) -> Result<CalibrationReport> {
+    camera.validate()?;
+    laser.validate()?;
+    let stripe = StripeOptions::default();
+    let per_view: Vec<(Vec<LaserSample>, ViewSamples)> = session
+        .views
+        .par_iter()
+        .map(|view| {
+            let result = view_samples(session, view, camera, &stripe);
+            progress();
+            result
+        })
+        .collect::<std::result::Result<_, _>>()?;
+    calibration_report_from_views(session, camera, laser, per_view, progress)
+}
+
+/// [`calibration_report`] on the views' samples as a laser calibration of
+/// the same session with the same camera already took them (in session
+/// order, as [`view_samples`] gives them; [`alacs_calib::calibrate_laser_session`]'s
+/// `samples` split by its `views`' `n_samples`), which saves finding every
+/// stripe again. `progress` is called once per board image searched.
+pub fn calibration_report_from_views(
+    session: &Session,
+    camera: &Camera,
+    laser: &LaserModel,
+    per_view: Vec<(Vec<LaserSample>, ViewSamples)>,
+    progress: &(dyn Fn() + Sync),
+) -> Result<CalibrationReport> {
+    if per_view.len() != session.views.len() {
+        return Err(crate::Error::InvalidOptions(format!(
+            "{} views' samples for a session of {} views",
+            per_view.len(),
+            session.views.len()
+        )));
+    }
+    let (_, boards) = detect_session_boards(session, progress)?;
+    let options = CalibrationOptions::default();
+    let threshold_mm = options.threshold_mm;
+    let mut views = Vec::with_capacity(per_view.len());
+    let mut samples = Vec::new();
+    for (spec, (view_samples, view)) in session.views.iter().zip(&per_view) {
+        let board_image =
+            spec.image_laser_off.as_deref().unwrap_or(&spec.image).display().to_string();
+        let board = boards.iter().find(|b| b.image == board_image);
+        let corners_px: Vec<Point2<f64>> = match board.map(|b| &b.corners) {
+            Some(Ok(corners)) => corners.found().map(|(_, p)| p).collect(),
+            _ => Vec::new(),
+        };
+        let stripe_px = view_samples.iter().map(|s| camera.normalized_to_pixel(&s.normalized()));
+        let residuals_mm: Vec<f64> =
+            view_samples.iter().map(|s| depth_error_mm(laser, s)).collect();
+        let total_corners = session.board.cols * session.board.rows;
+        let mean_abs = (!residuals_mm.is_empty())
+            .then(|| residuals_mm.iter().map(|r| r.abs()).sum::<f64>() / residuals_mm.len() as f64);
+        let flag = if let Some(reason) = &view.rejected {
+            Some(format!("not used: {reason}"))
+        } else if corners_px.len() < total_corners {
+            Some(format!("only {} of {total_corners} corners found", corners_px.len()))
+        } else if let Some(rms) = view.pose_rms_px.filter(|&rms| rms > FLAG_POSE_RMS_PX) {
+            Some(format!(
+                "the board pose reprojects its corners at {rms:.2} px RMS (> {FLAG_POSE_RMS_PX} px): a wrong detection or a poor camera"
+            ))
+        } else {
+            mean_abs.filter(|&m| m > threshold_mm).map(|mean| format!(
+                "mean |z - z_hat| {mean:.2} mm exceeds the {threshold_mm} mm inlier threshold: the stripe or the laser disagrees with the board"
+            ))
+        };
+        views.push(CalibrationReportView {
+            view: view.clone(),
+            board_image,
+            corners_px,
+            stripe_px: stripe_px.collect(),
+            residuals_mm,
+            flag,
+        });
+        samples.extend_from_slice(view_samples);
+    }
+    let table_1 = evaluate_calibration(&samples, &options).map_err(|e| e.to_string());
+    let accuracy = accuracy_from_views(per_view, camera, laser, &AccuracyOptions::default())
+        .map_err(|e| e.to_string());
+    Ok(CalibrationReport {
+        camera: camera.clone(),
+        laser: *laser,
+        board_corners: (session.board.cols, session.board.rows),
+        views,
+        samples,
+        table_1,
+        accuracy,
+        threshold_mm,
+    })
+}
+
+/// The page's images of one view: its image with the corners (green
+/// crosses) and the stripe samples (red: within the threshold of the
+/// reported laser, blue: beyond) drawn over it.
+fn view_image(
+    session: &Session,
+    spec_image: &Path,
+    view: &CalibrationReportView,
+    threshold_mm: f64,
+    path: &Path,
+) -> Result<()> {
+    let image = read_image(&session.path_of(spec_image)).map_err(alacs_calib::Error::from)?;
+    let mut canvas = Canvas::whole(&image.to_rgb8(), MAX_VIEW_WIDTH_PX);
+    for (p, r) in view.stripe_px.iter().zip(&view.residuals_mm) {
+        canvas.dot(p, 1, if r.abs() <= threshold_mm { RED } else { BLUE });
+    }
+    for p in &view.corners_px {
+        canvas.cross(p, 5.0, GREEN);
+    }
+    canvas.write_jpeg(path)
+}
+
+/// Writes the report as `dir`/index.html with its images (`images/`) and
+/// plots (the files of [`write_calibration_report`] and
+/// [`write_accuracy_report`]) beside it; `source` names the session on the
+/// page. Returns every file written, the page first.
+pub fn write_calibration_html(
+    dir: &Path,
+    session: &Session,
+    report: &CalibrationReport,
+    source: &str,
+) -> Result<Vec<PathBuf>> {
+    let images_dir = dir.join("images");
+    std::fs::create_dir_all(&images_dir)
+        .map_err(|error| crate::Error::Io { path: images_dir.clone(), error })?;
+    let mut files = Vec::new();
+    if let Ok(eval) = &report.table_1 {
+        files.extend(write_calibration_report(dir, eval)?);
+    }
+    if let Ok(eval) = &report.accuracy {
+        files.extend(write_accuracy_report(dir, eval)?);
+    }
+    let image_names: Vec<String> =
+        (0..report.views.len()).map(|i| format!("images/view{:02}.jpg", i + 1)).collect();
+    let written: Vec<Result<PathBuf>> = session
+        .views
+        .par_iter()
+        .zip(&report.views)
+        .zip(&image_names)
+        .map(|((spec, view), name)| {
+            let path = dir.join(name);
+            view_image(session, &spec.image, view, report.threshold_mm, &path)?;
+            Ok(path)
+        })
+        .collect();
+    for path in written {
+        files.push(path?);
+    }
+
+    let title = "alacs calibration report";
+    let mut page = Page::new(title);
+    page.paragraph(
+        &format!(
+            "Session {source}: {} views of a {} x {} board. The camera \"{}\" ({} x {} px) and a {} laser reported against it.",
+            report.views.len(),
+            report.board_corners.0,
+            report.board_corners.1,
+            report.camera.name,
+            report.camera.width_px,
+            report.camera.height_px,
+            report.laser.fidelity.as_str()
+        ),
+        None,
+    );
+    summary(&mut page, report);
+    views_table(&mut page, report);
+    plots(&mut page, report);
+    page.heading("Views");
+    page.raw(
+        "<p class=\"legend\"><span style=\"color:#0a0\">+ detected corner</span><span style=\"color:#e22\">&bull; stripe sample within the threshold</span><span style=\"color:#28f\">&bull; stripe sample beyond it</span></p>",
+    );
+    page.grid_start();
+    for (i, (view, name)) in report.views.iter().zip(&image_names).enumerate() {
+        let caption = format!(
+            "{}. {} (slide {:.1} mm): {} corners, pose RMS {} px, {} samples, mean |residual| {} mm",
+            i + 1,
+            view.view.image,
+            view.view.slide_mm,
+            view.corners_px.len(),
+            fixed(view.view.pose_rms_px, 3),
+            view.view.n_samples,
+            fixed(view.mean_abs_residual_mm(), 3)
+        );
+        page.figure(&[name], &caption, view.flag.as_deref());
+    }
+    page.grid_end();
+    files.insert(0, page.write(dir, title)?);
+    Ok(files)
+}
+
+/// The summary: camera, views, laser and Table 1.
+fn summary(page: &mut Page, report: &CalibrationReport) {
+    let camera = &report.camera;
+    page.heading("Camera");
+    let (model, coefficients) = camera.distortion.ros_model();
+    let coefficients: Vec<String> = coefficients.iter().map(|c| format!("{c:.5}")).collect();
+    let used = report.views.iter().filter(|v| v.view.camera_from_board.is_some()).count();
+    page.table(
+        &[txt(""), num("value")],
+        &[
+            (
+                vec![txt("fx, fy (px)"), num(format!("{:.2}, {:.2}", camera.fx_px, camera.fy_px))],
+                false,
+            ),
+            (
+                vec![txt("cx, cy (px)"), num(format!("{:.2}, {:.2}", camera.cx_px, camera.cy_px))],
+                false,
+            ),
+            (vec![txt(format!("distortion ({model})")), num(coefficients.join(", "))], false),
+            (
+                vec![txt("board-pose reprojection RMS (px)"), num(fixed(report.pose_rms_px(), 3))],
+                report.pose_rms_px().is_some_and(|r| r > FLAG_POSE_RMS_PX),
+            ),
+            (
+                vec![
+                    txt("views with a board pose"),
+                    num(format!("{used} of {}", report.views.len())),
+                ],
+                used < report.views.len(),
+            ),
+        ],
+    );
+    let rejected: Vec<String> = report
+        .views
+        .iter()
+        .filter_map(|v| v.view.rejected.as_ref().map(|r| format!("{}: {r}", v.view.image)))
+        .collect();
+    if !rejected.is_empty() {
+        page.paragraph(&format!("Views not used: {}", rejected.join("; ")), Some("flag"));
+    }
+    page.heading("Laser");
+    let laser = &report.laser;
+    page.table(
+        &[
+            txt(""),
+            num("alpha (deg)"),
+            num("beta (deg)"),
+            num("L0 (mm)"),
+            num("samples"),
+            num("mean |z - z_hat| (mm)"),
+            num("within threshold"),
+        ],
+        &[(
+            vec![
+                txt(format!("reported ({})", laser.fidelity.as_str())),
+                num(format!("{:.3}", laser.alpha_deg())),
+                num(format!("{:.3}", laser.beta_deg())),
+                num(format!("{:.2}", laser.l0_mm)),
+                num(report.samples.len().to_string()),
+                num(fixed(report.mean_abs_residual_mm(), 3)),
+                num({
+                    let within = report
+                        .views
+                        .iter()
+                        .flat_map(|v| &v.residuals_mm)
+                        .filter(|r| r.abs() <= report.threshold_mm)
+                        .count();
+                    format!("{within} of {}", report.samples.len())
+                }),
+            ],
+            false,
+        )],
+    );
+    page.heading("Table 1: the four methods on this session's samples");
+    match &report.table_1 {
+        Ok(eval) => {
+            let rows = eval
+                .methods
+                .iter()
+                .map(|m| {
+                    let c = &m.calibration;
+                    (
+                        vec![
+                            txt(format!("Method {} ({})", c.method.number(), c.method.name())),
+                            num(format!("{:.3}", c.laser.alpha_deg())),
+                            num(match c.laser.fidelity {
+                                alacs_model::Fidelity::Low => "/".to_string(),
+                                alacs_model::Fidelity::High => format!("{:.3}", c.laser.beta_deg()),
+                            }),
+                            num(format!("{:.2}", c.laser.l0_mm)),
+                            num(format!("{:.3}", c.mean_abs_error_mm)),
+                            num(format!("{}/{}", c.inliers.len(), c.n_samples)),
+                        ],
+                        false,
+                    )
+                })
+                .collect::<Vec<_>>();
+            page.table(
+                &[
+                    txt(""),
+                    num("alpha (deg)"),
+                    num("beta (deg)"),
+                    num("L0 (mm)"),
+                    num("mean |z - z_hat| (mm)"),
+                    num("inliers"),
+                ],
+                &rows,
+            );
+            page.paragraph(
+                &format!(
+                    "Mean error over each method's inliers (all samples for methods without RANSAC); inlier threshold {} mm.",
+                    eval.options.threshold_mm
+                ),
+                Some("note"),
+            );
+        }
+        Err(reason) => page.paragraph(&format!("Not computed: {reason}"), Some("flag")),
+    }
+}
+
+/// The per-view table.
+fn views_table(page: &mut Page, report: &CalibrationReport) {
+    page.heading("Per view");
+    let rows = report
+        .views
+        .iter()
+        .enumerate()
+        .map(|(i, v)| {
+            (
+                vec![
+                    num((i + 1).to_string()),
+                    txt(v.view.image.clone()),
+                    num(format!("{:.1}", v.view.slide_mm)),
+                    num(v.corners_px.len().to_string()),
+                    num(fixed(v.view.pose_rms_px, 3)),
+                    num(v.view.n_samples.to_string()),
+                    num(fixed(v.mean_abs_residual_mm(), 3)),
+                    txt(v.flag.clone().unwrap_or_default()),
+                ],
+                v.flag.is_some(),
+            )
+        })
+        .collect::<Vec<_>>();
+    page.table(
+        &[
+            num("#"),
+            txt("image"),
+            num("slide (mm)"),
+            num("corners"),
+            num("reprojection RMS (px)"),
+            num("laser samples"),
+            num("mean |z - z_hat| (mm)"),
+            txt("flag"),
+        ],
+        &rows,
+    );
+}
+
+/// The residual plots and the accuracy box plots.
+fn plots(page: &mut Page, report: &CalibrationReport) {
+    if let Ok(eval) = &report.table_1 {
+        page.heading("Depth residuals z - z_hat per method");
+        for method in &eval.methods {
+            let n = method.calibration.method.number();
+            page.plot(
+                &format!("calibration_residuals_method{n}.png"),
+                &format!("residuals of method {n}"),
+            );
+        }
+    }
+    page.heading("Accuracy on this session's views");
+    match &report.accuracy {
+        Ok(_) => {
+            page.paragraph(
+                "Every stripe point triangulated with the reported laser against its board plane, per slide position (the laser was probably fitted on these views: for an independent check run alacs evaluate accuracy on a second session).",
+                Some("note"),
+            );
+            page.plot("accuracy_boxplots.png", "accuracy box plots");
+        }
+        Err(reason) => page.paragraph(&format!("Not computed: {reason}"), Some("flag")),
+    }
+}

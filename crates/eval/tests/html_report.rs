@@ -1,0 +1,147 @@
+//! The HTML reports are self-contained: every image and plot the page
+//! references is beside it and non-empty, and nothing points off the
+//! machine. Quarter-scale renders (612 x 512 px) of a small session and a
+//! small scan keep it to a few seconds.
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
+
+use std::path::{Path, PathBuf};
+
+use alacs_eval::{
+    ScanReport, ScanReportFrame, calibration_report, write_calibration_html, write_scan_html,
+};
+use alacs_locate::{FrameImages, LocateOptions, Prior, locate};
+use alacs_model::{Camera, Fidelity, LaserModel, Session};
+use alacs_sim::{ScanOptions, SessionOptions, simulate_scan, simulate_session};
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("alacs-html-{name}-{}", std::process::id()));
+    std::fs::remove_dir_all(&dir).ok();
+    dir
+}
+
+fn laser() -> LaserModel {
+    LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98)
+}
+
+/// Every `src="..."` and `href="..."` of `html`.
+fn references(html: &str) -> Vec<String> {
+    let mut found = Vec::new();
+    for key in ["src=\"", "href=\""] {
+        let mut rest = html;
+        while let Some(start) = rest.find(key) {
+            rest = &rest[start + key.len()..];
+            let end = rest.find('"').unwrap();
+            found.push(rest[..end].to_string());
+            rest = &rest[end..];
+        }
+    }
+    found
+}
+
+/// Checks the page at `dir`/index.html; returns its text and references.
+fn check_self_contained(dir: &Path) -> (String, Vec<String>) {
+    let html = std::fs::read_to_string(dir.join("index.html")).unwrap();
+    let refs = references(&html);
+    assert!(!refs.is_empty());
+    for r in &refs {
+        assert!(
+            !r.starts_with("http:") && !r.starts_with("https:") && !r.starts_with("//"),
+            "an external link: {r}"
+        );
+        assert!(!r.starts_with('/') && !r.contains(".."), "not beside the page: {r}");
+        let len = std::fs::metadata(dir.join(r)).map(|m| m.len()).unwrap_or(0);
+        assert!(len > 0, "{r} is missing or empty");
+    }
+    assert!(!html.contains("<script"), "no scripts");
+    (html, refs)
+}
+
+#[test]
+fn calibration_report_is_self_contained_and_flags_a_bad_view() {
+    let options = SessionOptions {
+        n_views: 4,
+        slides_mm: vec![0.0, 200.0],
+        scale: 0.25,
+        seed: 5,
+        ..SessionOptions::default()
+    };
+    let simulated = simulate_session(&Camera::blackfly_s_5mp(), &laser(), &options).unwrap();
+    let dir = temp_dir("calibration");
+    simulated.write(&dir).unwrap();
+    // One view without a board: a grey image, to be flagged with its reason.
+    let session = Session::read(&dir).unwrap();
+    let blank = image::RgbImage::from_pixel(
+        simulated.camera.width_px,
+        simulated.camera.height_px,
+        image::Rgb([128, 128, 128]),
+    );
+    blank.save(session.path_of(&session.views[1].image)).unwrap();
+
+    let report = calibration_report(&session, &simulated.camera, &laser(), &|| {}).unwrap();
+    assert_eq!(report.views.len(), 8);
+    assert!(report.views[1].flag.as_deref().unwrap().contains("not used"));
+    let good = &report.views[0];
+    assert!(good.flag.is_none(), "{:?}", good.flag);
+    assert_eq!(good.corners_px.len(), session.board.cols * session.board.rows);
+    // With the true laser the residuals are the stripe's and the board pose's
+    // noise: well within the inlier threshold even at quarter scale (f = 580 px).
+    assert!(good.stripe_px.len() > 20);
+    assert!(good.mean_abs_residual_mm().unwrap() < report.threshold_mm);
+    assert!(report.table_1.is_ok() && report.accuracy.is_ok());
+
+    let out = dir.join("report <&>");
+    let files = write_calibration_html(&out, &session, &report, "session <&>").unwrap();
+    assert_eq!(files[0], out.join("index.html"));
+    let (html, refs) = check_self_contained(&out);
+    for i in 1..=8 {
+        assert!(refs.contains(&format!("images/view{i:02}.jpg")), "view {i}");
+    }
+    for plot in ["calibration_residuals_method4.png", "accuracy_boxplots.png"] {
+        assert!(refs.iter().any(|r| r == plot), "{plot}");
+    }
+    assert!(html.contains("session &lt;&amp;&gt;") && !html.contains("session <&>"));
+    assert!(html.contains("Method 4") && html.contains("class=\"bad\""));
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn scan_report_is_self_contained() {
+    let options = ScanOptions { scale: 0.25, seed: 3, ..ScanOptions::default() };
+    let scan = simulate_scan(&Camera::blackfly_s_5mp(), &laser(), &options).unwrap();
+    let images: Vec<_> =
+        (0..scan.frames.len()).map(|i| scan.render_frame(i, true).unwrap()).collect();
+    let frames: Vec<_> = images
+        .iter()
+        .zip(&scan.frames)
+        .map(|(image, f)| FrameImages { image, image_laser_off: None, slide_mm: f.slide_mm })
+        .collect();
+    let prior = Prior { rough_position_mm: scan.rough_position_mm, fruit_radius_mm: 40.0 };
+    let answer =
+        locate(&scan.camera, &scan.laser, &prior, &frames, &LocateOptions::default()).unwrap();
+    let report_frames: Vec<_> = images
+        .iter()
+        .zip(&scan.frames)
+        .map(|(image, f)| ScanReportFrame { name: &f.image, image })
+        .collect();
+    let dir = temp_dir("scan");
+    let files = write_scan_html(
+        &dir,
+        &ScanReport {
+            source: "simulated",
+            camera: &scan.camera,
+            laser: &scan.laser,
+            prior: &prior,
+            frames: &report_frames,
+            localization: &answer,
+        },
+    )
+    .unwrap();
+    assert_eq!(files.len(), 2 + scan.frames.len());
+    let (html, refs) = check_self_contained(&dir);
+    assert!(refs.iter().any(|r| r == "images/overview.jpg"));
+    for i in 1..=scan.frames.len() {
+        assert!(refs.contains(&format!("images/frame{i:02}.jpg")), "frame {i}");
+    }
+    assert!(html.contains(answer.status.as_str()));
+    std::fs::remove_dir_all(&dir).ok();
+}
