@@ -483,6 +483,16 @@ pub enum LocalizeMethodArg {
     Holistic,
 }
 
+impl LocalizeMethodArg {
+    /// The library's method.
+    pub fn method(self) -> alacs::locate::Method {
+        match self {
+            LocalizeMethodArg::Fused => alacs::locate::Method::Fused,
+            LocalizeMethodArg::Holistic => alacs::locate::Method::Holistic,
+        }
+    }
+}
+
 /// `alacs localize`
 #[derive(Debug, Args)]
 pub struct LocalizeArgs {

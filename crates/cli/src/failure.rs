@@ -17,6 +17,11 @@ pub struct Failure {
 pub type CmdResult<T = ()> = Result<T, Failure>;
 
 impl Failure {
+    /// This failure with `context` (a file or folder) in front of its message.
+    pub fn with_context(self, context: &std::path::Path) -> Self {
+        Self { error: self.error.context(context.display().to_string()), ..self }
+    }
+
     /// Unreadable or invalid input (exit 2).
     pub fn bad_input(error: impl Into<anyhow::Error>) -> Self {
         Self { code: BAD_INPUT, error: error.into() }

@@ -14,5 +14,5 @@ pub mod outline;
 pub use error::{Error, Result};
 pub use locate::{
     Candidate, FrameImages, FrameResult, FusedFit, Localization, LocateOptions, Method, Prior,
-    Status, locate, locate_scan,
+    ScanImages, Status, locate, locate_scan, locate_scan_images, read_scan_images,
 };

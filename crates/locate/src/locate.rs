@@ -268,19 +268,16 @@ pub struct Localization {
     pub search_radius_mm: f64,
 }
 
-/// Locates the fruit from a scan folder ([`Scan`]): reads its images (in
-/// parallel), then [`locate`]. `progress(done, total)` after each frame read.
-pub fn locate_scan(
-    scan: &Scan,
-    camera: &Camera,
-    laser: &LaserModel,
-    options: &LocateOptions,
-    progress: impl Fn(usize, usize) + Sync,
-) -> Result<Localization> {
+/// The images of a scan's frames, in frame order: the laser-on image and
+/// the laser-off one where the frame has it.
+pub type ScanImages = Vec<(RgbImage, Option<RgbImage>)>;
+
+/// Reads the images of a scan folder ([`Scan`]) in parallel;
+/// `progress(done, total)` after each frame read.
+pub fn read_scan_images(scan: &Scan, progress: impl Fn(usize, usize) + Sync) -> Result<ScanImages> {
     let total = scan.frames.len();
     let done = std::sync::atomic::AtomicUsize::new(0);
-    let images: Vec<(RgbImage, Option<RgbImage>)> = scan
-        .frames
+    scan.frames
         .par_iter()
         .map(|frame| {
             let on = read_image(&scan.path_of(&frame.image))?.to_rgb8();
@@ -292,11 +289,35 @@ pub fn locate_scan(
             progress(n, total);
             Ok((on, off))
         })
-        .collect::<Result<_>>()?;
+        .collect()
+}
+
+/// Locates the fruit from a scan folder ([`Scan`]): [`read_scan_images`],
+/// then [`locate_scan_images`].
+pub fn locate_scan(
+    scan: &Scan,
+    camera: &Camera,
+    laser: &LaserModel,
+    options: &LocateOptions,
+    progress: impl Fn(usize, usize) + Sync,
+) -> Result<Localization> {
+    let images = read_scan_images(scan, progress)?;
+    locate_scan_images(scan, &images, camera, laser, options)
+}
+
+/// [`locate`] on a scan's images already read ([`read_scan_images`]), with
+/// the prior and slide positions of its scan.yaml.
+pub fn locate_scan_images(
+    scan: &Scan,
+    images: &[(RgbImage, Option<RgbImage>)],
+    camera: &Camera,
+    laser: &LaserModel,
+    options: &LocateOptions,
+) -> Result<Localization> {
     let frames: Vec<FrameImages> = scan
         .frames
         .iter()
-        .zip(&images)
+        .zip(images)
         .map(|(frame, (on, off))| FrameImages {
             image: on,
             image_laser_off: off.as_ref(),

@@ -17,11 +17,6 @@ use crate::args::{EvaluateAccuracyArgs, EvaluateCalibrationArgs, PointsArg};
 use crate::failure::{CmdResult, Failure};
 use crate::output;
 
-/// `failure` with `context` (a file or folder) in front of its message.
-fn with_context(failure: Failure, context: &std::path::Path) -> Failure {
-    Failure { error: failure.error.context(context.display().to_string()), ..failure }
-}
-
 /// The dense samples of a session: with `camera`, or with a camera
 /// calibrated from the session's own board views.
 fn session_samples(
@@ -37,7 +32,7 @@ fn session_samples(
             let fit =
                 calibrate_camera_session(&session, &IntrinsicsOptions::default(), &|| bar.inc(1));
             bar.finish_and_clear();
-            let fit = fit.map_err(|e| with_context(e.into(), dir))?;
+            let fit = fit.map_err(|e| Failure::from(e).with_context(dir))?;
             eprintln!(
                 "note: no --camera: calibrated the camera from the session's board views ({:.3} px RMS, {} views)",
                 fit.rms_px,
@@ -51,7 +46,7 @@ fn session_samples(
     let result =
         calibrate_laser_session(&session, &camera, &LaserSessionOptions::default(), &|| bar.inc(1));
     bar.finish_and_clear();
-    let result = result.map_err(|e| with_context(e.into(), dir))?;
+    let result = result.map_err(|e| Failure::from(e).with_context(dir))?;
     for view in &result.views {
         if let Some(reason) = &view.rejected {
             eprintln!("warning: {}: not used: {reason}", view.image);
@@ -81,7 +76,7 @@ pub fn calibration(args: &EvaluateCalibrationArgs) -> CmdResult {
         ..CalibrationOptions::default()
     };
     let eval = evaluate_calibration(&samples, &options)
-        .map_err(|e| with_context(Failure::from(e), &source))?;
+        .map_err(|e| Failure::from(e).with_context(&source))?;
     let files = write_calibration_report(&args.out, &eval)?;
     if args.json {
         let mut value = eval.to_json();
@@ -140,7 +135,7 @@ pub fn accuracy(args: &EvaluateAccuracyArgs) -> CmdResult {
     output::start_progress(&bar, session.views.len(), "views: board pose and laser stripe");
     let eval = evaluate_accuracy(&session, &camera, &laser, &options, &|| bar.inc(1));
     bar.finish_and_clear();
-    let eval = eval.map_err(|e| with_context(Failure::from(e), &args.session))?;
+    let eval = eval.map_err(|e| Failure::from(e).with_context(&args.session))?;
     for view in &eval.views {
         if let Some(reason) = &view.rejected {
             eprintln!("warning: {}: not used: {reason}", view.image);

@@ -1,9 +1,9 @@
 //! `alacs localize`: the fruit's centre from a scan folder.
 
-use alacs::locate::{LocateOptions, Method, locate_scan};
+use alacs::locate::{LocateOptions, locate_scan};
 use alacs::{Camera, LaserModel, Scan};
 
-use crate::args::{LocalizeArgs, LocalizeMethodArg};
+use crate::args::LocalizeArgs;
 use crate::failure::CmdResult;
 use crate::output;
 
@@ -12,11 +12,7 @@ pub fn run(args: &LocalizeArgs) -> CmdResult {
     let scan = Scan::read(&args.scan)?;
     let camera = Camera::from_yaml_file(&args.camera)?;
     let laser = LaserModel::from_yaml_file(&args.laser)?;
-    let method = match args.method {
-        LocalizeMethodArg::Fused => Method::Fused,
-        LocalizeMethodArg::Holistic => Method::Holistic,
-    };
-    let options = LocateOptions { method, ..LocateOptions::default() };
+    let options = LocateOptions { method: args.method.method(), ..LocateOptions::default() };
     let bar = output::progress_bar(args.json, "frames");
     output::start_progress(&bar, scan.frames.len(), "frames read");
     let answer = locate_scan(&scan, &camera, &laser, &options, |_, _| bar.inc(1));

@@ -6,19 +6,13 @@ use std::path::{Path, PathBuf};
 use alacs::eval::{
     ScanReport, ScanReportFrame, calibration_report, write_calibration_html, write_scan_html,
 };
-use alacs::locate::{FrameImages, LocateOptions, Method, Prior, locate};
-use alacs::vision::read_image;
+use alacs::locate::{LocateOptions, Prior, locate_scan_images, read_scan_images};
 use alacs::{Camera, LaserModel, Scan, Session};
 use serde_json::{Value, json};
 
-use crate::args::{LocalizeMethodArg, ReportCalibrationArgs, ReportScanArgs};
+use crate::args::{ReportCalibrationArgs, ReportScanArgs};
 use crate::failure::{CmdResult, Failure};
 use crate::output;
-
-/// `failure` with `context` (a file or folder) in front of its message.
-fn with_context(failure: Failure, context: &Path) -> Failure {
-    Failure { error: failure.error.context(context.display().to_string()), ..failure }
-}
 
 /// The report's JSON: the page, every file, and `extra`'s keys.
 fn report_json(out: &Path, files: &[PathBuf], extra: Value) -> Value {
@@ -41,7 +35,7 @@ pub fn calibration(args: &ReportCalibrationArgs) -> CmdResult {
     let bar = output::progress_bar(args.json, "views");
     output::start_progress(&bar, 2 * session.views.len(), "views: corners, board pose, stripe");
     let report = calibration_report(&session, &camera, &laser, &|| bar.inc(1));
-    let report = report.map_err(|e| with_context(Failure::from(e), &args.session));
+    let report = report.map_err(|e| Failure::from(e).with_context(&args.session));
     let report = match report {
         Ok(report) => report,
         Err(failure) => {
@@ -88,39 +82,13 @@ pub fn scan(args: &ReportScanArgs) -> CmdResult {
     let laser = LaserModel::from_yaml_file(&args.laser)?;
     let bar = output::progress_bar(args.json, "frames");
     output::start_progress(&bar, scan.frames.len(), "frames read");
-    let mut images = Vec::with_capacity(scan.frames.len());
-    for frame in &scan.frames {
-        let on = read_image(&scan.path_of(&frame.image));
-        let off = frame.image_laser_off.as_ref().map(|off| read_image(&scan.path_of(off)));
-        match (on, off.transpose()) {
-            (Ok(on), Ok(off)) => images.push((on.to_rgb8(), off.map(|o| o.to_rgb8()))),
-            (Err(e), _) | (_, Err(e)) => {
-                bar.finish_and_clear();
-                return Err(e.into());
-            }
-        }
-        bar.inc(1);
-    }
+    let images = read_scan_images(&scan, |_, _| bar.inc(1));
     bar.finish_and_clear();
-    let frames: Vec<FrameImages> = scan
-        .frames
-        .iter()
-        .zip(&images)
-        .map(|(frame, (on, off))| FrameImages {
-            image: on,
-            image_laser_off: off.as_ref(),
-            slide_mm: frame.slide_mm,
-        })
-        .collect();
+    let images = images?;
+    let options = LocateOptions { method: args.method.method(), ..LocateOptions::default() };
+    let answer = locate_scan_images(&scan, &images, &camera, &laser, &options)?;
     let prior =
         Prior { rough_position_mm: scan.rough_position_mm, fruit_radius_mm: scan.fruit_radius_mm };
-    let method = match args.method {
-        LocalizeMethodArg::Fused => Method::Fused,
-        LocalizeMethodArg::Holistic => Method::Holistic,
-    };
-    let options = LocateOptions { method, ..LocateOptions::default() };
-    let answer = locate(&camera, &laser, &prior, &frames, &options)
-        .map_err(|e| with_context(Failure::from(e), &args.scan))?;
     let names: Vec<String> = scan.frames.iter().map(|f| f.image.display().to_string()).collect();
     let report_frames: Vec<ScanReportFrame> = names
         .iter()
