@@ -22,6 +22,7 @@
 //! assert!((fit.laser.alpha_deg() - 19.07).abs() < 0.1);
 //! ```
 
+pub use alacs_board as board;
 pub use alacs_calib as calib;
 pub use alacs_eval as eval;
 pub use alacs_locate as locate;

@@ -3,7 +3,7 @@
 use alacs_model::{Fidelity, LaserModel, PreparedLaser};
 
 use crate::linear::LinearForm;
-use crate::ransac::{self, Estimator, RansacOptions};
+use alacs_model::ransac::{self, Estimator, RansacOptions};
 use crate::refine::{Residual, refine};
 use crate::{Error, LaserSample, Result, validate_samples};
 

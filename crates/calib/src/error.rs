@@ -2,6 +2,8 @@
 
 use std::path::PathBuf;
 
+use alacs_model::ErrorClass;
+
 /// Result with this crate's [`Error`].
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
@@ -17,25 +19,12 @@ pub enum Error {
         /// What the operating system said.
         error: std::io::Error,
     },
-    /// A samples CSV is malformed: a missing column, a value that is not a
-    /// number, NaN or infinite, or a non-positive depth.
-    #[error("{path}{}: {message}", line.map(|l| format!(", line {l}")).unwrap_or_default())]
-    Csv {
-        /// The file.
-        path: PathBuf,
-        /// 1-based line number, where known.
-        line: Option<u64>,
-        /// What is wrong.
-        message: String,
-    },
-    /// An in-memory sample is unusable (non-finite value, non-positive depth).
-    #[error("sample {index}: {message}")]
-    InvalidSample {
-        /// 0-based index of the sample.
-        index: usize,
-        /// What is wrong.
-        message: String,
-    },
+    /// Samples, a camera or a laser file that cannot be read or used.
+    #[error(transparent)]
+    Model(#[from] alacs_model::Error),
+    /// No board found in an image.
+    #[error(transparent)]
+    Board(#[from] alacs_board::Error),
     /// Fewer samples than the model needs.
     #[error("too few samples for the {model} model: got {got}, need at least {need}")]
     TooFewSamples {
@@ -72,17 +61,22 @@ pub enum Error {
 }
 
 impl Error {
-    /// Whether the error is about unreadable or invalid input (exit code 2 in
-    /// FORMATS.md) rather than a calibration that failed on readable data (1).
+    /// Bad input (exit 2) or a calibration that failed on readable data (1).
+    pub fn class(&self) -> ErrorClass {
+        match self {
+            Error::Io { .. } => ErrorClass::BadInput,
+            Error::Model(e) => e.class(),
+            Error::Board(e) => e.class(),
+            Error::Vision(e) => e.class(),
+            Error::TooFewSamples { .. }
+            | Error::Degenerate(_)
+            | Error::NoConsensus { .. }
+            | Error::FitFailed(_) => ErrorClass::JobFailed,
+        }
+    }
+
+    /// Whether [`Error::class`] is [`ErrorClass::BadInput`].
     pub fn is_bad_input(&self) -> bool {
-        matches!(
-            self,
-            Error::Io { .. }
-                | Error::Csv { .. }
-                | Error::InvalidSample { .. }
-                | Error::Vision(
-                    alacs_vision::Error::Image { .. } | alacs_vision::Error::Mismatch { .. }
-                )
-        )
+        self.class() == ErrorClass::BadInput
     }
 }

@@ -38,9 +38,7 @@ mod calibrate;
 mod error;
 mod intrinsics;
 mod linear;
-pub mod ransac;
 mod refine;
-mod samples;
 mod session;
 
 pub use calibrate::{
@@ -52,7 +50,11 @@ pub use intrinsics::{
     BoardObservation, IntrinsicsFit, IntrinsicsOptions, ViewFit, board_pose, calibrate_intrinsics,
 };
 pub use refine::Residual;
-pub use samples::{
+/// The RANSAC driver is `alacs-model`'s (fruit localization uses it too).
+pub use alacs_model::ransac;
+/// Calibration samples and samples.csv are `alacs-model`'s (the simulator
+/// writes them too).
+pub use alacs_model::{
     LaserSample, parse_samples_csv, read_samples_csv, samples_csv_string, validate_samples,
     write_samples_csv,
 };

@@ -276,7 +276,7 @@ fn non_finite_or_non_positive_samples_are_bad_input() {
     samples[4].z_mm = f64::NAN;
     let err = calibrate(&samples, Method::HighFidelityRansac, &CalibrationOptions::default())
         .unwrap_err();
-    assert!(matches!(err, Error::InvalidSample { index: 4, .. }), "{err}");
+    assert!(matches!(err, Error::Model(alacs_model::Error::InvalidSample { index: 4, .. })), "{err}");
     assert!(err.is_bad_input());
     samples[4].z_mm = -1.0;
     let err = calibrate(&samples, Method::HighFidelityRansac, &CalibrationOptions::default())
@@ -286,7 +286,7 @@ fn non_finite_or_non_positive_samples_are_bad_input() {
     samples[5].u_n = f64::INFINITY;
     let err = calibrate(&samples, Method::HighFidelityRansac, &CalibrationOptions::default())
         .unwrap_err();
-    assert!(matches!(err, Error::InvalidSample { index: 5, .. }), "{err}");
+    assert!(matches!(err, Error::Model(alacs_model::Error::InvalidSample { index: 5, .. })), "{err}");
 }
 
 #[test]
@@ -297,7 +297,7 @@ fn a_threshold_nothing_agrees_with_is_no_consensus() {
     assert!(matches!(err, Error::NoConsensus { .. }), "{err}");
 }
 
-fn parse(text: &str) -> alacs_calib::Result<Vec<LaserSample>> {
+fn parse(text: &str) -> alacs_model::Result<Vec<LaserSample>> {
     parse_samples_csv(text.as_bytes(), Path::new("samples.csv"))
 }
 

@@ -6,7 +6,8 @@ use std::path::{Path, PathBuf};
 
 use alacs_calib::{BoardObservation, IntrinsicsOptions, calibrate_intrinsics};
 use alacs_model::Session;
-use alacs_vision::{board_gray, detect_checkerboard, read_image};
+use alacs_board::{board_gray, detect_checkerboard};
+use alacs_vision::read_image;
 
 fn opencv_right() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../testdata/opencv_right")

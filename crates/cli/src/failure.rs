@@ -33,72 +33,38 @@ impl Failure {
     }
 }
 
-impl From<alacs::calib::Error> for Failure {
-    fn from(error: alacs::calib::Error) -> Self {
-        if error.is_bad_input() { Self::bad_input(error) } else { Self::job_failed(error) }
-    }
+/// A library error that knows whether it is bad input or a failed job.
+pub trait Classified: std::error::Error + Send + Sync + 'static {
+    /// Its class, as the library says it.
+    fn class(&self) -> alacs::model::ErrorClass;
 }
 
-impl From<alacs::vision::Error> for Failure {
-    fn from(error: alacs::vision::Error) -> Self {
-        alacs::calib::Error::from(error).into()
-    }
-}
-
-impl From<alacs::model::Error> for Failure {
-    fn from(error: alacs::model::Error) -> Self {
-        use alacs::model::Error as E;
-        match error {
-            E::Io { .. } | E::Parse { .. } | E::InvalidParameters { .. } => Self::bad_input(error),
-            _ => Self::job_failed(error),
+macro_rules! classified {
+    ($($error:ty),*) => {$(
+        impl Classified for $error {
+            fn class(&self) -> alacs::model::ErrorClass {
+                <$error>::class(self)
+            }
         }
-    }
+    )*};
 }
 
-impl From<alacs::sim::Error> for Failure {
-    fn from(error: alacs::sim::Error) -> Self {
-        use alacs::sim::Error as E;
-        match error {
-            E::Model(e) => e.into(),
-            E::Calib(e) => e.into(),
-            E::InvalidOptions(_) => Self::bad_input(error),
-            _ => Self::job_failed(error),
-        }
-    }
-}
+classified!(
+    alacs::model::Error,
+    alacs::vision::Error,
+    alacs::board::Error,
+    alacs::calib::Error,
+    alacs::sim::Error,
+    alacs::locate::Error,
+    alacs::scanner::Error,
+    alacs::eval::Error
+);
 
-impl From<alacs::locate::Error> for Failure {
-    fn from(error: alacs::locate::Error) -> Self {
-        use alacs::locate::Error as E;
-        match error {
-            E::Model(e) => e.into(),
-            E::Vision(e) => e.into(),
-            _ => Self::bad_input(error),
-        }
-    }
-}
-
-impl From<alacs::scanner::Error> for Failure {
-    fn from(error: alacs::scanner::Error) -> Self {
-        use alacs::scanner::Error as E;
-        match error {
-            E::Sim(e) => e.into(),
-            E::InvalidInput(_) => Self::bad_input(error),
-            E::Locate(ref e) if e.is_bad_input() => Self::bad_input(error),
-            // Devices that failed, outputs that could not be written.
-            _ => Self::job_failed(error),
-        }
-    }
-}
-
-impl From<alacs::eval::Error> for Failure {
-    fn from(error: alacs::eval::Error) -> Self {
-        use alacs::eval::Error as E;
-        match error {
-            E::Calib(e) => e.into(),
-            E::Model(e) => e.into(),
-            e if e.is_bad_input() => Self::bad_input(e),
-            e => Self::job_failed(e),
+impl<E: Classified> From<E> for Failure {
+    fn from(error: E) -> Self {
+        match error.class() {
+            alacs::model::ErrorClass::BadInput => Self::bad_input(error),
+            alacs::model::ErrorClass::JobFailed => Self::job_failed(error),
         }
     }
 }

@@ -48,19 +48,21 @@ pub enum Error {
 }
 
 impl Error {
-    /// Whether the error is about unreadable or invalid input (exit code 2 in
-    /// FORMATS.md) rather than an evaluation that failed on readable data (1).
-    pub fn is_bad_input(&self) -> bool {
+    /// Bad input (exit 2) or an evaluation that failed on readable data (1).
+    /// A report that cannot be written is bad input (an output path that
+    /// cannot be used), as everywhere in alacs.
+    pub fn class(&self) -> alacs_model::ErrorClass {
+        use alacs_model::ErrorClass::{BadInput, JobFailed};
         match self {
-            Error::Calib(e) => e.is_bad_input(),
-            Error::Model(e) => matches!(
-                e,
-                alacs_model::Error::Io { .. }
-                    | alacs_model::Error::Parse { .. }
-                    | alacs_model::Error::InvalidParameters { .. }
-            ),
-            Error::InvalidOptions(_) => true,
-            Error::Io { .. } | Error::Plot { .. } | Error::Image { .. } | Error::NoData(_) => false,
+            Error::Calib(e) => e.class(),
+            Error::Model(e) => e.class(),
+            Error::InvalidOptions(_) | Error::Io { .. } | Error::Image { .. } => BadInput,
+            Error::Plot { .. } | Error::NoData(_) => JobFailed,
         }
+    }
+
+    /// Whether [`Error::class`] is bad input.
+    pub fn is_bad_input(&self) -> bool {
+        self.class() == alacs_model::ErrorClass::BadInput
     }
 }

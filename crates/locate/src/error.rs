@@ -21,9 +21,19 @@ pub enum Error {
 }
 
 impl Error {
-    /// Whether the error is about unreadable or invalid input (exit code 2
-    /// in FORMATS.md) rather than a job that failed on good input.
+    /// Bad input (exit 2) or a failed job (exit 1); the camera's and
+    /// laser's own errors say which they are, contradicting inputs are bad
+    /// input.
+    pub fn class(&self) -> alacs_model::ErrorClass {
+        match self {
+            Error::Model(e) => e.class(),
+            Error::Vision(e) => e.class(),
+            Error::InvalidInput(_) => alacs_model::ErrorClass::BadInput,
+        }
+    }
+
+    /// Whether [`Error::class`] is bad input.
     pub fn is_bad_input(&self) -> bool {
-        true
+        self.class() == alacs_model::ErrorClass::BadInput
     }
 }

@@ -2,7 +2,7 @@
 //! algebraic least squares (Kasa) for a start, and Gauss-Newton on the
 //! geometric distance |‖p - c‖ - r| to finish.
 
-use alacs_calib::ransac::Estimator;
+use alacs_model::ransac::Estimator;
 use nalgebra::{Matrix3, Matrix4, Point2, Point3, Vector2, Vector3, Vector4};
 
 /// A circle in a plane's 2-D coordinates (mm).
@@ -203,7 +203,7 @@ pub fn plane_rms_mm(points: &[Point3<f64>]) -> f64 {
     (smallest / points.len() as f64).sqrt()
 }
 
-/// Circles through 2-D points for [`alacs_calib::ransac::ransac`], with a
+/// Circles through 2-D points for [`alacs_model::ransac::ransac_refit`], with a
 /// bound on the radius.
 pub struct CircleEstimator<'a> {
     /// The points.
@@ -233,9 +233,13 @@ impl Estimator for CircleEstimator<'_> {
     fn residual(&self, model: &Circle, index: usize) -> f64 {
         model.distance_mm(&self.points[index])
     }
+
+    fn refit(&self, indices: &[usize]) -> Option<Circle> {
+        fit_circle(&indices.iter().map(|&i| self.points[i]).collect::<Vec<_>>())
+    }
 }
 
-/// Spheres through 3-D points for [`alacs_calib::ransac::ransac`], with a
+/// Spheres through 3-D points for [`alacs_model::ransac::ransac_refit`], with a
 /// bound on the radius.
 pub struct SphereEstimator<'a> {
     /// The points.
@@ -265,6 +269,10 @@ impl Estimator for SphereEstimator<'_> {
 
     fn residual(&self, model: &Sphere, index: usize) -> f64 {
         model.distance_mm(&self.points[index])
+    }
+
+    fn refit(&self, indices: &[usize]) -> Option<Sphere> {
+        fit_sphere(&indices.iter().map(|&i| self.points[i]).collect::<Vec<_>>())
     }
 }
 

@@ -43,7 +43,7 @@
 //! radius or centre out of range, a surface facing away from the camera, a
 //! flat patch) gives `not_found` with the reason, never a point.
 
-use alacs_calib::ransac::{RansacOptions, ransac};
+use alacs_model::ransac::{RansacOptions, ransac_refit};
 use alacs_model::{Camera, LaserModel, Scan};
 use alacs_vision::{Region, StripeOptions, StripePoint, extract_stripe_rgb, read_image};
 use image::RgbImage;
@@ -52,7 +52,7 @@ use rayon::prelude::*;
 
 use crate::fit::{
     Circle, CircleEstimator, Ellipsoid, Sphere, SphereEstimator, fit_circle, fit_ellipsoid_robust,
-    fit_sphere, line_rms_mm, plane_rms_mm, rms_mm,
+    line_rms_mm, plane_rms_mm, rms_mm,
 };
 use crate::outline::{Outline, PixelBox, find_outline, fit_outline_sphere};
 use crate::{Error, Result};
@@ -691,19 +691,10 @@ impl FrameContext<'_> {
             max_iterations: 500,
             seed: self.options.seed ^ index as u64,
         };
-        let Some(outcome) = ransac(&estimator, &ransac_options) else {
+        let Some(outcome) = ransac_refit(&estimator, &ransac_options, 2) else {
             return Err("no circle through the stripe points".into());
         };
-        let mut inliers = outcome.inliers;
-        let mut circle = outcome.model;
-        for _ in 0..2 {
-            let points: Vec<_> = inliers.iter().map(|&i| in_plane[i]).collect();
-            let Some(refit) = fit_circle(&points) else { break };
-            circle = refit;
-            inliers = (0..in_plane.len())
-                .filter(|&i| circle.distance_mm(&in_plane[i]) <= threshold)
-                .collect();
-        }
+        let (circle, inliers) = (outcome.model, outcome.inliers);
         if inliers.len() < min_points {
             return Err(format!(
                 "{} points on the best circle, fewer than {min_points}",
@@ -848,17 +839,9 @@ fn fuse(results: &[FrameResult], context: &FrameContext) -> std::result::Result<
     let threshold = options.inlier_threshold_mm;
     let ransac_options =
         RansacOptions { threshold, confidence: 0.999, max_iterations: 1000, seed: options.seed };
-    let outcome = ransac(&estimator, &ransac_options)
+    let outcome = ransac_refit(&estimator, &ransac_options, 3)
         .ok_or_else(|| "no sphere through the fruit points of the frames".to_string())?;
-    let mut sphere = outcome.model;
-    let mut inliers = outcome.inliers;
-    for _ in 0..3 {
-        let chosen: Vec<_> = inliers.iter().map(|&i| points[i]).collect();
-        let Some(refit) = fit_sphere(&chosen) else { break };
-        sphere = refit;
-        inliers =
-            (0..points.len()).filter(|&i| sphere.distance_mm(&points[i]) <= threshold).collect();
-    }
+    let (sphere, inliers) = (outcome.model, outcome.inliers);
     let on_sphere: Vec<Point3<f64>> = inliers.iter().map(|&i| points[i]).collect();
     let n_frames = count_frames(&frame_of, inliers.iter().copied());
     if n_frames < 2 {

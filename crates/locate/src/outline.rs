@@ -21,7 +21,7 @@
 //!    densest vote starts a joint least-squares fit of the centre and
 //!    radius to the outline's rays and the laser points that agree.
 
-use alacs_calib::ransac::{Estimator, RansacOptions, ransac};
+use alacs_model::ransac::{Estimator, RansacOptions, ransac_refit};
 use alacs_model::Camera;
 use image::RgbImage;
 use nalgebra::{Matrix4, Point2, Point3, Vector2, Vector3, Vector4};
@@ -178,6 +178,10 @@ impl Estimator for OutlineEstimator<'_> {
         }
         circle.distance_mm(&edge.at_px)
     }
+
+    fn refit(&self, indices: &[usize]) -> Option<Circle> {
+        fit_circle(&indices.iter().map(|&i| self.points[i]).collect::<Vec<_>>())
+    }
 }
 
 /// The fruit's outline in `area` of the frames (module docs, steps 1-2):
@@ -206,19 +210,10 @@ pub(crate) fn find_outline(
         max_iterations: 2000,
         seed,
     };
-    let Some(outcome) = ransac(&estimator, &options) else {
+    let Some(outcome) = ransac_refit(&estimator, &options, 2) else {
         return Err("no fruit-coloured outline in the search region".into());
     };
-    let mut circle = outcome.model;
-    let mut inliers = outcome.inliers;
-    for _ in 0..2 {
-        let points: Vec<_> = inliers.iter().map(|&i| estimator.points[i]).collect();
-        let Some(refit) = fit_circle(&points) else { break };
-        circle = refit;
-        inliers = (0..edges.len())
-            .filter(|&i| estimator.residual(&circle, i) <= EDGE_THRESHOLD_PX)
-            .collect();
-    }
+    let (circle, inliers) = (outcome.model, outcome.inliers);
     let radius_px = circle.radius_mm;
     if !centre_ok(&circle.centre) {
         return Err(format!(

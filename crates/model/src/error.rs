@@ -5,6 +5,18 @@ use std::path::PathBuf;
 /// Result with this crate's [`Error`].
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
+/// Whether an error is about the input or about the job, as docs/FORMATS.md's
+/// exit codes tell them apart. Every crate's error enum says it once, in its
+/// `class` method; the program maps it to the exit code.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ErrorClass {
+    /// Bad usage, unreadable or invalid input, or an output that cannot be
+    /// written (exit code 2).
+    BadInput,
+    /// The input was readable but the job failed on it (exit code 1).
+    JobFailed,
+}
+
 /// Everything that can go wrong in the camera and laser models and their files.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
@@ -16,6 +28,47 @@ pub enum Error {
         path: PathBuf,
         /// What the operating system said.
         error: std::io::Error,
+    },
+    /// An input is larger than alacs reads.
+    #[error("{path}: larger than {limit} bytes, the most alacs reads for such a file")]
+    TooLarge {
+        /// The file.
+        path: PathBuf,
+        /// The limit in bytes.
+        limit: u64,
+    },
+    /// An output folder holds files that the command did not write.
+    #[error(
+        "{path}: the output folder holds {count} file(s) this command did not write (`{example}`); choose an empty folder or pass --force"
+    )]
+    OutputNotEmpty {
+        /// The folder.
+        path: PathBuf,
+        /// One of the files, the first by name.
+        example: String,
+        /// How many there are.
+        count: usize,
+    },
+    /// A CSV file (samples.csv, pixels.csv) is malformed: a missing or
+    /// duplicated column, a value that is not a number, NaN or infinite, or
+    /// a value out of range.
+    #[error("{path}{}: {message}", line.map(|l| format!(", line {l}")).unwrap_or_default())]
+    Csv {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line number, where known.
+        line: Option<u64>,
+        /// What is wrong.
+        message: String,
+    },
+    /// An in-memory calibration sample is unusable (non-finite value,
+    /// non-positive depth).
+    #[error("sample {index}: {message}")]
+    InvalidSample {
+        /// 0-based index of the sample.
+        index: usize,
+        /// What is wrong.
+        message: String,
     },
     /// A YAML file (camera.yaml, laser.yaml) is malformed or misses a key.
     #[error("{path}: {message}")]
@@ -71,4 +124,27 @@ pub enum Error {
         /// sin(alpha) - u_n cos(alpha) - v_n tan(beta): must be positive.
         denominator: f64,
     },
+}
+
+impl Error {
+    /// Bad input (exit 2) or a failed job (exit 1).
+    pub fn class(&self) -> ErrorClass {
+        match self {
+            Error::Io { .. }
+            | Error::TooLarge { .. }
+            | Error::OutputNotEmpty { .. }
+            | Error::Csv { .. }
+            | Error::InvalidSample { .. }
+            | Error::Parse { .. }
+            | Error::InvalidParameters { .. } => ErrorClass::BadInput,
+            Error::UndistortNotConverged { .. }
+            | Error::NotProjectable { .. }
+            | Error::NoIntersection { .. } => ErrorClass::JobFailed,
+        }
+    }
+
+    /// Whether [`Error::class`] is [`ErrorClass::BadInput`].
+    pub fn is_bad_input(&self) -> bool {
+        self.class() == ErrorClass::BadInput
+    }
 }

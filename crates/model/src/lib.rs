@@ -35,15 +35,22 @@
 mod camera;
 mod error;
 mod geometry;
+pub mod io;
 mod laser;
+pub mod ransac;
+mod samples;
 mod scan;
 mod scan_plan;
 mod session;
 
 pub use camera::*;
-pub use error::{Error, Result};
+pub use error::{Error, ErrorClass, Result};
 pub use geometry::{Plane, Ray};
 pub use laser::{Fidelity, LaserModel, PreparedLaser, SLIDE_STROKE_MM, SlideTarget};
+pub use samples::{
+    LaserSample, parse_samples_csv, read_samples_csv, samples_csv_string, validate_samples,
+    write_samples, write_samples_csv,
+};
 pub use scan::{DEFAULT_FRUIT_RADIUS_MM, SCAN_FILE, Scan, ScanFrameSpec};
 pub use scan_plan::{ScanPlan, ScanStrategy};
 pub use session::{BoardSpec, SESSION_FILE, Session, SessionView, image_entry_yaml};

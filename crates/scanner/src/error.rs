@@ -146,6 +146,7 @@ pub enum Error {
     #[error(transparent)]
     Locate(#[from] alacs_locate::Error),
     /// The simulated rig's simulator failed.
+    #[cfg(feature = "sim")]
     #[error(transparent)]
     Sim(#[from] alacs_sim::Error),
     /// Writing a scan folder failed.
@@ -171,6 +172,23 @@ fn detail_suffix(detail: &str) -> String {
 }
 
 impl Error {
+    /// Bad input (exit 2: a configuration or rough position that gives no
+    /// scan, a scan folder that cannot be written) or a failed job (exit 1:
+    /// a device failed).
+    pub fn class(&self) -> alacs_model::ErrorClass {
+        use alacs_model::ErrorClass::{BadInput, JobFailed};
+        match self {
+            Error::InvalidInput(_) | Error::Io { .. } | Error::Image { .. } => BadInput,
+            Error::Locate(e) => e.class(),
+            #[cfg(feature = "sim")]
+            Error::Sim(e) => e.class(),
+            Error::OutOfStroke { .. }
+            | Error::Timeout { .. }
+            | Error::PositionMismatch { .. }
+            | Error::Device { .. } => JobFailed,
+        }
+    }
+
     /// The same error, placed at `step` of the scan (a step already set is kept).
     pub fn at(mut self, step: Step) -> Self {
         match &mut self {

@@ -4,8 +4,9 @@
 //! - [`hardware`]: the devices as small, object-safe traits ([`Slide`],
 //!   [`FrameCamera`], [`LaserSwitch`]) with what a real driver must
 //!   guarantee. Real drivers implement them in their own crates.
-//! - [`SimulatedRig`]: the devices backed by the simulator ([`alacs_sim`]),
-//!   with a simulated clock for the slide's travel, settling and timeouts.
+//! - `SimulatedRig` (cargo feature `sim`, on by default): the devices
+//!   backed by the simulator (`alacs_sim`), with a simulated clock for the
+//!   slide's travel, settling and timeouts.
 //! - [`ScanController`]: the rough position from the RGB-D camera, carried
 //!   into the ALACS camera frame, the seed's plan ([`ScanStrategy`]), then
 //!   per frame: move, settle, laser on, capture (and laser off, capture).
@@ -18,9 +19,11 @@
 //! (L = L0 - d). Errors name the device and the step of the scan.
 //!
 //! # Example
+//! (With the default feature `sim`.)
 //! A scan of a simulated apple (at a tenth of the 5 MP camera's resolution,
 //! to keep the example quick):
 //! ```
+//! # #[cfg(feature = "sim")] {
 //! use std::sync::Arc;
 //! use alacs_model::{Camera, Fidelity, LaserModel};
 //! use alacs_scanner::{ControllerConfig, ScanController, SimulatedRig, SimulatedRigOptions};
@@ -37,6 +40,7 @@
 //! assert!(!rig.laser_on()); // switched off after the scan
 //! // scan.write(dir) writes scan.yaml and the frames;
 //! // scan.localize(&camera, &laser, &LocateOptions::default()) finds the fruit.
+//! # }
 //! # Ok::<(), alacs_scanner::Error>(())
 //! ```
 //!
@@ -45,11 +49,13 @@
 mod controller;
 mod error;
 pub mod hardware;
+#[cfg(feature = "sim")]
 mod sim_devices;
 
 pub use controller::{CapturedFrame, CapturedScan, ControllerConfig, ScanController};
 pub use error::{Device, Error, Result, Step};
 pub use hardware::{FrameCamera, LaserSwitch, Rig, Slide};
+#[cfg(feature = "sim")]
 pub use sim_devices::{
     SimulatedCamera, SimulatedLaser, SimulatedRig, SimulatedRigOptions, SimulatedSlide,
 };

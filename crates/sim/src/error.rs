@@ -34,9 +34,19 @@ pub enum Error {
     /// A camera or laser model error.
     #[error(transparent)]
     Model(#[from] alacs_model::Error),
-    /// Writing samples failed.
-    #[error(transparent)]
-    Calib(#[from] alacs_calib::Error),
+}
+
+impl Error {
+    /// Bad input (exit 2: options out of range, files that cannot be
+    /// written) or a simulation that could not be made (exit 1).
+    pub fn class(&self) -> alacs_model::ErrorClass {
+        use alacs_model::ErrorClass::{BadInput, JobFailed};
+        match self {
+            Error::InvalidOptions(_) | Error::Io { .. } | Error::Image { .. } => BadInput,
+            Error::Model(e) => e.class(),
+            Error::Infeasible(_) => JobFailed,
+        }
+    }
 }
 
 /// Checks that `range` (mm) is positive, finite and ordered; `what` names it.

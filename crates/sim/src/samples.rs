@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use alacs_calib::{LaserSample, write_samples_csv};
+use alacs_model::{LaserSample, write_samples_csv};
 use alacs_model::{Camera, LaserModel};
 use nalgebra::{Point2, Point3, Rotation3, Unit, Vector3};
 use rand::{Rng, SeedableRng};

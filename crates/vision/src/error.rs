@@ -17,20 +17,18 @@ pub enum Error {
         /// What is wrong (missing, not an image, truncated, ...).
         message: String,
     },
-    /// No checkerboard of the requested size was found in an image.
-    #[error("no {cols} x {rows} checkerboard found: {reason}")]
-    NoBoard {
-        /// Inner corners per row the search was for.
-        cols: usize,
-        /// Inner corners per column the search was for.
-        rows: usize,
-        /// Why the detection was refused.
-        reason: String,
-    },
     /// Two images that must match (a view and its laser-off image) do not.
     #[error("{message}")]
     Mismatch {
         /// What differs.
         message: String,
     },
+}
+
+impl Error {
+    /// Bad input (exit 2): an image that cannot be read, or images that do
+    /// not belong together.
+    pub fn class(&self) -> alacs_model::ErrorClass {
+        alacs_model::ErrorClass::BadInput
+    }
 }

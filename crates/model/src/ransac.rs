@@ -32,6 +32,15 @@ pub trait Estimator {
 
     /// Absolute residual of point `index` under `model` (may be infinite).
     fn residual(&self, model: &Self::Model, index: usize) -> f64;
+
+    /// A least-squares model through the points `indices` (the inliers of
+    /// a hypothesis), for [`ransac_refit`]; `None` when it cannot be fitted
+    /// (too few points, degenerate). Estimators without one keep the
+    /// minimal-sample hypothesis.
+    fn refit(&self, indices: &[usize]) -> Option<Self::Model> {
+        let _ = indices;
+        None
+    }
 }
 
 /// RANSAC settings.
@@ -114,6 +123,28 @@ pub fn ransac<E: Estimator>(
     let (model, _, _) = best?;
     let inliers = inliers(estimator, &model, options.threshold);
     Some(RansacOutcome { model, inliers, iterations })
+}
+
+/// [`ransac`], then up to `rounds` refits of the model to its inliers
+/// ([`Estimator::refit`]), the inliers taken anew after each, until they no
+/// longer change or a refit fails (the last model and its inliers are kept).
+pub fn ransac_refit<E: Estimator>(
+    estimator: &E,
+    options: &RansacOptions,
+    rounds: usize,
+) -> Option<RansacOutcome<E::Model>> {
+    let mut outcome = ransac(estimator, options)?;
+    for _ in 0..rounds {
+        let Some(model) = estimator.refit(&outcome.inliers) else { break };
+        let inliers = inliers(estimator, &model, options.threshold);
+        let stable = inliers == outcome.inliers;
+        outcome.model = model;
+        outcome.inliers = inliers;
+        if stable {
+            break;
+        }
+    }
+    Some(outcome)
 }
 
 /// Indices of the points within `threshold` of `model`.

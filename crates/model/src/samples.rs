@@ -78,10 +78,10 @@ pub fn validate_samples(samples: &[LaserSample]) -> Result<()> {
 /// Reads samples.csv: header `u_n,v_n,z_mm`, optional `slide_mm` (missing = 0),
 /// extra columns ignored. Every value must be a finite number and every
 /// depth positive; errors name the file, line and column.
+/// Files larger than [`crate::io::MAX_TEXT_INPUT_BYTES`] are refused.
 pub fn read_samples_csv(path: &Path) -> Result<Vec<LaserSample>> {
-    let file =
-        std::fs::File::open(path).map_err(|error| Error::Io { path: path.to_path_buf(), error })?;
-    parse_samples_csv(file, path)
+    let text = crate::io::read_text(path)?;
+    parse_samples_csv(text.as_bytes(), path)
 }
 
 /// [`read_samples_csv`] from any reader; `path` names the input in errors.
@@ -91,6 +91,7 @@ pub fn parse_samples_csv(reader: impl std::io::Read, path: &Path) -> Result<Vec<
     let mut reader =
         csv::ReaderBuilder::new().trim(csv::Trim::All).comment(Some(b'#')).from_reader(reader);
     let headers = reader.headers().map_err(|e| csv_error(Some(1), e.to_string()))?.clone();
+    check_unique_columns(&headers).map_err(|m| csv_error(Some(1), m))?;
     let column = |name: &str| headers.iter().position(|h| h == name);
     let required = |name: &str| {
         column(name).ok_or_else(|| {
@@ -136,17 +137,36 @@ pub fn parse_samples_csv(reader: impl std::io::Read, path: &Path) -> Result<Vec<
     Ok(samples)
 }
 
-/// Writes samples.csv with all four columns (shortest round-trip floats).
+/// A header that names a column twice is refused: which of the two is meant
+/// cannot be known.
+pub(crate) fn check_unique_columns(headers: &csv::StringRecord) -> std::result::Result<(), String> {
+    for (i, name) in headers.iter().enumerate() {
+        if headers.iter().take(i).any(|earlier| earlier == name) {
+            return Err(format!("column `{name}` appears twice in the header"));
+        }
+    }
+    Ok(())
+}
+
+/// Writes samples.csv with all four columns (shortest round-trip floats),
+/// atomically.
 pub fn write_samples_csv(path: &Path, samples: &[LaserSample]) -> Result<()> {
-    let io_error = |error| Error::Io { path: path.to_path_buf(), error };
-    std::fs::write(path, samples_csv_string(samples)).map_err(io_error)
+    crate::io::write_atomic(path, |w| write_samples(w, samples))
+}
+
+/// Writes the rows of samples.csv, header first, to `writer`.
+pub fn write_samples(writer: &mut dyn std::io::Write, samples: &[LaserSample]) -> std::io::Result<()> {
+    writeln!(writer, "u_n,v_n,z_mm,slide_mm")?;
+    for s in samples {
+        writeln!(writer, "{},{},{},{}", s.u_n, s.v_n, s.z_mm, s.slide_mm)?;
+    }
+    Ok(())
 }
 
 /// The text of samples.csv for `samples`.
 pub fn samples_csv_string(samples: &[LaserSample]) -> String {
-    let mut text = String::from("u_n,v_n,z_mm,slide_mm\n");
-    for s in samples {
-        text.push_str(&format!("{},{},{},{}\n", s.u_n, s.v_n, s.z_mm, s.slide_mm));
-    }
-    text
+    let mut text = Vec::new();
+    // Writing to memory cannot fail.
+    let _ = write_samples(&mut text, samples);
+    String::from_utf8_lossy(&text).into_owned()
 }
