@@ -3,9 +3,9 @@
 
 use std::path::Path;
 
+use alacs_board::{board_gray, detect_checkerboard};
 use alacs_model::{BoardSpec, Camera, Fidelity, LaserModel};
 use alacs_sim::{SessionOptions, simulate_session};
-use alacs_board::{board_gray, detect_checkerboard};
 use alacs_vision::{Region, StripeOptions, extract_stripe, laser_score, read_image};
 use criterion::{Criterion, criterion_group, criterion_main};
 

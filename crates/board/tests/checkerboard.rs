@@ -4,8 +4,8 @@
 
 use std::path::{Path, PathBuf};
 
-use alacs_model::Session;
 use alacs_board::{board_gray, detect_checkerboard};
+use alacs_model::Session;
 use alacs_vision::read_image;
 use nalgebra::Point2;
 use serde_json::Value;

@@ -3,9 +3,9 @@
 use alacs_model::{Fidelity, LaserModel, PreparedLaser};
 
 use crate::linear::LinearForm;
-use alacs_model::ransac::{self, Estimator, RansacOptions};
 use crate::refine::{Residual, refine};
 use crate::{Error, LaserSample, Result, validate_samples};
+use alacs_model::ransac::{self, Estimator, RansacOptions};
 
 /// The four methods of the seed paper's Table 1.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

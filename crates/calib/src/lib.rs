@@ -41,6 +41,14 @@ mod linear;
 mod refine;
 mod session;
 
+/// The RANSAC driver is `alacs-model`'s (fruit localization uses it too).
+pub use alacs_model::ransac;
+/// Calibration samples and samples.csv are `alacs-model`'s (the simulator
+/// writes them too).
+pub use alacs_model::{
+    LaserSample, parse_samples_csv, read_samples_csv, samples_csv_string, validate_samples,
+    write_samples_csv,
+};
 pub use calibrate::{
     CalibrationOptions, DEFAULT_THRESHOLD_MM, LaserCalibration, Method, ParameterStdDev, calibrate,
     compare, depth_error_mm,
@@ -50,14 +58,6 @@ pub use intrinsics::{
     BoardObservation, IntrinsicsFit, IntrinsicsOptions, ViewFit, board_pose, calibrate_intrinsics,
 };
 pub use refine::Residual;
-/// The RANSAC driver is `alacs-model`'s (fruit localization uses it too).
-pub use alacs_model::ransac;
-/// Calibration samples and samples.csv are `alacs-model`'s (the simulator
-/// writes them too).
-pub use alacs_model::{
-    LaserSample, parse_samples_csv, read_samples_csv, samples_csv_string, validate_samples,
-    write_samples_csv,
-};
 pub use session::{
     LaserSessionCalibration, LaserSessionOptions, ViewBoard, ViewSamples, calibrate_camera_session,
     calibrate_laser_session, detect_session_boards, view_samples,

@@ -14,8 +14,8 @@
 
 use std::path::Path;
 
-use alacs_model::{Camera, Session, SessionView};
 use alacs_board::{BoardCorners, board_gray, detect_checkerboard};
+use alacs_model::{Camera, Session, SessionView};
 use alacs_vision::{Region, StripeOptions, extract_stripe, laser_score, read_image};
 use nalgebra::{Isometry3, Vector3};
 use rayon::prelude::*;

@@ -276,7 +276,10 @@ fn non_finite_or_non_positive_samples_are_bad_input() {
     samples[4].z_mm = f64::NAN;
     let err = calibrate(&samples, Method::HighFidelityRansac, &CalibrationOptions::default())
         .unwrap_err();
-    assert!(matches!(err, Error::Model(alacs_model::Error::InvalidSample { index: 4, .. })), "{err}");
+    assert!(
+        matches!(err, Error::Model(alacs_model::Error::InvalidSample { index: 4, .. })),
+        "{err}"
+    );
     assert!(err.is_bad_input());
     samples[4].z_mm = -1.0;
     let err = calibrate(&samples, Method::HighFidelityRansac, &CalibrationOptions::default())
@@ -286,7 +289,10 @@ fn non_finite_or_non_positive_samples_are_bad_input() {
     samples[5].u_n = f64::INFINITY;
     let err = calibrate(&samples, Method::HighFidelityRansac, &CalibrationOptions::default())
         .unwrap_err();
-    assert!(matches!(err, Error::Model(alacs_model::Error::InvalidSample { index: 5, .. })), "{err}");
+    assert!(
+        matches!(err, Error::Model(alacs_model::Error::InvalidSample { index: 5, .. })),
+        "{err}"
+    );
 }
 
 #[test]

@@ -4,9 +4,9 @@
 
 use std::path::{Path, PathBuf};
 
+use alacs_board::{board_gray, detect_checkerboard};
 use alacs_calib::{BoardObservation, IntrinsicsOptions, calibrate_intrinsics};
 use alacs_model::Session;
-use alacs_board::{board_gray, detect_checkerboard};
 use alacs_vision::read_image;
 
 fn opencv_right() -> PathBuf {

@@ -45,6 +45,29 @@ pub enum Command {
     Scan(ScanArgs),
 }
 
+impl Command {
+    /// Whether `--json` was given: standard output then carries one JSON
+    /// object, also when the command fails (docs/FORMATS.md).
+    pub fn json(&self) -> bool {
+        match self {
+            Command::Calibrate(CalibrateCommand::Laser(a)) => a.json,
+            Command::Calibrate(CalibrateCommand::Camera(a)) => a.json,
+            Command::Triangulate(a) => a.json,
+            Command::Stripe(a) => a.json,
+            Command::Localize(a) => a.json,
+            Command::Evaluate(EvaluateCommand::Calibration(a)) => a.json,
+            Command::Evaluate(EvaluateCommand::Accuracy(a)) => a.json,
+            Command::Report(ReportCommand::Calibration(a)) => a.json,
+            Command::Report(ReportCommand::Scan(a)) => a.json,
+            Command::Simulate(SimulateCommand::Samples(a)) => a.json,
+            Command::Simulate(SimulateCommand::Session(a)) => a.json,
+            Command::Simulate(SimulateCommand::Scan(a)) => a.json,
+            Command::Demo(a) => a.json,
+            Command::Scan(a) => a.json,
+        }
+    }
+}
+
 /// `alacs calibrate ...`
 #[derive(Debug, Subcommand)]
 pub enum CalibrateCommand {

@@ -17,6 +17,24 @@ pub struct Failure {
 pub type CmdResult<T = ()> = Result<T, Failure>;
 
 impl Failure {
+    /// Whether standard output was closed under us (its reader ended): an
+    /// `io::ErrorKind::BrokenPipe` anywhere in the error's chain.
+    pub fn is_broken_pipe(&self) -> bool {
+        self.error.chain().any(|cause| {
+            cause
+                .downcast_ref::<std::io::Error>()
+                .is_some_and(|e| e.kind() == std::io::ErrorKind::BrokenPipe)
+        })
+    }
+
+    /// docs/FORMATS.md's failure object for `--json`:
+    /// `{"error": {"exit_code": N, "message": "..."}}`.
+    pub fn to_json(&self) -> serde_json::Value {
+        serde_json::json!({
+            "error": {"exit_code": self.code, "message": format!("{:#}", self.error)}
+        })
+    }
+
     /// This failure with `context` (a file or folder) in front of its message.
     pub fn with_context(self, context: &std::path::Path) -> Self {
         Self { error: self.error.context(context.display().to_string()), ..self }

@@ -5,39 +5,73 @@
 //! input was readable but the job failed, 2 bad usage or unreadable input.
 
 mod args;
+#[macro_use]
+mod output;
 mod cmd;
 mod failure;
-mod output;
 
 use std::process::ExitCode;
 
 use clap::Parser;
 
 fn main() -> ExitCode {
-    let cli = args::Cli::parse();
-    let result = match cli.command {
-        args::Command::Calibrate(args::CalibrateCommand::Laser(a)) => cmd::calibrate::laser(&a),
-        args::Command::Calibrate(args::CalibrateCommand::Camera(a)) => cmd::calibrate::camera(&a),
-        args::Command::Evaluate(args::EvaluateCommand::Calibration(a)) => {
-            cmd::evaluate::calibration(&a)
-        }
-        args::Command::Evaluate(args::EvaluateCommand::Accuracy(a)) => cmd::evaluate::accuracy(&a),
-        args::Command::Report(args::ReportCommand::Calibration(a)) => cmd::report::calibration(&a),
-        args::Command::Report(args::ReportCommand::Scan(a)) => cmd::report::scan(&a),
-        args::Command::Triangulate(a) => cmd::triangulate::run(&a),
-        args::Command::Stripe(a) => cmd::stripe::run(&a),
-        args::Command::Localize(a) => cmd::localize::run(&a),
-        args::Command::Simulate(args::SimulateCommand::Samples(a)) => cmd::simulate::samples(&a),
-        args::Command::Simulate(args::SimulateCommand::Session(a)) => cmd::simulate::session(&a),
-        args::Command::Simulate(args::SimulateCommand::Scan(a)) => cmd::simulate::scan(&a),
-        args::Command::Demo(a) => cmd::demo::run(&a),
-        args::Command::Scan(a) => cmd::scan::run(&a),
+    let cli = match args::Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(error) => return usage_error(&error),
     };
-    match result {
+    let json = cli.command.json();
+    match run(cli.command) {
         Ok(()) => ExitCode::SUCCESS,
+        // A closed pipe (`alacs ... | head -1`) is no failure: the reader has
+        // what it wanted (as ripgrep does).
+        Err(failure) if failure.is_broken_pipe() => ExitCode::SUCCESS,
         Err(failure) => {
             eprintln!("error: {:#}", failure.error);
+            if json {
+                // Standard output may itself be what failed; nothing more to do then.
+                let _ = output::print_json(&failure.to_json());
+            }
             ExitCode::from(failure.code)
         }
+    }
+}
+
+/// Bad usage: clap's message on standard error (exit 2), and with `--json`
+/// the error object on standard output. `--help` and `--version` print as
+/// usual and exit 0.
+fn usage_error(error: &clap::Error) -> ExitCode {
+    use clap::error::ErrorKind;
+    if matches!(error.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) {
+        return match output::print_text(&error.render().to_string()) {
+            Err(failure) if !failure.is_broken_pipe() => ExitCode::from(failure.code),
+            _ => ExitCode::SUCCESS,
+        };
+    }
+    let _ = error.print();
+    if std::env::args().any(|a| a == "--json") {
+        let message = error.kind().as_str().unwrap_or("invalid command line").to_string();
+        let failure = failure::Failure::bad_input(anyhow::anyhow!(message));
+        let _ = output::print_json(&failure.to_json());
+    }
+    ExitCode::from(failure::BAD_INPUT)
+}
+
+fn run(command: args::Command) -> failure::CmdResult {
+    use args::{CalibrateCommand, Command, EvaluateCommand, ReportCommand, SimulateCommand};
+    match command {
+        Command::Calibrate(CalibrateCommand::Laser(a)) => cmd::calibrate::laser(&a),
+        Command::Calibrate(CalibrateCommand::Camera(a)) => cmd::calibrate::camera(&a),
+        Command::Evaluate(EvaluateCommand::Calibration(a)) => cmd::evaluate::calibration(&a),
+        Command::Evaluate(EvaluateCommand::Accuracy(a)) => cmd::evaluate::accuracy(&a),
+        Command::Report(ReportCommand::Calibration(a)) => cmd::report::calibration(&a),
+        Command::Report(ReportCommand::Scan(a)) => cmd::report::scan(&a),
+        Command::Triangulate(a) => cmd::triangulate::run(&a),
+        Command::Stripe(a) => cmd::stripe::run(&a),
+        Command::Localize(a) => cmd::localize::run(&a),
+        Command::Simulate(SimulateCommand::Samples(a)) => cmd::simulate::samples(&a),
+        Command::Simulate(SimulateCommand::Session(a)) => cmd::simulate::session(&a),
+        Command::Simulate(SimulateCommand::Scan(a)) => cmd::simulate::scan(&a),
+        Command::Demo(a) => cmd::demo::run(&a),
+        Command::Scan(a) => cmd::scan::run(&a),
     }
 }

@@ -9,18 +9,43 @@ use alacs::locate::{Localization, Status};
 use alacs::model::Fidelity;
 use serde_json::{Value, json};
 
+use crate::failure::{CmdResult, Failure};
+
 pub use alacs::eval::{calibration_json, table_1};
 
-/// Prints `value` as the one JSON object on standard output.
-pub fn print_json(value: &Value) {
-    print_text(&format!("{value}\n"));
+/// `print!` to standard output through [`print_text`]: returns from the
+/// calling command with its failure when standard output cannot be written.
+macro_rules! out {
+    ($($arg:tt)*) => {
+        $crate::output::print_text(&format!($($arg)*))?
+    };
 }
 
-/// Writes `text` to standard output; a closed pipe (`alacs ... | head`)
-/// ends the output quietly instead of panicking.
-pub fn print_text(text: &str) {
+/// `println!` to standard output through [`print_text`], as [`out!`].
+macro_rules! outln {
+    () => {
+        $crate::output::print_text("\n")?
+    };
+    ($($arg:tt)*) => {
+        $crate::output::print_text(&format!("{}\n", format_args!($($arg)*)))?
+    };
+}
+
+/// Prints `value` as the one JSON object on standard output.
+pub fn print_json(value: &Value) -> CmdResult {
+    print_text(&format!("{value}\n"))
+}
+
+/// Writes `text` to standard output and flushes it. A closed pipe
+/// (`alacs ... | head`) comes back as an error that `main` ends quietly
+/// with exit 0; any other write error (a full disk) is exit 2.
+pub fn print_text(text: &str) -> CmdResult {
     use std::io::Write as _;
-    let _ = std::io::stdout().lock().write_all(text.as_bytes());
+    let mut stdout = std::io::stdout().lock();
+    stdout
+        .write_all(text.as_bytes())
+        .and_then(|()| stdout.flush())
+        .map_err(|e| Failure::bad_input(anyhow::Error::new(e).context("standard output")))
 }
 
 /// A readable summary of one calibration, with standard deviations.

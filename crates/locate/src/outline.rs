@@ -21,8 +21,8 @@
 //!    densest vote starts a joint least-squares fit of the centre and
 //!    radius to the outline's rays and the laser points that agree.
 
-use alacs_model::ransac::{Estimator, RansacOptions, ransac_refit};
 use alacs_model::Camera;
+use alacs_model::ransac::{Estimator, RansacOptions, ransac_refit};
 use image::RgbImage;
 use nalgebra::{Matrix4, Point2, Point3, Vector2, Vector3, Vector4};
 

@@ -49,10 +49,9 @@ pub fn write_atomic(
         .map_err(io_error(path))?;
     let mut writer = BufWriter::new(temp);
     write(&mut writer).map_err(io_error(path))?;
-    let temp = writer.into_inner().map_err(|e| Error::Io {
-        path: path.to_path_buf(),
-        error: e.into_error(),
-    })?;
+    let temp = writer
+        .into_inner()
+        .map_err(|e| Error::Io { path: path.to_path_buf(), error: e.into_error() })?;
     temp.as_file().sync_all().map_err(io_error(path))?;
     temp.persist(path).map_err(|e| Error::Io { path: path.to_path_buf(), error: e.error })?;
     Ok(())

@@ -155,7 +155,10 @@ pub fn write_samples_csv(path: &Path, samples: &[LaserSample]) -> Result<()> {
 }
 
 /// Writes the rows of samples.csv, header first, to `writer`.
-pub fn write_samples(writer: &mut dyn std::io::Write, samples: &[LaserSample]) -> std::io::Result<()> {
+pub fn write_samples(
+    writer: &mut dyn std::io::Write,
+    samples: &[LaserSample],
+) -> std::io::Result<()> {
     writeln!(writer, "u_n,v_n,z_mm,slide_mm")?;
     for s in samples {
         writeln!(writer, "{},{},{},{}", s.u_n, s.v_n, s.z_mm, s.slide_mm)?;

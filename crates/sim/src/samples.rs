@@ -3,8 +3,8 @@
 
 use std::path::Path;
 
-use alacs_model::{LaserSample, write_samples_csv};
 use alacs_model::{Camera, LaserModel};
+use alacs_model::{LaserSample, write_samples_csv};
 use nalgebra::{Point2, Point3, Rotation3, Unit, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

@@ -87,15 +87,15 @@ pub fn laser(args: &CalibrateLaserArgs) -> CmdResult {
         } else {
             output::calibration_json(fit)
         };
-        output::print_json(&value);
+        output::print_json(&value)?;
     } else {
         if args.compare {
-            print!("{}", output::table_1(&results));
-            println!();
+            out!("{}", output::table_1(&results));
+            outln!();
         }
-        print!("{}", output::summary(fit, options.threshold_mm));
+        out!("{}", output::summary(fit, options.threshold_mm));
         if let Some(path) = &args.output {
-            println!("wrote {}", path.display());
+            outln!("wrote {}", path.display());
         }
     }
     Ok(())
@@ -183,32 +183,29 @@ pub fn camera(args: &CalibrateCameraArgs) -> CmdResult {
             "views": fit.views.iter().map(|v| json!({
                 "image": v.name, "rms_px": v.rms_px, "rejected": v.rejected,
             })).collect::<Vec<_>>(),
-        }));
+        }))?;
     } else {
         let sd = |i: usize| fit.std_dev.map(|s| format!(" +- {:.2}", s[i])).unwrap_or_default();
-        println!(
+        outln!(
             "camera {} x {} px from {} of {} views",
             c.width_px,
             c.height_px,
             fit.views_used(),
             fit.views.len()
         );
-        println!("  fx {:.2}{} px, fy {:.2}{} px", c.fx_px, sd(0), c.fy_px, sd(1));
-        println!("  cx {:.2}{} px, cy {:.2}{} px", c.cx_px, sd(2), c.cy_px, sd(3));
-        println!(
-            "  {model} {:?}",
-            dist.iter().map(|d| (d * 1e5).round() / 1e5).collect::<Vec<_>>()
-        );
-        println!("  reprojection RMS {:.3} px", fit.rms_px);
+        outln!("  fx {:.2}{} px, fy {:.2}{} px", c.fx_px, sd(0), c.fy_px, sd(1));
+        outln!("  cx {:.2}{} px, cy {:.2}{} px", c.cx_px, sd(2), c.cy_px, sd(3));
+        outln!("  {model} {:?}", dist.iter().map(|d| (d * 1e5).round() / 1e5).collect::<Vec<_>>());
+        outln!("  reprojection RMS {:.3} px", fit.rms_px);
         for view in &fit.views {
             let rms = view.rms_px.map(|r| format!("{r:.3} px")).unwrap_or_else(|| "-".into());
             match &view.rejected {
-                None => println!("  {:<24} {rms}", view.name),
-                Some(reason) => println!("  {:<24} {rms} rejected: {reason}", view.name),
+                None => outln!("  {:<24} {rms}", view.name),
+                Some(reason) => outln!("  {:<24} {rms} rejected: {reason}", view.name),
             }
         }
         if let Some(path) = &args.output {
-            println!("wrote {}", path.display());
+            outln!("wrote {}", path.display());
         }
     }
     Ok(())

@@ -357,34 +357,31 @@ pub fn run(args: &DemoArgs) -> CmdResult {
             "reports": pipeline.reports.iter().map(|f| f.display().to_string()).collect::<Vec<_>>(),
             "report_files": pipeline.report_files.len(),
         });
-        output::print_json(&value);
+        output::print_json(&value)?;
         return Ok(());
     }
 
-    println!(
+    outln!(
         "Calibration (the seed paper's Table 1) on {} simulated samples, {} of them gross outliers:",
         sim.samples.len(),
         sim.outliers.len()
     );
-    print!("{}", output::table_1(&results));
-    println!(
-        "{:<44} {:>11.2} {:>9.2} {:>10.2}",
-        "Truth", TRUE_ALPHA_DEG, TRUE_L0_MM, TRUE_BETA_DEG
-    );
-    println!(
-        "Method 4 rejected {outliers_found} of the {} planted outliers.\n",
-        sim.outliers.len()
-    );
-    println!(
+    out!("{}", output::table_1(&results));
+    outln!("{:<44} {:>11.2} {:>9.2} {:>10.2}", "Truth", TRUE_ALPHA_DEG, TRUE_L0_MM, TRUE_BETA_DEG);
+    outln!("Method 4 rejected {outliers_found} of the {} planted outliers.\n", sim.outliers.len());
+    outln!(
         "Accuracy of triangulated points with the Method 4 calibration (boards at 0.6-1.2 m;\n\
          noise-free laser pixels, so what remains is the calibration's error):"
     );
-    println!(
+    outln!(
         "{:>8} {:>7}   {:>24}   {:>24}",
-        "d (mm)", "points", "max |error| x/y/z (mm)", "mean |error| x/y/z (mm)"
+        "d (mm)",
+        "points",
+        "max |error| x/y/z (mm)",
+        "mean |error| x/y/z (mm)"
     );
     for a in &accuracy {
-        println!(
+        outln!(
             "{:>8.0} {:>7}   {:>7.3} {:>7.3} {:>8.3}   {:>7.3} {:>7.3} {:>8.3}",
             a.slide_mm,
             a.n,
@@ -396,8 +393,8 @@ pub fn run(args: &DemoArgs) -> CmdResult {
             a.mean_mm[2]
         );
     }
-    println!("(the seed paper reports worst cases below 0.6 / 1.2 / 4 mm in x / y / z)\n");
-    println!(
+    outln!("(the seed paper reports worst cases below 0.6 / 1.2 / 4 mm in x / y / z)\n");
+    outln!(
         "From images: a rendered session (10 board poses x slides {SESSION_SLIDES_MM:?} mm) calibrated\n\
          the camera to {:.3} px RMS (fx {:.2} px, truth 2320) and the laser from {} stripe samples:\n\
          alpha {:.3} deg (truth {TRUE_ALPHA_DEG}), beta {:.3} deg ({TRUE_BETA_DEG}), L0 {:.2} mm ({TRUE_L0_MM}).",
@@ -409,35 +406,47 @@ pub fn run(args: &DemoArgs) -> CmdResult {
         pipeline.laser.l0_mm
     );
     let accuracy = &pipeline.accuracy;
-    println!(
+    outln!(
         "Accuracy with that calibration (the paper's experiment from images: a second session,\n\
          {ACCURACY_SESSION_VIEWS} board poses x d = 0-200 mm, {} stripe points on the boards):",
         accuracy.points.len()
     );
-    print!("{}", output::accuracy_table(accuracy));
-    println!("Fruit localization with that calibration (simulated 5-frame scans at 0.6-1.2 m):");
-    println!(
+    out!("{}", output::accuracy_table(accuracy));
+    outln!("Fruit localization with that calibration (simulated 5-frame scans at 0.6-1.2 m):");
+    outln!(
         "{:<20} {:>5} {:>6} {:>7}   {:>26}   {:>8}",
-        "condition", "scans", "found", "<=15mm", "mean |error| x/y/z (mm)", "max 3-D"
+        "condition",
+        "scans",
+        "found",
+        "<=15mm",
+        "mean |error| x/y/z (mm)",
+        "max 3-D"
     );
     for c in &pipeline.conditions {
         let (x, _) = mean_max(&c.errors_mm, 0);
         let (y, _) = mean_max(&c.errors_mm, 1);
         let (z, _) = mean_max(&c.errors_mm, 2);
         let (_, worst) = mean_max(&c.errors_mm, 3);
-        println!(
+        outln!(
             "{:<20} {:>5} {:>6} {:>7}   {:>8.2} {:>8.2} {:>8.2}   {:>8.2}",
-            c.label, c.scans, c.found, c.within_15_mm, x, y, z, worst
+            c.label,
+            c.scans,
+            c.found,
+            c.within_15_mm,
+            x,
+            y,
+            z,
+            worst
         );
     }
-    println!("(not found is an answer: the scan reports why instead of a doubtful point)\n");
-    println!(
+    outln!("(not found is an answer: the scan reports why instead of a doubtful point)\n");
+    outln!(
         "Evaluation artefacts (Table 1, residual plots per method, accuracy box plots, JSON):\n{}",
         output::files_written(&args.out, &files)
     );
-    println!("HTML reports (open in a browser; images beside each page):");
+    outln!("HTML reports (open in a browser; images beside each page):");
     for page in &pipeline.reports {
-        println!("  {}", page.display());
+        outln!("  {}", page.display());
     }
     Ok(())
 }

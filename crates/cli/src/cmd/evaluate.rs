@@ -85,19 +85,19 @@ pub fn calibration(args: &EvaluateCalibrationArgs) -> CmdResult {
             map.insert("out".into(), json!(args.out.display().to_string()));
             map.insert("files".into(), json!(paths(&files)));
         }
-        output::print_json(&value);
+        output::print_json(&value)?;
     } else {
-        println!(
+        outln!(
             "Calibration (the seed paper's Table 1) on {} samples from {}:",
             samples.len(),
             source.display()
         );
-        print!("{}", eval.table_1());
-        println!("\nDepth residuals z - z_hat of the fitted samples (mm):");
-        println!("{:<10} {:>8} {:>8} {:>8} {:>8} {:>8}", "", "median", "IQR", "min", "max", "RMS");
+        out!("{}", eval.table_1());
+        outln!("\nDepth residuals z - z_hat of the fitted samples (mm):");
+        outln!("{:<10} {:>8} {:>8} {:>8} {:>8} {:>8}", "", "median", "IQR", "min", "max", "RMS");
         for method in &eval.methods {
             if let Some(s) = method.inlier_stats() {
-                println!(
+                outln!(
                     "{:<10} {:>8.3} {:>8.3} {:>8.3} {:>8.3} {:>8.3}",
                     format!("Method {}", method.calibration.method.number()),
                     s.median,
@@ -108,7 +108,7 @@ pub fn calibration(args: &EvaluateCalibrationArgs) -> CmdResult {
                 );
             }
         }
-        println!("{}", output::files_written(&args.out, &files));
+        outln!("{}", output::files_written(&args.out, &files));
     }
     Ok(())
 }
@@ -149,10 +149,10 @@ pub fn accuracy(args: &EvaluateAccuracyArgs) -> CmdResult {
             map.insert("out".into(), json!(args.out.display().to_string()));
             map.insert("files".into(), json!(paths(&files)));
         }
-        output::print_json(&value);
+        output::print_json(&value)?;
     } else {
         let used = eval.views.iter().filter(|v| v.n_samples > 0).count();
-        println!(
+        outln!(
             "Accuracy of {} on {} of {} views of {} ({} points, {} per view):",
             args.laser.display(),
             used,
@@ -161,8 +161,8 @@ pub fn accuracy(args: &EvaluateAccuracyArgs) -> CmdResult {
             eval.points.len(),
             eval.points_per_view.as_str()
         );
-        print!("{}", output::accuracy_table(&eval));
-        println!("{}", output::files_written(&args.out, &files));
+        out!("{}", output::accuracy_table(&eval));
+        outln!("{}", output::files_written(&args.out, &files));
     }
     Ok(())
 }

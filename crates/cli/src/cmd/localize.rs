@@ -19,9 +19,9 @@ pub fn run(args: &LocalizeArgs) -> CmdResult {
     bar.finish_and_clear();
     let answer = answer?;
     if args.json {
-        output::print_json(&output::localization_json(&answer));
+        output::print_json(&output::localization_json(&answer))?;
     } else {
-        output::print_text(&output::localization_summary(&answer));
+        output::print_text(&output::localization_summary(&answer))?;
     }
     Ok(())
 }

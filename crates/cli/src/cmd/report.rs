@@ -60,9 +60,9 @@ pub fn calibration(args: &ReportCalibrationArgs) -> CmdResult {
                 "pose_rms_px": report.pose_rms_px(),
                 "mean_abs_error_mm": report.mean_abs_residual_mm(),
             }),
-        ));
+        ))?;
     } else {
-        println!(
+        outln!(
             "Calibration report on {} views of {} ({} flagged{}): {}",
             report.views.len(),
             args.session.display(),
@@ -70,7 +70,7 @@ pub fn calibration(args: &ReportCalibrationArgs) -> CmdResult {
             if flagged.is_empty() { String::new() } else { format!(": {}", flagged.join(", ")) },
             args.out.join("index.html").display()
         );
-        println!("{}", output::files_written(&args.out, &files));
+        outln!("{}", output::files_written(&args.out, &files));
     }
     Ok(())
 }
@@ -112,10 +112,10 @@ pub fn scan(args: &ReportScanArgs) -> CmdResult {
             &args.out,
             &files,
             json!({ "localization": output::localization_json(&answer) }),
-        ));
+        ))?;
     } else {
-        output::print_text(&output::localization_summary(&answer));
-        println!(
+        output::print_text(&output::localization_summary(&answer))?;
+        outln!(
             "Scan report: {}\n{}",
             args.out.join("index.html").display(),
             output::files_written(&args.out, &files)

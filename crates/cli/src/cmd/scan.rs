@@ -151,9 +151,9 @@ pub fn run(args: &ScanArgs) -> CmdResult {
                 map.extend(extra);
             }
         }
-        output::print_json(&value);
+        output::print_json(&value)?;
     } else {
-        print!("{}", summary(&scan, &sim, &answer, rig_time_s, args));
+        out!("{}", summary(&scan, &sim, &answer, rig_time_s, args));
     }
     Ok(())
 }

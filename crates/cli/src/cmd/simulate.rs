@@ -83,9 +83,9 @@ pub fn samples(args: &SimulateSamplesArgs) -> CmdResult {
             "out": args.out.display().to_string(),
             "n_samples": sim.samples.len(),
             "outliers": sim.outliers,
-        }));
+        }))?;
     } else {
-        println!(
+        outln!(
             "wrote {} samples ({} outliers) to {} (samples.csv, truth.json)",
             sim.samples.len(),
             sim.outliers.len(),
@@ -124,9 +124,9 @@ pub fn session(args: &SimulateSessionArgs) -> CmdResult {
             "image_width": session.camera.width_px,
             "image_height": session.camera.height_px,
             "images": images,
-        }));
+        }))?;
     } else {
-        println!(
+        outln!(
             "wrote {} views ({} images, {} x {} px) to {} (session.yaml, camera.yaml, truth.json, {}{})",
             session.views.len(),
             session.image_count(),
@@ -172,9 +172,9 @@ pub fn scan(args: &SimulateScanArgs) -> CmdResult {
             "slides_mm": scan.plan.slides_mm,
             "fruit": {"position_mm": [c.x, c.y, c.z], "radius_mm": scan.scene.fruit_radius_mm},
             "occlusion": scan.scene.occlusion,
-        }));
+        }))?;
     } else {
-        println!(
+        outln!(
             "wrote {} frames ({} x {} px, slides {:?} mm) of a {:.1} mm apple at ({:.1}, {:.1}, {:.1}) mm, {:.0} % hidden, to {} (scan.yaml, camera.yaml, laser.yaml, truth.json)",
             scan.frames.len(),
             scan.camera.width_px,

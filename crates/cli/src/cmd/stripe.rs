@@ -62,11 +62,11 @@ pub fn run(args: &StripeArgs) -> CmdResult {
             "points": points.iter().map(|p| json!({
                 "u_px": p.u_px, "v_px": p.v_px, "strength": p.strength, "width_px": p.width_px,
             })).collect::<Vec<_>>(),
-        }));
+        }))?;
     } else {
-        println!("u_px,v_px,strength");
+        outln!("u_px,v_px,strength");
         for p in &points {
-            println!("{:.3},{},{:.1}", p.u_px, p.v_px, p.strength);
+            outln!("{:.3},{},{:.1}", p.u_px, p.v_px, p.strength);
         }
     }
     Ok(())

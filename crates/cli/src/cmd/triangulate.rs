@@ -73,13 +73,13 @@ pub fn run(args: &TriangulateArgs) -> CmdResult {
 
     if args.json {
         let points: Vec<Value> = points.iter().map(|p| json!(p)).collect();
-        output::print_json(&json!({ "points_mm": points }));
+        output::print_json(&json!({ "points_mm": points }))?;
     } else {
-        println!("u_px,v_px,x_mm,y_mm,z_mm");
+        outln!("u_px,v_px,x_mm,y_mm,z_mm");
         for (pixel, point) in pixels.iter().zip(&points) {
             match point {
-                Some([x, y, z]) => println!("{},{},{x:.4},{y:.4},{z:.4}", pixel.x, pixel.y),
-                None => println!("{},{},,,", pixel.x, pixel.y),
+                Some([x, y, z]) => outln!("{},{},{x:.4},{y:.4},{z:.4}", pixel.x, pixel.y),
+                None => outln!("{},{},,,", pixel.x, pixel.y),
             }
         }
     }
