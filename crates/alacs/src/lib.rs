@@ -15,7 +15,7 @@
 //! use alacs::sim::{SampleOptions, simulate_samples};
 //! use alacs::{Camera, Fidelity, LaserModel};
 //!
-//! let truth = LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98);
+//! let truth = LaserModel::seed_paper();
 //! let options = SampleOptions { outlier_fraction: 0.3, ..SampleOptions::default() };
 //! let sim = simulate_samples(&Camera::blackfly_s_5mp(), &truth, &options).unwrap();
 //! let fit = calibrate(&sim.samples, Method::HighFidelityRansac, &CalibrationOptions::default()).unwrap();

@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use alacs_board::{board_gray, detect_checkerboard};
-use alacs_model::{BoardSpec, Camera, Fidelity, LaserModel};
+use alacs_model::{BoardSpec, Camera, LaserModel};
 use alacs_sim::{SessionOptions, simulate_session};
 use alacs_vision::{Region, StripeOptions, extract_stripe, laser_score, read_image};
 use criterion::{Criterion, criterion_group, criterion_main};
@@ -18,7 +18,7 @@ fn detection(c: &mut Criterion) {
         b.iter(|| detect_checkerboard(&photo, &board_9x6).unwrap())
     });
 
-    let laser = LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98);
+    let laser = LaserModel::seed_paper();
     let options = SessionOptions { n_views: 1, seed: 1, ..SessionOptions::default() };
     let session = simulate_session(&Camera::blackfly_s_5mp(), &laser, &options).unwrap();
     let view = session.render_view(0).unwrap();

@@ -7,12 +7,12 @@
 #![allow(missing_docs, clippy::panic)]
 
 use alacs_calib::{CalibrationOptions, Method, calibrate};
-use alacs_model::{Camera, Fidelity, LaserModel};
+use alacs_model::{Camera, LaserModel};
 use alacs_sim::{SampleOptions, simulate_samples};
 use criterion::{Criterion, criterion_group, criterion_main};
 
 fn samples(n_views: usize, points_per_view: usize) -> Vec<alacs_calib::LaserSample> {
-    let laser = LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98);
+    let laser = LaserModel::seed_paper();
     let options = SampleOptions {
         n_views,
         points_per_view,

@@ -5,13 +5,13 @@
 //! `cargo run --release -p alacs-calib --example residual_choice`
 
 use alacs_calib::{CalibrationOptions, Method, Residual, calibrate};
-use alacs_model::{Camera, Fidelity, LaserModel};
+use alacs_model::{Camera, LaserModel};
 use alacs_sim::{SampleOptions, simulate_samples};
 
 const SETS: u64 = 500;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let truth = LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98);
+    let truth = LaserModel::seed_paper();
     let camera = Camera::blackfly_s_5mp();
     println!("| residual | alpha (deg) | beta (deg) | L0 (mm) | mean abs z error (mm) |");
     println!("|---|---|---|---|---|");

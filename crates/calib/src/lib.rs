@@ -20,7 +20,7 @@
 //! use nalgebra::Point2;
 //!
 //! // Exact samples from a known laser at several depths and image rows.
-//! let truth = LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98);
+//! let truth = LaserModel::seed_paper();
 //! let mut samples = Vec::new();
 //! for i in 0..30 {
 //!     let v_n = -0.4 + 0.8 * f64::from(i % 6) / 5.0;

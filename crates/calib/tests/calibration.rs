@@ -16,7 +16,7 @@ use alacs_model::{Camera, Fidelity, LaserModel};
 use alacs_sim::{SampleOptions, SimulatedSamples, simulate_samples};
 
 fn paper_laser() -> LaserModel {
-    LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98)
+    LaserModel::seed_paper()
 }
 
 fn simulate(options: SampleOptions) -> SimulatedSamples {

@@ -8,7 +8,7 @@ use alacs_calib::{
     Error, IntrinsicsOptions, LaserSessionOptions, calibrate_camera_session,
     calibrate_laser_session,
 };
-use alacs_model::{Camera, Fidelity, LaserModel, Session};
+use alacs_model::{Camera, LaserModel, Session};
 use alacs_sim::{SessionOptions, simulate_session};
 
 fn temp_dir(name: &str) -> PathBuf {
@@ -18,7 +18,7 @@ fn temp_dir(name: &str) -> PathBuf {
 }
 
 fn truth_laser() -> LaserModel {
-    LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98)
+    LaserModel::seed_paper()
 }
 
 /// A half-scale (1224 x 1024 px) session of `views` poses at slides 0, 100, 200 mm.

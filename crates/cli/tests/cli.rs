@@ -226,7 +226,7 @@ fn triangulate_maps_pixels_to_points_on_the_laser_plane() {
     let camera = alacs::Camera::blackfly_s_5mp();
     let camera_yaml = dir.join("camera.yaml");
     camera.to_yaml_file(&camera_yaml).unwrap();
-    let laser = alacs::LaserModel::from_degrees(alacs::Fidelity::High, 19.07, 0.69, 381.98);
+    let laser = alacs::LaserModel::seed_paper();
     let laser_yaml = dir.join("laser.yaml");
     laser.to_yaml_file(&laser_yaml, "test").unwrap();
     let pixels = dir.join("pixels.csv");

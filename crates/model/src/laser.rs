@@ -108,6 +108,13 @@ impl LaserModel {
         Self::new(fidelity, alpha_deg.to_radians(), beta_deg.to_radians(), l0_mm)
     }
 
+    /// The seed paper's calibrated laser (its Table 1, method 4: alpha
+    /// 19.07 deg, beta 0.69 deg, L0 381.98 mm), high fidelity: the default
+    /// of the simulator and the examples.
+    pub fn seed_paper() -> Self {
+        Self::from_degrees(Fidelity::High, 19.07, 0.69, 381.98)
+    }
+
     /// alpha in degrees.
     pub fn alpha_deg(&self) -> f64 {
         self.alpha_rad.to_degrees()

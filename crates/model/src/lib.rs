@@ -26,7 +26,7 @@
 //! use alacs_model::{LaserModel, Fidelity};
 //! use nalgebra::Point2;
 //!
-//! let laser = LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98);
+//! let laser = LaserModel::seed_paper();
 //! let point = laser.triangulate(&Point2::new(0.0, 0.1), 0.0).unwrap();
 //! // The point lies on the laser plane for slide travel 0.
 //! assert!(laser.plane_in_camera(0.0).signed_distance_mm(&point).abs() < 1e-9);

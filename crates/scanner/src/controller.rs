@@ -379,7 +379,7 @@ mod tests {
     use std::cell::RefCell;
     use std::rc::Rc;
 
-    use alacs_model::{Fidelity, SLIDE_STROKE_MM};
+    use alacs_model::SLIDE_STROKE_MM;
     use nalgebra::{Translation3, UnitQuaternion, Vector3};
 
     use super::*;
@@ -528,7 +528,7 @@ mod tests {
     }
 
     fn laser() -> LaserModel {
-        LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98)
+        LaserModel::seed_paper()
     }
 
     fn controller(config: ControllerConfig) -> ScanController {

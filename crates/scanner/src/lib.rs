@@ -29,7 +29,7 @@
 //! use alacs_scanner::{ControllerConfig, ScanController, SimulatedRig, SimulatedRigOptions};
 //! use alacs_sim::{ScanOptions, simulate_scan};
 //!
-//! let laser = LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98);
+//! let laser = LaserModel::seed_paper();
 //! let options = ScanOptions { scale: 0.1, seed: 1, ..ScanOptions::default() };
 //! let scene = Arc::new(simulate_scan(&Camera::blackfly_s_5mp(), &laser, &options)?);
 //! let rough_in_rgbd = scene.rough_position_mm; // the RGB-D camera is the ALACS camera here

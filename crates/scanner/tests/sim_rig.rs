@@ -7,7 +7,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use alacs_locate::{LocateOptions, Status};
-use alacs_model::{Camera, Fidelity, LaserModel};
+use alacs_model::{Camera, LaserModel};
 use alacs_scanner::{
     ControllerConfig, Device, Error, ScanController, SimulatedRig, SimulatedRigOptions, Slide, Step,
 };
@@ -15,7 +15,7 @@ use alacs_sim::{ScanOptions, SimulatedScan, simulate_scan};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 
 fn laser() -> LaserModel {
-    LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98)
+    LaserModel::seed_paper()
 }
 
 fn scene(seed: u64, scale: f64) -> Arc<SimulatedScan> {

@@ -7,12 +7,12 @@
 // cannot run, so it panics.
 #![allow(missing_docs, clippy::panic)]
 
-use alacs_model::{Camera, Fidelity, LaserModel};
+use alacs_model::{Camera, LaserModel};
 use alacs_sim::{OrchardOptions, ScanOptions, SessionOptions, simulate_scan, simulate_session};
 use criterion::{Criterion, criterion_group, criterion_main};
 
 fn board_view(c: &mut Criterion) {
-    let laser = LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98);
+    let laser = LaserModel::seed_paper();
     let options = SessionOptions { n_views: 1, seed: 1, ..SessionOptions::default() };
     let session = match simulate_session(&Camera::blackfly_s_5mp(), &laser, &options) {
         Ok(session) => session,
@@ -33,7 +33,7 @@ fn board_view(c: &mut Criterion) {
 /// A full-size sunny scan frame with 30 % of the fruit behind leaves,
 /// branches and background foliage, laser on.
 fn scan_frame(c: &mut Criterion) {
-    let laser = LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98);
+    let laser = LaserModel::seed_paper();
     let orchard = OrchardOptions { occlusion: 0.3, ..OrchardOptions::default() };
     let options = ScanOptions { orchard, sun: true, seed: 2, ..ScanOptions::default() };
     let scan = match simulate_scan(&Camera::blackfly_s_5mp(), &laser, &options) {

@@ -5,14 +5,14 @@
 
 use std::path::PathBuf;
 
-use alacs_model::{Camera, Fidelity, LaserModel};
+use alacs_model::{Camera, LaserModel};
 use alacs_sim::{OrchardOptions, ScanOptions, SessionOptions, simulate_scan, simulate_session};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let out = PathBuf::from(std::env::args().nth(1).unwrap_or_else(|| "docs/images".into()));
     std::fs::create_dir_all(&out)?;
     let camera = Camera::blackfly_s_5mp();
-    let laser = LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98);
+    let laser = LaserModel::seed_paper();
 
     let session = SessionOptions { n_views: 1, scale: 0.25, seed: 3, ..SessionOptions::default() };
     let session = simulate_session(&camera, &laser, &session)?;

@@ -18,7 +18,7 @@
 //! use alacs_sim::{SampleOptions, simulate_samples};
 //! use alacs_model::{Camera, Fidelity, LaserModel};
 //!
-//! let laser = LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98);
+//! let laser = LaserModel::seed_paper();
 //! let options = SampleOptions { outlier_fraction: 0.2, ..SampleOptions::default() };
 //! let sim = simulate_samples(&Camera::blackfly_s_5mp(), &laser, &options).unwrap();
 //! assert_eq!(sim.samples.len(), 30);
@@ -30,7 +30,7 @@
 //! use alacs_sim::{SessionOptions, simulate_session};
 //! use alacs_model::{Camera, Fidelity, LaserModel};
 //!
-//! let laser = LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98);
+//! let laser = LaserModel::seed_paper();
 //! let options = SessionOptions { n_views: 2, scale: 0.1, seed: 7, ..SessionOptions::default() };
 //! let session = simulate_session(&Camera::blackfly_s_5mp(), &laser, &options)?;
 //! let image = session.render_view(0)?; // the board with the laser line, RGB8

@@ -4,12 +4,12 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
-use alacs_model::{Camera, Fidelity, LaserModel};
+use alacs_model::{Camera, LaserModel};
 use alacs_sim::{OrchardOptions, ScanOptions, simulate_scan};
 use nalgebra::{Point2, Vector3};
 
 fn laser() -> LaserModel {
-    LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98)
+    LaserModel::seed_paper()
 }
 
 /// A fifth of the 5 MP camera keeps the tests fast; the geometry is the same.

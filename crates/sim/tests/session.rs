@@ -6,7 +6,7 @@
 
 use std::path::PathBuf;
 
-use alacs_model::{Camera, Fidelity, LaserModel, Ray};
+use alacs_model::{Camera, LaserModel, Ray};
 use alacs_sim::{
     BoardScene, Checkerboard, Error, LaserStripe, RayMap, RenderOptions, Scene, Sensor,
     SessionOptions, SimulatedSession, SubpixelPattern, simulate_session,
@@ -15,7 +15,7 @@ use image::RgbImage;
 use nalgebra::{Isometry3, Matrix2, Matrix3, Point2, Point3, Vector2, Vector3};
 
 fn laser() -> LaserModel {
-    LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98)
+    LaserModel::seed_paper()
 }
 
 /// A half-size (1224 x 1024 px) session without sensor noise: only the

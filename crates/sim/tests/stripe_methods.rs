@@ -19,7 +19,7 @@
 
 use std::collections::HashMap;
 
-use alacs_model::{Camera, Fidelity, LaserModel, Ray};
+use alacs_model::{Camera, LaserModel, Ray};
 use alacs_sim::{
     OrchardOptions, ScanOptions, Scene, SessionOptions, SimulatedScan, simulate_scan,
     simulate_session,
@@ -33,7 +33,7 @@ const METHODS: [PeakMethod; 4] =
     [PeakMethod::CentreOfGravity, PeakMethod::Gaussian, PeakMethod::Parabola, PeakMethod::Steger];
 
 fn laser() -> LaserModel {
-    LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98)
+    LaserModel::seed_paper()
 }
 
 /// One scan of the measurement.

@@ -8,7 +8,7 @@ use crate::harness::{Differentiable, assert_finite, assert_jacobian, assert_roun
 
 /// The seed paper's Table 1, Method 4.
 fn paper_laser() -> LaserModel {
-    LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98)
+    LaserModel::seed_paper()
 }
 
 fn low_fidelity_laser() -> LaserModel {
