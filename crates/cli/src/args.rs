@@ -40,6 +40,9 @@ pub enum Command {
     Simulate(SimulateCommand),
     /// Run the main job on the built-in simulator and print the results.
     Demo(DemoArgs),
+    /// Start a calibration session from a folder of images.
+    #[command(subcommand)]
+    Session(SessionCommand),
     /// Scan a fruit with the rig and locate it: the seed's 5-frame active scan
     /// from the RGB-D camera's rough position. Only the simulated rig (--sim) is built in.
     Scan(ScanArgs),
@@ -64,8 +67,41 @@ impl Command {
             Command::Simulate(SimulateCommand::Scan(a)) => a.json,
             Command::Demo(a) => a.json,
             Command::Scan(a) => a.json,
+            Command::Session(SessionCommand::Init(a)) => a.json,
         }
     }
+}
+
+/// `alacs session ...`
+#[derive(Debug, Subcommand)]
+pub enum SessionCommand {
+    /// Write DIR/session.yaml (docs/FORMATS.md) listing the folder's PNG and
+    /// JPEG images in name order; `X_off.png` beside `X.png` becomes X's
+    /// laser-off image.
+    Init(SessionInitArgs),
+}
+
+/// `alacs session init`
+#[derive(Debug, Args)]
+pub struct SessionInitArgs {
+    /// The folder of board images; session.yaml is written into it.
+    pub dir: PathBuf,
+    /// Inner corners of the checkerboard, COLSxROWS (as OpenCV counts them, e.g. 9x6).
+    #[arg(long, value_name = "COLSxROWS")]
+    pub board: String,
+    /// Square size in mm, or X,Y for squares that are not exactly square.
+    #[arg(long, value_name = "S")]
+    pub square_mm: String,
+    /// Slide travel d of every view, mm (edit session.yaml for views taken
+    /// at different slide positions).
+    #[arg(long, value_name = "D", default_value_t = 0.0, allow_hyphen_values = true)]
+    pub slide_mm: f64,
+    /// Replace an existing session.yaml.
+    #[arg(long)]
+    pub force: bool,
+    /// Print one JSON object on standard output: {"session", "n_views", "images"}.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// `alacs calibrate ...`
@@ -228,7 +264,7 @@ pub struct CalibrateCameraArgs {
     /// Write the calibrated camera.yaml here.
     #[arg(short, long, value_name = "FILE")]
     pub output: Option<PathBuf>,
-    /// Print one JSON object (FORMATS.md) on standard output instead of text.
+    /// Print one JSON object (docs/FORMATS.md) on standard output instead of text.
     #[arg(long)]
     pub json: bool,
 }
@@ -282,7 +318,7 @@ pub struct CalibrateLaserArgs {
     /// Residual the least-squares fit minimizes.
     #[arg(long, value_enum, default_value = "depth")]
     pub residual: ResidualArg,
-    /// Print one JSON object (FORMATS.md) on standard output instead of text.
+    /// Print one JSON object (docs/FORMATS.md) on standard output instead of text.
     #[arg(long)]
     pub json: bool,
     /// Write the fitted laser.yaml here (the --method result; with --compare, Method 4 unless --method says otherwise).
@@ -354,6 +390,9 @@ pub struct SimulateSamplesArgs {
     /// Output folder (created).
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
+    /// Write into --out even if it holds files this command did not write.
+    #[arg(long)]
+    pub force: bool,
     /// Seed: same seed, same bytes.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -389,6 +428,9 @@ pub struct SimulateSessionArgs {
     /// Output folder (created).
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
+    /// Write into --out even if it holds files this command did not write.
+    #[arg(long)]
+    pub force: bool,
     /// Seed: same seed, same bytes.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -461,6 +503,9 @@ pub struct SimulateScanArgs {
     /// Output folder (created).
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
+    /// Write into --out even if it holds files this command did not write.
+    #[arg(long)]
+    pub force: bool,
     /// Seed: same seed, same scene and bytes.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -531,7 +576,7 @@ pub struct LocalizeArgs {
     /// How the final position is chosen.
     #[arg(long, value_enum, default_value_t = LocalizeMethodArg::Fused)]
     pub method: LocalizeMethodArg,
-    /// Print one JSON object (FORMATS.md) on standard output instead of text.
+    /// Print one JSON object (docs/FORMATS.md) on standard output instead of text.
     #[arg(long)]
     pub json: bool,
 }
@@ -584,11 +629,12 @@ pub struct ScanArgs {
     /// is mounted there and reports the rough position in its own frame.
     #[arg(
         long,
+        alias = "rgbd-to-alacs",
         value_name = "X,Y,Z,ROLL,PITCH,YAW",
         default_value = "0,0,0,0,0,0",
         allow_hyphen_values = true
     )]
-    pub rgbd_to_alacs: String,
+    pub alacs_from_rgbd: String,
     /// Localize with this calibrated camera.yaml instead of the simulation's true camera.
     #[arg(long, value_name = "FILE")]
     pub camera: Option<PathBuf>,
@@ -598,7 +644,10 @@ pub struct ScanArgs {
     /// Write the scan folder (scan.yaml, frames, camera.yaml, laser.yaml) and truth.json here.
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
-    /// Print one JSON object on standard output: FORMATS.md's localize object
+    /// Write into --out even if it holds files this command did not write.
+    #[arg(long)]
+    pub force: bool,
+    /// Print one JSON object on standard output: docs/FORMATS.md's localize object
     /// plus "truth", "error_mm" and "error_3d_mm".
     #[arg(long)]
     pub json: bool,

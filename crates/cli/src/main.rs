@@ -12,10 +12,8 @@ mod failure;
 
 use std::process::ExitCode;
 
-use clap::Parser;
-
 fn main() -> ExitCode {
-    let cli = match args::Cli::try_parse() {
+    let cli = match parse() {
         Ok(cli) => cli,
         Err(error) => return usage_error(&error),
     };
@@ -36,6 +34,20 @@ fn main() -> ExitCode {
     }
 }
 
+/// Where every `--help` points for files, outputs and exit codes.
+const CONTRACT: &str = "Files, JSON outputs and exit codes: docs/FORMATS.md \
+     (in the source repository; 0 ok, 1 the job failed, 2 bad input)";
+
+/// The command line, with [`CONTRACT`] under every command's help.
+fn parse() -> Result<args::Cli, clap::Error> {
+    use clap::{CommandFactory as _, FromArgMatches as _};
+    fn with_contract(command: clap::Command) -> clap::Command {
+        command.after_help(CONTRACT).mut_subcommands(with_contract)
+    }
+    let matches = with_contract(args::Cli::command()).try_get_matches()?;
+    args::Cli::from_arg_matches(&matches)
+}
+
 /// Bad usage: clap's message on standard error (exit 2), and with `--json`
 /// the error object on standard output. `--help` and `--version` print as
 /// usual and exit 0.
@@ -49,7 +61,10 @@ fn usage_error(error: &clap::Error) -> ExitCode {
     }
     let _ = error.print();
     if std::env::args().any(|a| a == "--json") {
-        let message = error.kind().as_str().unwrap_or("invalid command line").to_string();
+        // clap's first line, without its "error: " and styling.
+        let rendered = error.render().to_string();
+        let first = rendered.lines().next().unwrap_or("invalid command line");
+        let message = first.trim_start_matches("error: ").to_string();
         let failure = failure::Failure::bad_input(anyhow::anyhow!(message));
         let _ = output::print_json(&failure.to_json());
     }
@@ -73,5 +88,6 @@ fn run(command: args::Command) -> failure::CmdResult {
         Command::Simulate(SimulateCommand::Scan(a)) => cmd::simulate::scan(&a),
         Command::Demo(a) => cmd::demo::run(&a),
         Command::Scan(a) => cmd::scan::run(&a),
+        Command::Session(args::SessionCommand::Init(a)) => cmd::session::init(&a),
     }
 }

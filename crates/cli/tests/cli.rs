@@ -788,5 +788,5 @@ fn scan_without_sim_exits_2_naming_the_simulated_rig() {
     assert!(stderr(&output).contains("only the simulated rig is built in"), "{}", stderr(&output));
     let output = alacs(&["scan", "--sim", "--rgbd-to-alacs", "1,2,3"]);
     assert_eq!(output.status.code(), Some(2));
-    assert!(stderr(&output).contains("--rgbd-to-alacs"), "{}", stderr(&output));
+    assert!(stderr(&output).contains("--alacs-from-rgbd"), "{}", stderr(&output));
 }

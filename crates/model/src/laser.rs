@@ -270,8 +270,7 @@ impl LaserModel {
 
     /// Reads laser.yaml.
     pub fn from_yaml_file(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|error| Error::Io { path: path.to_path_buf(), error })?;
+        let text = crate::io::read_text(path)?;
         Self::parse_yaml(&text, path)
     }
 
@@ -308,7 +307,7 @@ impl LaserModel {
     pub fn to_yaml_file(&self, path: &Path, header: &str) -> Result<()> {
         let mut text: String = header.lines().map(|line| format!("# {line}\n")).collect();
         text.push_str(&self.to_yaml_string());
-        std::fs::write(path, text).map_err(|error| Error::Io { path: path.to_path_buf(), error })
+        crate::io::write_file(path, text)
     }
 }
 

@@ -51,6 +51,9 @@ pub use samples::{
     LaserSample, parse_samples_csv, read_samples_csv, samples_csv_string, validate_samples,
     write_samples, write_samples_csv,
 };
-pub use scan::{DEFAULT_FRUIT_RADIUS_MM, SCAN_FILE, Scan, ScanFrameSpec};
+pub use scan::{
+    DEFAULT_FRUIT_RADIUS_MM, FRUIT_RADIUS_RANGE_MM, MAX_ABS_SLIDE_MM, MAX_ROUGH_DISTANCE_MM,
+    SCAN_FILE, Scan, ScanFrameSpec,
+};
 pub use scan_plan::{ScanPlan, ScanStrategy};
-pub use session::{BoardSpec, SESSION_FILE, Session, SessionView, image_entry_yaml};
+pub use session::{BoardSpec, SESSION_FILE, Session, SessionView};

@@ -11,12 +11,14 @@
 //! ```
 //!
 //! Image paths are relative to the folder that holds scan.yaml. Unknown keys
-//! are ignored.
+//! are ignored. This module is the one reader and writer of scan.yaml: the
+//! scan controller and the simulator write their scan folders with
+//! [`Scan::write_yaml`].
 
 use std::path::{Path, PathBuf};
 
 use nalgebra::Point3;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use crate::{Error, Result};
 
@@ -27,6 +29,19 @@ pub const SCAN_FILE: &str = "scan.yaml";
 /// paper's 35-45 mm apples.
 pub const DEFAULT_FRUIT_RADIUS_MM: f64 = 40.0;
 
+/// The fruit radius priors accepted, mm: from a cherry tomato to a large
+/// melon. A radius outside is a typing or unit error (metres, or 1e308),
+/// not a fruit.
+pub const FRUIT_RADIUS_RANGE_MM: (f64, f64) = (2.0, 250.0);
+
+/// The largest |slide_mm| accepted: 10 m, far beyond any slide's stroke
+/// (the seed's is 200 mm), so a value beyond it is a unit or typing error.
+pub const MAX_ABS_SLIDE_MM: f64 = 10_000.0;
+
+/// The largest distance of a rough position accepted: 100 m, beyond the
+/// reach of any RGB-D camera.
+pub const MAX_ROUGH_DISTANCE_MM: f64 = 100_000.0;
+
 /// One frame of a scan.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ScanFrameSpec {
@@ -36,6 +51,9 @@ pub struct ScanFrameSpec {
     pub slide_mm: f64,
     /// The same view with the laser off, where the scan has one.
     pub image_laser_off: Option<PathBuf>,
+    /// Where the scan plan put the slide (extra key written by the scan
+    /// controller; `slide_mm` is where the slide settled).
+    pub planned_slide_mm: Option<f64>,
 }
 
 /// A scan as read from scan.yaml.
@@ -49,31 +67,81 @@ pub struct Scan {
     pub fruit_radius_mm: f64,
     /// The frames, in file order.
     pub frames: Vec<ScanFrameSpec>,
+    /// The rough position as the RGB-D camera gave it, in its own frame
+    /// (extra key written by the scan controller).
+    pub rough_position_in_rgbd_mm: Option<Point3<f64>>,
+    /// Whether the scan plan was shifted to fit the slide's stroke (extra
+    /// key written by the scan controller and the simulator).
+    pub plan_shifted_into_stroke: Option<bool>,
 }
 
-#[derive(Deserialize)]
+#[derive(Deserialize, Serialize)]
 struct ScanFile {
     rough_position_mm: Vec<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    rough_position_in_rgbd_mm: Option<Vec<f64>>,
     #[serde(default)]
     fruit_radius_mm: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    plan_shifted_into_stroke: Option<bool>,
     frames: Vec<FrameFile>,
 }
 
-#[derive(Deserialize)]
+#[derive(Deserialize, Serialize)]
 struct FrameFile {
     image: String,
     slide_mm: f64,
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     image_laser_off: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    planned_slide_mm: Option<f64>,
+}
+
+fn xyz(p: &Point3<f64>) -> Vec<f64> {
+    vec![p.x, p.y, p.z]
 }
 
 impl Scan {
     /// Reads `dir/scan.yaml`. Checks every value; does not open the images.
     pub fn read(dir: &Path) -> Result<Scan> {
         let path = dir.join(SCAN_FILE);
-        let text = std::fs::read_to_string(&path)
-            .map_err(|error| Error::Io { path: path.clone(), error })?;
+        let text = crate::io::read_text(&path)?;
         Self::parse(&text, dir, &path)
+    }
+
+    /// scan.yaml's text for this scan, after `header` (comment lines
+    /// without the `#`, may be empty).
+    pub fn to_yaml_string(&self, header: &str) -> String {
+        let file = ScanFile {
+            rough_position_mm: xyz(&self.rough_position_mm),
+            rough_position_in_rgbd_mm: self.rough_position_in_rgbd_mm.as_ref().map(xyz),
+            fruit_radius_mm: Some(self.fruit_radius_mm),
+            plan_shifted_into_stroke: self.plan_shifted_into_stroke,
+            frames: self
+                .frames
+                .iter()
+                .map(|f| FrameFile {
+                    image: f.image.to_string_lossy().into_owned(),
+                    slide_mm: f.slide_mm,
+                    image_laser_off: f
+                        .image_laser_off
+                        .as_ref()
+                        .map(|p| p.to_string_lossy().into_owned()),
+                    planned_slide_mm: f.planned_slide_mm,
+                })
+                .collect(),
+        };
+        let mut text: String = header.lines().map(|l| format!("# {l}\n")).collect();
+        // Serializing plain strings, numbers and lists cannot fail.
+        text.push_str(&serde_saphyr::to_string(&file).unwrap_or_default());
+        text
+    }
+
+    /// Writes `dir/scan.yaml` atomically ([`crate::io::write_file`]).
+    pub fn write_yaml(&self, header: &str) -> Result<PathBuf> {
+        let path = self.dir.join(SCAN_FILE);
+        crate::io::write_file(&path, self.to_yaml_string(header))?;
+        Ok(path)
     }
 
     /// Parses scan.yaml text; `dir` is the folder the image paths are
@@ -82,20 +150,29 @@ impl Scan {
         let parse_error = |message: String| Error::Parse { path: path.to_path_buf(), message };
         let file: ScanFile = serde_saphyr::from_str(text)
             .map_err(|e| parse_error(e.without_snippet().to_string()))?;
-        let rough_position_mm = match file.rough_position_mm.as_slice() {
-            &[x, y, z] if [x, y, z].iter().all(|c| c.is_finite()) && z > 0.0 => {
-                Point3::new(x, y, z)
+        let point = |key: &str, values: &[f64], in_front: bool| match *values {
+            [x, y, z]
+                if [x, y, z].iter().all(|c| c.abs() <= MAX_ROUGH_DISTANCE_MM)
+                    && (z > 0.0 || !in_front) =>
+            {
+                Ok(Point3::new(x, y, z))
             }
-            other => {
-                return Err(parse_error(format!(
-                    "`rough_position_mm` must be [x, y, z], finite, with z > 0 (in front of the camera), got {other:?}"
-                )));
-            }
+            _ => Err(parse_error(format!(
+                "`{key}` must be [x, y, z] in mm, each within +-{MAX_ROUGH_DISTANCE_MM} mm{}, got {values:?}",
+                if in_front { ", with z > 0 (in front of the camera)" } else { "" }
+            ))),
         };
+        let rough_position_mm = point("rough_position_mm", &file.rough_position_mm, true)?;
+        let rough_position_in_rgbd_mm = file
+            .rough_position_in_rgbd_mm
+            .as_deref()
+            .map(|v| point("rough_position_in_rgbd_mm", v, false))
+            .transpose()?;
         let fruit_radius_mm = file.fruit_radius_mm.unwrap_or(DEFAULT_FRUIT_RADIUS_MM);
-        if !(fruit_radius_mm.is_finite() && fruit_radius_mm > 0.0) {
+        let (r_lo, r_hi) = FRUIT_RADIUS_RANGE_MM;
+        if !(r_lo..=r_hi).contains(&fruit_radius_mm) {
             return Err(parse_error(format!(
-                "`fruit_radius_mm` must be positive and finite, got {fruit_radius_mm}"
+                "`fruit_radius_mm` is {fruit_radius_mm}; a fruit radius prior must lie within {r_lo}-{r_hi} mm"
             )));
         }
         if file.frames.is_empty() {
@@ -106,19 +183,31 @@ impl Scan {
             if frame.image.trim().is_empty() {
                 return Err(parse_error(format!("frames[{i}]: `image` is empty")));
             }
-            if !frame.slide_mm.is_finite() {
-                return Err(parse_error(format!(
-                    "frames[{i}] ({}): `slide_mm` is {}; it must be finite",
-                    frame.image, frame.slide_mm
-                )));
+            for (key, value) in
+                [("slide_mm", Some(frame.slide_mm)), ("planned_slide_mm", frame.planned_slide_mm)]
+            {
+                if let Some(value) = value.filter(|v| !(v.abs() <= MAX_ABS_SLIDE_MM)) {
+                    return Err(parse_error(format!(
+                        "frames[{i}] ({}): `{key}` is {value}; it must be finite and within +-{MAX_ABS_SLIDE_MM} mm",
+                        frame.image
+                    )));
+                }
             }
             frames.push(ScanFrameSpec {
                 image: PathBuf::from(frame.image),
                 slide_mm: frame.slide_mm,
                 image_laser_off: frame.image_laser_off.map(PathBuf::from),
+                planned_slide_mm: frame.planned_slide_mm,
             });
         }
-        Ok(Scan { dir: dir.to_path_buf(), rough_position_mm, fruit_radius_mm, frames })
+        Ok(Scan {
+            dir: dir.to_path_buf(),
+            rough_position_mm,
+            fruit_radius_mm,
+            frames,
+            rough_position_in_rgbd_mm,
+            plan_shifted_into_stroke: file.plan_shifted_into_stroke,
+        })
     }
 
     /// The full path of an image named in the scan.
@@ -153,6 +242,20 @@ mod tests {
     }
 
     #[test]
+    fn scan_yaml_round_trips_through_its_writer() {
+        let mut scan = parse(
+            "rough_position_mm: [10, -5, 800]\nframes:\n  - image: 'a b: \"c\".png'\n    slide_mm: 30.25\n    image_laser_off: off.png\n",
+        )
+        .unwrap();
+        scan.frames[0].planned_slide_mm = Some(30.0);
+        scan.rough_position_in_rgbd_mm = Some(Point3::new(1.5, -2.0, 3.0));
+        scan.plan_shifted_into_stroke = Some(true);
+        let text = scan.to_yaml_string("written by a test\nsecond line");
+        assert!(text.starts_with("# written by a test\n# second line\n"), "{text}");
+        assert_eq!(parse(&text).unwrap(), scan);
+    }
+
+    #[test]
     fn bad_files_name_the_key() {
         for (text, key) in [
             ("rough_position_mm: [1, 2]\nframes: [{image: a, slide_mm: 0}]", "rough_position_mm"),
@@ -167,6 +270,17 @@ mod tests {
             ("rough_position_mm: [1, 2, 3]\nframes: []", "frames"),
             ("rough_position_mm: [1, 2, 3]\nframes: [{image: a, slide_mm: .nan}]", "slide_mm"),
             ("rough_position_mm: [1, 2, 3]\nframes: [{image: a}]", "slide_mm"),
+            // Regression: 1e308 was accepted and the reason then said
+            // "fewer than 18446744073709551615".
+            (
+                "rough_position_mm: [1, 2, 3]\nfruit_radius_mm: 1e308\nframes: [{image: a, slide_mm: 0}]",
+                "fruit_radius_mm",
+            ),
+            ("rough_position_mm: [1, 2, 3]\nframes: [{image: a, slide_mm: 1e9}]", "slide_mm"),
+            (
+                "rough_position_mm: [1, 2, 1e12]\nframes: [{image: a, slide_mm: 0}]",
+                "rough_position_mm",
+            ),
             ("frames: [{image: a, slide_mm: 0}]", "rough_position_mm"),
         ] {
             let message = parse(text).unwrap_err().to_string();

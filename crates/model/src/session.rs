@@ -15,7 +15,7 @@
 
 use std::path::{Path, PathBuf};
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use crate::{Error, Result};
 
@@ -60,34 +60,6 @@ pub struct SessionView {
     pub image_laser_off: Option<PathBuf>,
 }
 
-/// One entry of session.yaml's `views` or scan.yaml's `frames` (FORMATS.md),
-/// for the programs that write them; the names are quoted, so any file name
-/// reads back as written. A writer may append keys of its own to the entry,
-/// indented by four spaces.
-pub fn image_entry_yaml(image: &str, slide_mm: f64, image_laser_off: Option<&str>) -> String {
-    let mut text = format!("  - image: {}\n    slide_mm: {slide_mm:?}\n", yaml_quoted(image));
-    if let Some(off) = image_laser_off {
-        text.push_str(&format!("    image_laser_off: {}\n", yaml_quoted(off)));
-    }
-    text
-}
-
-/// `text` as a YAML double-quoted scalar.
-fn yaml_quoted(text: &str) -> String {
-    let mut quoted = String::with_capacity(text.len() + 2);
-    quoted.push('"');
-    for c in text.chars() {
-        match c {
-            '"' => quoted.push_str("\\\""),
-            '\\' => quoted.push_str("\\\\"),
-            c if c.is_control() => quoted.push_str(&format!("\\u{:04x}", u32::from(c))),
-            c => quoted.push(c),
-        }
-    }
-    quoted.push('"');
-    quoted
-}
-
 /// A calibration session as read from session.yaml.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Session {
@@ -99,31 +71,31 @@ pub struct Session {
     pub views: Vec<SessionView>,
 }
 
-#[derive(Deserialize)]
+#[derive(Deserialize, Serialize)]
 struct SessionFile {
     board: BoardFile,
     views: Vec<ViewFile>,
 }
 
-#[derive(Deserialize)]
+#[derive(Deserialize, Serialize)]
 struct BoardFile {
     inner_corners: Vec<i64>,
     square_mm: SquareFile,
 }
 
-#[derive(Deserialize)]
+#[derive(Deserialize, Serialize)]
 #[serde(untagged)]
 enum SquareFile {
     Same(f64),
     PerAxis(Vec<f64>),
 }
 
-#[derive(Deserialize)]
+#[derive(Deserialize, Serialize)]
 struct ViewFile {
     image: String,
     #[serde(default)]
     slide_mm: f64,
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     image_laser_off: Option<String>,
 }
 
@@ -132,9 +104,40 @@ impl Session {
     /// does not open the images.
     pub fn read(dir: &Path) -> Result<Session> {
         let path = dir.join(SESSION_FILE);
-        let text = std::fs::read_to_string(&path)
-            .map_err(|error| Error::Io { path: path.clone(), error })?;
+        let text = crate::io::read_text(&path)?;
         Self::parse(&text, dir, &path)
+    }
+
+    /// session.yaml's text for this session, after `header` (comment lines
+    /// without the `#`, may be empty). The one writer of session.yaml.
+    pub fn to_yaml_string(&self, header: &str) -> String {
+        let b = &self.board;
+        let file = SessionFile {
+            board: BoardFile {
+                inner_corners: vec![b.cols as i64, b.rows as i64],
+                square_mm: if b.square_x_mm == b.square_y_mm {
+                    SquareFile::Same(b.square_x_mm)
+                } else {
+                    SquareFile::PerAxis(vec![b.square_x_mm, b.square_y_mm])
+                },
+            },
+            views: self
+                .views
+                .iter()
+                .map(|v| ViewFile {
+                    image: v.image.to_string_lossy().into_owned(),
+                    slide_mm: v.slide_mm,
+                    image_laser_off: v
+                        .image_laser_off
+                        .as_ref()
+                        .map(|p| p.to_string_lossy().into_owned()),
+                })
+                .collect(),
+        };
+        let mut text: String = header.lines().map(|l| format!("# {l}\n")).collect();
+        // Serializing plain strings, numbers and lists cannot fail.
+        text.push_str(&serde_saphyr::to_string(&file).unwrap_or_default());
+        text
     }
 
     /// Parses session.yaml text; `dir` is the folder the image paths are
@@ -193,6 +196,58 @@ impl Session {
         Ok(Session { dir: dir.to_path_buf(), board, views })
     }
 
+    /// A session of every PNG and JPEG image in `dir` (in name order), all
+    /// taken at `slide_mm`, for `board`: what `alacs session init` writes
+    /// as a start. An image `X_off.EXT` beside `X.EXT` (any extension)
+    /// becomes X's `image_laser_off`; hidden files are skipped. A folder
+    /// without images is refused naming it.
+    pub fn from_image_folder(dir: &Path, board: BoardSpec, slide_mm: f64) -> Result<Session> {
+        let io_error = |error| Error::Io { path: dir.to_path_buf(), error };
+        let mut names = Vec::new();
+        for entry in std::fs::read_dir(dir).map_err(io_error)? {
+            let entry = entry.map_err(io_error)?;
+            let name = entry.file_name().to_string_lossy().into_owned();
+            let ext = Path::new(&name).extension().map(|e| e.to_string_lossy().to_lowercase());
+            let is_image = matches!(ext.as_deref(), Some("png" | "jpg" | "jpeg"));
+            if is_image && !name.starts_with('.') && entry.path().is_file() {
+                names.push(name);
+            }
+        }
+        names.sort();
+        let stem = |name: &str| {
+            Path::new(name)
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default()
+        };
+        let off_of = |name: &str| {
+            let on = format!("{}_off", stem(name));
+            names.iter().find(|n| stem(n) == on).cloned()
+        };
+        let is_off = |name: &str| {
+            stem(name).strip_suffix("_off").is_some_and(|on| names.iter().any(|n| stem(n) == on))
+        };
+        let views: Vec<SessionView> = names
+            .iter()
+            .filter(|n| !is_off(n))
+            .map(|n| SessionView {
+                image: PathBuf::from(n),
+                slide_mm,
+                image_laser_off: off_of(n).map(PathBuf::from),
+            })
+            .collect();
+        if views.is_empty() {
+            return Err(Error::Io {
+                path: dir.to_path_buf(),
+                error: std::io::Error::new(
+                    std::io::ErrorKind::NotFound,
+                    "no PNG or JPEG images in the folder",
+                ),
+            });
+        }
+        Ok(Session { dir: dir.to_path_buf(), board, views })
+    }
+
     /// The full path of an image named in the session.
     pub fn path_of(&self, image: &Path) -> PathBuf {
         self.dir.join(image)
@@ -211,16 +266,43 @@ mod tests {
     #[test]
     fn written_entries_read_back_whatever_the_file_names() {
         let names = ["view01.png", "a: b #c.png", "say \"hi\"\\x.png", "tab\there.png", "- 01.png"];
-        let mut text = String::from("board: {inner_corners: [9, 6], square_mm: 25.0}\nviews:\n");
-        for (k, name) in names.iter().enumerate() {
-            text.push_str(&image_entry_yaml(name, k as f64 * 10.5, Some(name)));
+        let session = Session {
+            dir: PathBuf::from("/data/s"),
+            board: BoardSpec { cols: 9, rows: 6, square_x_mm: 21.167, square_y_mm: 21.125 },
+            views: names
+                .iter()
+                .enumerate()
+                .map(|(k, name)| SessionView {
+                    image: PathBuf::from(name),
+                    slide_mm: k as f64 * 10.5,
+                    image_laser_off: Some(PathBuf::from(name)),
+                })
+                .collect(),
+        };
+        let text = session.to_yaml_string("simulated\nby a test");
+        assert!(text.starts_with("# simulated\n# by a test\n"), "{text}");
+        assert_eq!(parse(&text).unwrap(), session);
+    }
+
+    #[test]
+    fn a_folder_of_images_becomes_a_session_with_laser_off_pairs() {
+        let dir = tempfile::tempdir().unwrap();
+        for name in ["b.png", "a.jpg", "a_off.jpg", "notes.txt", ".hidden.png", "c_off.png"] {
+            std::fs::write(dir.path().join(name), "x").unwrap();
         }
-        let session = parse(&text).unwrap();
-        for (k, (view, name)) in session.views.iter().zip(names).enumerate() {
-            assert_eq!(view.image, Path::new(name));
-            assert_eq!(view.image_laser_off.as_deref(), Some(Path::new(name)));
-            assert_eq!(view.slide_mm, k as f64 * 10.5);
-        }
+        let board = BoardSpec { cols: 9, rows: 6, square_x_mm: 25.0, square_y_mm: 25.0 };
+        let session = Session::from_image_folder(dir.path(), board, 50.0).unwrap();
+        let images: Vec<_> = session.views.iter().map(|v| v.image.to_string_lossy()).collect();
+        // c_off.png has no c.png: it is a view of its own.
+        assert_eq!(images, ["a.jpg", "b.png", "c_off.png"]);
+        assert_eq!(session.views[0].image_laser_off, Some(PathBuf::from("a_off.jpg")));
+        assert!(session.views.iter().all(|v| v.slide_mm == 50.0));
+        let text = session.to_yaml_string("");
+        let read = Session::parse(&text, dir.path(), Path::new("session.yaml")).unwrap();
+        assert_eq!(read, session);
+        let empty = tempfile::tempdir().unwrap();
+        let error = Session::from_image_folder(empty.path(), board, 0.0).unwrap_err();
+        assert!(error.to_string().contains("no PNG or JPEG"), "{error}");
     }
 
     #[test]

@@ -2,7 +2,7 @@
 //! frames of an active scan, then to the fruit's centre.
 //!
 //! 1. The rough position is carried from the RGB-D camera's frame into the
-//!    ALACS camera's ([`ControllerConfig::rgbd_to_alacs`]).
+//!    ALACS camera's ([`ControllerConfig::alacs_from_rgbd`]).
 //! 2. The seed's strategy plans the slide positions from it
 //!    ([`ScanStrategy::plan`]: the laser on the left half of the fruit,
 //!    then steps to the right, shifted into the stroke).
@@ -18,9 +18,10 @@ use std::path::Path;
 use std::time::Duration;
 
 use alacs_locate::{FrameImages, Localization, LocateOptions, Prior, locate};
+use alacs_model::io::OutputDir;
 use alacs_model::{
-    Camera, DEFAULT_FRUIT_RADIUS_MM, LaserModel, SCAN_FILE, ScanPlan, ScanStrategy,
-    image_entry_yaml,
+    Camera, DEFAULT_FRUIT_RADIUS_MM, LaserModel, SCAN_FILE, Scan, ScanFrameSpec, ScanPlan,
+    ScanStrategy,
 };
 use image::RgbImage;
 use nalgebra::{Isometry3, Point3};
@@ -35,9 +36,9 @@ pub struct ControllerConfig {
     /// Frames, step and stroke of the scan (the seed paper's by default).
     pub strategy: ScanStrategy,
     /// The pose of the RGB-D camera in the ALACS camera frame:
-    /// `point_in_alacs = rgbd_to_alacs * point_in_rgbd` (mm). Identity by
+    /// `point_in_alacs = alacs_from_rgbd * point_in_rgbd` (mm). Identity by
     /// default (a rough position already in the ALACS frame).
-    pub rgbd_to_alacs: Isometry3<f64>,
+    pub alacs_from_rgbd: Isometry3<f64>,
     /// Also capture every frame with the laser off (for differencing).
     pub capture_laser_off: bool,
     /// Longest wait for the slide to reach and settle at a position.
@@ -55,7 +56,7 @@ impl Default for ControllerConfig {
     fn default() -> Self {
         Self {
             strategy: ScanStrategy::default(),
-            rgbd_to_alacs: Isometry3::identity(),
+            alacs_from_rgbd: Isometry3::identity(),
             capture_laser_off: false,
             move_timeout: Duration::from_secs(10),
             capture_timeout: Duration::from_secs(2),
@@ -139,7 +140,7 @@ impl ScanController {
         if config.move_timeout.is_zero() || config.capture_timeout.is_zero() {
             return invalid("timeouts must be longer than zero".into());
         }
-        let transform = config.rgbd_to_alacs.to_homogeneous();
+        let transform = config.alacs_from_rgbd.to_homogeneous();
         if !transform.iter().all(|v| v.is_finite()) {
             return invalid("the RGB-D to ALACS transform must be finite".into());
         }
@@ -159,11 +160,11 @@ impl ScanController {
     /// The rough position in the ALACS camera frame, checked to lie in
     /// front of the camera.
     pub fn rough_in_alacs(&self, rough_position_in_rgbd_mm: &Point3<f64>) -> Result<Point3<f64>> {
-        let rough = self.config.rgbd_to_alacs * rough_position_in_rgbd_mm;
+        let rough = self.config.alacs_from_rgbd * rough_position_in_rgbd_mm;
         if !(rough.coords.iter().all(|c| c.is_finite()) && rough.z > 0.0) {
             let r = rough_position_in_rgbd_mm;
             return Err(Error::InvalidInput(format!(
-                "the rough position ({:.1}, {:.1}, {:.1}) mm of the RGB-D camera is at ({:.1}, {:.1}, {:.1}) mm in the ALACS camera frame, not in front of the camera; check rgbd_to_alacs",
+                "the rough position ({:.1}, {:.1}, {:.1}) mm of the RGB-D camera is at ({:.1}, {:.1}, {:.1}) mm in the ALACS camera frame, not in front of the camera; check alacs_from_rgbd",
                 r.x, r.y, r.z, rough.x, rough.y, rough.z
             )));
         }
@@ -322,44 +323,67 @@ impl CapturedScan {
         self.frames.iter().map(|f| 1 + usize::from(f.image_laser_off.is_some())).sum()
     }
 
-    /// scan.yaml (FORMATS.md) for the frames as [`CapturedScan::write`]
-    /// names them, with the extra keys `rough_position_in_rgbd_mm`,
-    /// `plan_shifted_into_stroke` and, per frame, `planned_slide_mm`.
-    pub fn scan_yaml(&self) -> String {
-        let r = &self.rough_position_mm;
-        let g = &self.rough_position_in_rgbd_mm;
-        let mut text = format!(
-            "# Captured by alacs-scanner. rough_position_mm is the RGB-D camera's rough\n\
-             # position carried into the ALACS camera frame; slide_mm where the slide settled.\n\
-             rough_position_mm: [{:?}, {:?}, {:?}]\n\
-             rough_position_in_rgbd_mm: [{:?}, {:?}, {:?}]\n\
-             fruit_radius_mm: {:?}\n\
-             plan_shifted_into_stroke: {}\n\
-             frames:\n",
-            r.x, r.y, r.z, g.x, g.y, g.z, self.fruit_radius_mm, self.plan.shifted
-        );
-        for (index, frame) in self.frames.iter().enumerate() {
-            let off = frame.image_laser_off.as_ref().map(|_| frame_file(index, false));
-            text.push_str(&image_entry_yaml(
-                &frame_file(index, true),
-                frame.slide_mm,
-                off.as_deref(),
-            ));
-            text.push_str(&format!("    planned_slide_mm: {:?}\n", frame.planned_slide_mm));
+    /// This scan as scan.yaml describes it (docs/FORMATS.md), with the frame
+    /// files [`CapturedScan::write`] names (`frame0.png`, `frame0_off.png`,
+    /// ...) and the extra keys of the scan controller.
+    pub fn to_scan(&self, dir: &Path) -> Scan {
+        Scan {
+            dir: dir.to_path_buf(),
+            rough_position_mm: self.rough_position_mm,
+            fruit_radius_mm: self.fruit_radius_mm,
+            frames: self
+                .frames
+                .iter()
+                .enumerate()
+                .map(|(index, frame)| ScanFrameSpec {
+                    image: frame_file(index, true).into(),
+                    slide_mm: frame.slide_mm,
+                    image_laser_off: frame
+                        .image_laser_off
+                        .as_ref()
+                        .map(|_| frame_file(index, false).into()),
+                    planned_slide_mm: Some(frame.planned_slide_mm),
+                })
+                .collect(),
+            rough_position_in_rgbd_mm: Some(self.rough_position_in_rgbd_mm),
+            plan_shifted_into_stroke: Some(self.plan.shifted),
         }
-        text
+    }
+
+    /// scan.yaml's text for this scan.
+    pub fn scan_yaml(&self) -> String {
+        self.to_scan(Path::new("")).to_yaml_string(
+            "Captured by alacs-scanner. rough_position_mm is the RGB-D camera's rough\n\
+             position carried into the ALACS camera frame; slide_mm where the slide settled.",
+        )
     }
 
     /// Writes the scan folder (FORMATS.md): scan.yaml and the PNG frames,
-    /// creating `dir`. Localize it with the rig's calibrated camera.yaml and
-    /// laser.yaml.
+    /// creating `dir` ([`OutputDir`]: a folder holding files this did not
+    /// write is refused). Localize it with the rig's calibrated camera.yaml
+    /// and laser.yaml.
     pub fn write(&self, dir: &Path) -> Result<()> {
-        std::fs::create_dir_all(dir).map_err(|error| Error::Io { path: dir.into(), error })?;
-        let save = |image: &RgbImage, name: String| {
-            let path = dir.join(name);
-            image
-                .save_with_format(&path, image::ImageFormat::Png)
-                .map_err(|error| Error::Image { path, error })
+        let mut out = OutputDir::create(dir, false)?;
+        self.write_into(&mut out)?;
+        out.finish()?;
+        Ok(())
+    }
+
+    /// [`CapturedScan::write`] into an open output folder (the caller may
+    /// add files, e.g. camera.yaml, and then finishes it).
+    pub fn write_into(&self, out: &mut OutputDir) -> Result<()> {
+        use image::ImageEncoder as _;
+        let mut save = |image: &RgbImage, name: String| {
+            out.write_with(&name, |w| {
+                image::codecs::png::PngEncoder::new(w)
+                    .write_image(
+                        image.as_raw(),
+                        image.width(),
+                        image.height(),
+                        image::ExtendedColorType::Rgb8,
+                    )
+                    .map_err(std::io::Error::other)
+            })
         };
         for (index, frame) in self.frames.iter().enumerate() {
             save(&frame.image, frame_file(index, true))?;
@@ -367,8 +391,8 @@ impl CapturedScan {
                 save(off, frame_file(index, false))?;
             }
         }
-        let path = dir.join(SCAN_FILE);
-        std::fs::write(&path, self.scan_yaml()).map_err(|error| Error::Io { path, error })
+        out.write(SCAN_FILE, self.scan_yaml())?;
+        Ok(())
     }
 }
 
@@ -594,13 +618,13 @@ mod tests {
     fn the_rough_position_is_carried_into_the_alacs_frame() {
         // The RGB-D camera 60 mm above and 40 mm left of the ALACS camera,
         // turned 5 degrees about y (mm, radians).
-        let rgbd_to_alacs = Isometry3::from_parts(
+        let alacs_from_rgbd = Isometry3::from_parts(
             Translation3::new(-40.0, -60.0, 10.0),
             UnitQuaternion::from_euler_angles(0.0, 5f64.to_radians(), 0.0),
         );
         let rough_in_rgbd = Point3::new(30.0, 50.0, 750.0);
-        let rough_in_alacs = rgbd_to_alacs * rough_in_rgbd;
-        let config = ControllerConfig { rgbd_to_alacs, ..ControllerConfig::default() };
+        let rough_in_alacs = alacs_from_rgbd * rough_in_rgbd;
+        let config = ControllerConfig { alacs_from_rgbd, ..ControllerConfig::default() };
         let mut rig = FakeRig::new();
         let scan = rig.run(&controller(config), rough_in_rgbd).unwrap();
         assert!((scan.rough_position_mm - rough_in_alacs).norm() < 1e-9);
@@ -712,8 +736,8 @@ mod tests {
             assert!(matches!(ScanController::new(laser(), config), Err(Error::InvalidInput(_))));
         }
         // 1 m behind the ALACS camera once turned half a turn about y.
-        let rgbd_to_alacs = Isometry3::rotation(Vector3::y() * std::f64::consts::PI);
-        let config = ControllerConfig { rgbd_to_alacs, ..Default::default() };
+        let alacs_from_rgbd = Isometry3::rotation(Vector3::y() * std::f64::consts::PI);
+        let config = ControllerConfig { alacs_from_rgbd, ..Default::default() };
         let mut rig = FakeRig::new();
         let error = rig.run(&controller(config), Point3::new(0.0, 0.0, 1000.0)).unwrap_err();
         assert!(error.to_string().contains("not in front of the camera"), "{error}");

@@ -1,7 +1,6 @@
 //! The one error type of `alacs-scanner`.
 
 use std::fmt;
-use std::path::PathBuf;
 use std::time::Duration;
 
 /// Result with this crate's [`Error`].
@@ -149,22 +148,9 @@ pub enum Error {
     #[cfg(feature = "sim")]
     #[error(transparent)]
     Sim(#[from] alacs_sim::Error),
-    /// Writing a scan folder failed.
-    #[error("{path}: {error}")]
-    Io {
-        /// The file or folder.
-        path: PathBuf,
-        /// What the operating system said.
-        error: std::io::Error,
-    },
-    /// Writing an image failed.
-    #[error("{path}: {error}")]
-    Image {
-        /// The file.
-        path: PathBuf,
-        /// What the image encoder said.
-        error: image::ImageError,
-    },
+    /// Writing a scan folder failed (or a file of the model's could not be used).
+    #[error(transparent)]
+    Model(#[from] alacs_model::Error),
 }
 
 fn detail_suffix(detail: &str) -> String {
@@ -178,7 +164,8 @@ impl Error {
     pub fn class(&self) -> alacs_model::ErrorClass {
         use alacs_model::ErrorClass::{BadInput, JobFailed};
         match self {
-            Error::InvalidInput(_) | Error::Io { .. } | Error::Image { .. } => BadInput,
+            Error::InvalidInput(_) => BadInput,
+            Error::Model(e) => e.class(),
             Error::Locate(e) => e.class(),
             #[cfg(feature = "sim")]
             Error::Sim(e) => e.class(),

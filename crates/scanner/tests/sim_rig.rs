@@ -25,7 +25,7 @@ fn scene(seed: u64, scale: f64) -> Arc<SimulatedScan> {
 
 /// The RGB-D camera of the examples: 60 mm above, 40 mm left of and 10 mm
 /// behind the ALACS camera, turned 5 degrees about its y axis and 2 about x.
-fn rgbd_to_alacs() -> Isometry3<f64> {
+fn alacs_from_rgbd() -> Isometry3<f64> {
     Isometry3::from_parts(
         Translation3::new(-40.0, -60.0, -10.0),
         UnitQuaternion::from_euler_angles(2f64.to_radians(), 5f64.to_radians(), 0.0),
@@ -67,11 +67,11 @@ fn the_rig_captures_the_simulators_frames_and_localizes_the_apple() {
 #[test]
 fn a_rough_position_from_the_rgbd_frame_and_laser_off_frames_localize_too() {
     let scene = scene(1, 0.5);
-    let transform = rgbd_to_alacs();
+    let transform = alacs_from_rgbd();
     // What an RGB-D camera mounted there reports.
     let rough_in_rgbd = transform.inverse() * scene.rough_position_mm;
     let config = ControllerConfig {
-        rgbd_to_alacs: transform,
+        alacs_from_rgbd: transform,
         capture_laser_off: true,
         ..ControllerConfig::default()
     };

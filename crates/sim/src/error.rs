@@ -1,6 +1,6 @@
 //! The one error type of `alacs-sim`.
 
-use std::path::{Path, PathBuf};
+use alacs_model::io::OutputDir;
 
 /// Result with this crate's [`Error`].
 pub type Result<T, E = Error> = std::result::Result<T, E>;
@@ -15,22 +15,6 @@ pub enum Error {
     /// The scene could not be generated (e.g. the laser never appears in the image).
     #[error("cannot simulate: {0}")]
     Infeasible(String),
-    /// Writing an output failed.
-    #[error("{path}: {error}")]
-    Io {
-        /// The file.
-        path: PathBuf,
-        /// What the operating system said.
-        error: std::io::Error,
-    },
-    /// Writing an image failed.
-    #[error("{path}: {error}")]
-    Image {
-        /// The file.
-        path: PathBuf,
-        /// What the image encoder said.
-        error: image::ImageError,
-    },
     /// A camera or laser model error.
     #[error(transparent)]
     Model(#[from] alacs_model::Error),
@@ -42,7 +26,7 @@ impl Error {
     pub fn class(&self) -> alacs_model::ErrorClass {
         use alacs_model::ErrorClass::{BadInput, JobFailed};
         match self {
-            Error::InvalidOptions(_) | Error::Io { .. } | Error::Image { .. } => BadInput,
+            Error::InvalidOptions(_) => BadInput,
             Error::Model(e) => e.class(),
             Error::Infeasible(_) => JobFailed,
         }
@@ -58,37 +42,73 @@ pub(crate) fn check_positive_range(what: &str, (low, high): (f64, f64)) -> Resul
     }
 }
 
-/// Checks that there is at least one slide position and all are finite.
+/// The largest render scale accepted: twice the camera's resolution each
+/// side (a 5 MP camera renders at 20 MP), so memory stays bounded (about
+/// 1.5 GB of sub-pixel rays at the limit).
+pub const MAX_SCALE: f64 = 2.0;
+
+/// The most views a simulated session may have (the seed's has 10; a
+/// thousand is more than any calibration takes).
+pub const MAX_SESSION_VIEWS: usize = 1000;
+
+/// The most calibration samples a simulation may make (views x points per
+/// view): ten million, about 320 MB in memory and 800 MB as samples.csv.
+pub const MAX_SAMPLES: usize = 10_000_000;
+
+/// The most slide positions a simulation may use.
+pub const MAX_SLIDE_POSITIONS: usize = 1000;
+
+/// Checks that there is at least one slide position, not more than
+/// [`MAX_SLIDE_POSITIONS`], all finite and within
+/// [`alacs_model::MAX_ABS_SLIDE_MM`].
 pub(crate) fn check_slides(slides_mm: &[f64]) -> Result<()> {
-    if slides_mm.is_empty() || slides_mm.iter().any(|d| !d.is_finite()) {
-        return Err(Error::InvalidOptions(
-            "slide positions must be finite and at least one".into(),
-        ));
+    let limit = alacs_model::MAX_ABS_SLIDE_MM;
+    if slides_mm.is_empty()
+        || slides_mm.len() > MAX_SLIDE_POSITIONS
+        || slides_mm.iter().any(|d| !(d.abs() <= limit))
+    {
+        return Err(Error::InvalidOptions(format!(
+            "slide positions must be 1 to {MAX_SLIDE_POSITIONS}, each finite and within +-{limit} mm"
+        )));
     }
     Ok(())
 }
 
-/// Maps an I/O error on `path` to [`Error::Io`].
-pub(crate) fn io_error(path: &Path) -> impl FnOnce(std::io::Error) -> Error {
-    let path = path.to_path_buf();
-    move |error| Error::Io { path, error }
+/// Checks a render scale: positive and at most [`MAX_SCALE`].
+pub(crate) fn check_scale(scale: f64) -> Result<()> {
+    if scale > 0.0 && scale <= MAX_SCALE {
+        Ok(())
+    } else {
+        Err(Error::InvalidOptions(format!("scale {scale} must lie in (0, {MAX_SCALE}]")))
+    }
 }
 
-/// Writes an RGB8 PNG, or a JPEG of `jpeg_quality` (1-100) when given.
+/// Writes `name` into `out`: an RGB8 PNG, or a JPEG of `jpeg_quality`
+/// (1-100) when given, encoded straight into the atomic writer.
 pub(crate) fn save_image(
+    out: &mut OutputDir,
+    name: &str,
     image: &image::RgbImage,
-    path: &Path,
     jpeg_quality: Option<u8>,
 ) -> Result<()> {
-    let image_error = |error| Error::Image { path: path.to_path_buf(), error };
-    match jpeg_quality {
-        None => image.save_with_format(path, image::ImageFormat::Png).map_err(image_error),
-        Some(quality) => {
-            let file = std::fs::File::create(path).map_err(io_error(path))?;
-            let mut writer = std::io::BufWriter::new(file);
-            image::codecs::jpeg::JpegEncoder::new_with_quality(&mut writer, quality)
-                .encode_image(image)
-                .map_err(image_error)
+    use image::ImageEncoder as _;
+    out.write_with(name, |w| {
+        let (width, height) = image.dimensions();
+        let raw = image.as_raw();
+        let color = image::ExtendedColorType::Rgb8;
+        match jpeg_quality {
+            None => image::codecs::png::PngEncoder::new(w).write_image(raw, width, height, color),
+            Some(q) => image::codecs::jpeg::JpegEncoder::new_with_quality(w, q)
+                .write_image(raw, width, height, color),
         }
-    }
+        .map_err(std::io::Error::other)
+    })?;
+    Ok(())
+}
+
+/// Writes `value` as pretty JSON into `out` as `name`.
+pub(crate) fn save_json(out: &mut OutputDir, name: &str, value: &serde_json::Value) -> Result<()> {
+    let text = serde_json::to_string_pretty(value).unwrap_or_default() + "\n";
+    out.write(name, text)?;
+    Ok(())
 }

@@ -49,7 +49,7 @@ mod session;
 mod truth;
 
 pub use board::{BoardScene, Checkerboard};
-pub use error::{Error, Result};
+pub use error::{Error, MAX_SAMPLES, MAX_SCALE, MAX_SESSION_VIEWS, MAX_SLIDE_POSITIONS, Result};
 pub use orchard::{
     CameraRayGrid, Hit, Kind, Material, Object, OrchardOptions, OrchardScene, Shape, orchard_scene,
     value_noise,

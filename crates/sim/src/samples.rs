@@ -3,14 +3,15 @@
 
 use std::path::Path;
 
+use alacs_model::io::OutputDir;
 use alacs_model::{Camera, LaserModel};
-use alacs_model::{LaserSample, write_samples_csv};
+use alacs_model::{LaserSample, write_samples};
 use nalgebra::{Point2, Point3, Rotation3, Unit, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 
-use crate::error::{check_positive_range, check_slides, io_error};
+use crate::error::{MAX_SAMPLES, check_positive_range, check_slides, save_json};
 use crate::{Error, Result, camera_to_json, laser_to_json};
 
 /// How to generate samples. `Default` is the seed paper's experiment:
@@ -155,6 +156,12 @@ fn check_options(options: &SampleOptions) -> Result<()> {
     if options.n_views == 0 || options.points_per_view == 0 {
         return invalid("need at least one view and one point per view".into());
     }
+    if options.n_views.saturating_mul(options.points_per_view) > MAX_SAMPLES {
+        return invalid(format!(
+            "{} views x {} points per view is more than {MAX_SAMPLES} samples",
+            options.n_views, options.points_per_view
+        ));
+    }
     if !(0.0..=1.0).contains(&options.outlier_fraction) {
         return invalid(format!("outlier fraction {} must lie in 0..1", options.outlier_fraction));
     }
@@ -183,18 +190,20 @@ pub(crate) fn random_tilt(rng: &mut ChaCha8Rng, max_tilt_deg: f64) -> Rotation3<
 }
 
 impl SimulatedSamples {
-    /// Writes `samples.csv` and `truth.json` (FORMATS.md) into `dir`, creating it.
-    pub fn write(&self, dir: &Path) -> Result<()> {
-        std::fs::create_dir_all(dir).map_err(io_error(dir))?;
-        write_samples_csv(&dir.join("samples.csv"), &self.samples)?;
+    /// Writes `samples.csv` and `truth.json` (FORMATS.md) into `dir`,
+    /// creating it ([`OutputDir`]: a folder holding files this did not
+    /// write is refused unless `force`).
+    pub fn write(&self, dir: &Path, force: bool) -> Result<()> {
+        let mut out = OutputDir::create(dir, force)?;
+        out.write_with("samples.csv", |w| write_samples(w, &self.samples))?;
         let truth = serde_json::json!({
             "camera": camera_to_json(&self.camera),
             "laser": laser_to_json(&self.laser),
             "outliers": self.outliers,
             "true_depth_mm": self.true_depth_mm,
         });
-        let path = dir.join("truth.json");
-        let text = serde_json::to_string_pretty(&truth).unwrap_or_default();
-        std::fs::write(&path, text + "\n").map_err(io_error(&path))
+        save_json(&mut out, "truth.json", &truth)?;
+        out.finish()?;
+        Ok(())
     }
 }

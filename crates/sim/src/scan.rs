@@ -11,9 +11,12 @@
 //! default only fruit the plan reaches unshifted are placed
 //! ([`ScanOptions::within_reach`]).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-use alacs_model::{Camera, LaserModel, Ray, ScanPlan, ScanStrategy, image_entry_yaml};
+use alacs_model::io::OutputDir;
+use alacs_model::{
+    Camera, LaserModel, Ray, SCAN_FILE, Scan, ScanFrameSpec, ScanPlan, ScanStrategy,
+};
 use image::RgbImage;
 use nalgebra::{Point3, Vector3};
 use rand::{Rng, SeedableRng};
@@ -21,7 +24,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use serde_json::json;
 
-use crate::error::{io_error, save_image};
+use crate::error::{check_scale, save_image, save_json};
 use crate::orchard::{CameraRayGrid, Hit, OrchardOptions, OrchardScene, orchard_scene};
 use crate::render::{
     LaserLight, LaserStripe, Lighting, RayMap, RenderOptions, Scene, Sensor, SurfaceHit, mix_seed,
@@ -323,9 +326,7 @@ pub fn simulate_scan(
 
 fn check_options(options: &ScanOptions) -> Result<()> {
     let invalid = |m: String| Err(Error::InvalidOptions(m));
-    if !(options.scale > 0.0 && options.scale.is_finite()) {
-        return invalid(format!("scale {} must be positive", options.scale));
-    }
+    check_scale(options.scale)?;
     if !(0.0..0.5).contains(&options.rough_depth_error) {
         return invalid(format!(
             "rough depth error {} must lie in 0..0.5",
@@ -399,20 +400,27 @@ impl SimulatedScan {
 
     /// scan.yaml (FORMATS.md).
     pub fn scan_yaml(&self) -> String {
-        let r = &self.rough_position_mm;
-        let mut text = format!(
-            "# Simulated by alacs-sim (seed {}); ground truth in truth.json.\n\
-             rough_position_mm: [{:?}, {:?}, {:?}]\nfruit_radius_mm: {FRUIT_RADIUS_PRIOR_MM:?}\nframes:\n",
-            self.seed, r.x, r.y, r.z
-        );
-        for frame in &self.frames {
-            text.push_str(&image_entry_yaml(
-                &frame.image,
-                frame.slide_mm,
-                frame.image_laser_off.as_deref(),
-            ));
-        }
-        text
+        let scan = Scan {
+            dir: PathBuf::new(),
+            rough_position_mm: self.rough_position_mm,
+            fruit_radius_mm: FRUIT_RADIUS_PRIOR_MM,
+            frames: self
+                .frames
+                .iter()
+                .map(|f| ScanFrameSpec {
+                    image: PathBuf::from(&f.image),
+                    slide_mm: f.slide_mm,
+                    image_laser_off: f.image_laser_off.as_ref().map(PathBuf::from),
+                    planned_slide_mm: None,
+                })
+                .collect(),
+            rough_position_in_rgbd_mm: None,
+            plan_shifted_into_stroke: Some(self.plan.shifted),
+        };
+        scan.to_yaml_string(&format!(
+            "Simulated by alacs-sim (seed {}); ground truth in truth.json.",
+            self.seed
+        ))
     }
 
     /// truth.json (FORMATS.md): camera, laser, the fruit's centre and
@@ -438,35 +446,37 @@ impl SimulatedScan {
     }
 
     /// Writes scan.yaml, camera.yaml, laser.yaml, truth.json and every frame
-    /// into `dir`, creating it; `progress(done, total)` after each image.
-    pub fn write(&self, dir: &Path, mut progress: impl FnMut(usize, usize)) -> Result<()> {
-        std::fs::create_dir_all(dir).map_err(io_error(dir))?;
+    /// into `dir`, creating it ([`OutputDir`]: a folder holding files this
+    /// did not write is refused); `progress(done, total)` after each image.
+    pub fn write(&self, dir: &Path, progress: impl FnMut(usize, usize)) -> Result<()> {
+        let mut out = OutputDir::create(dir, false)?;
+        self.write_into(&mut out, progress)?;
+        out.finish()?;
+        Ok(())
+    }
+
+    /// [`SimulatedScan::write`] into an open output folder (the caller may
+    /// add files and then finishes it).
+    pub fn write_into(
+        &self,
+        out: &mut OutputDir,
+        mut progress: impl FnMut(usize, usize),
+    ) -> Result<()> {
         let total = self.image_count();
         let mut done = 0;
         for (index, frame) in self.frames.iter().enumerate() {
-            save_image(
-                &self.render_frame(index, true)?,
-                &dir.join(&frame.image),
-                self.jpeg_quality,
-            )?;
+            save_image(out, &frame.image, &self.render_frame(index, true)?, self.jpeg_quality)?;
             done += 1;
             progress(done, total);
             if let Some(off) = &frame.image_laser_off {
-                save_image(&self.render_frame(index, false)?, &dir.join(off), self.jpeg_quality)?;
+                save_image(out, off, &self.render_frame(index, false)?, self.jpeg_quality)?;
                 done += 1;
                 progress(done, total);
             }
         }
-        let write_text = |name: &str, text: String| {
-            let path = dir.join(name);
-            std::fs::write(&path, text).map_err(io_error(&path))
-        };
-        write_text("scan.yaml", self.scan_yaml())?;
-        self.camera.to_yaml_file(&dir.join("camera.yaml"))?;
-        self.laser.to_yaml_file(&dir.join("laser.yaml"), "true laser of the simulated scan")?;
-        write_text(
-            "truth.json",
-            serde_json::to_string_pretty(&self.truth_json()).unwrap_or_default() + "\n",
-        )
+        out.write(SCAN_FILE, self.scan_yaml())?;
+        out.write("camera.yaml", self.camera.to_yaml_string())?;
+        self.laser.to_yaml_file(&out.file("laser.yaml")?, "true laser of the simulated scan")?;
+        save_json(out, "truth.json", &self.truth_json())
     }
 }

@@ -3,10 +3,11 @@
 //! optionally with the laser off), with session.yaml, camera.yaml and the
 //! ground truth in truth.json.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use alacs_model::{Camera, LaserModel, image_entry_yaml};
+use alacs_model::io::OutputDir;
+use alacs_model::{BoardSpec, Camera, LaserModel, SESSION_FILE, Session};
 use image::RgbImage;
 use nalgebra::{Isometry3, Point2, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use rand::{Rng, SeedableRng};
@@ -14,7 +15,9 @@ use rand_chacha::ChaCha8Rng;
 use serde_json::{Value, json};
 
 use crate::board::{BoardScene, Checkerboard};
-use crate::error::{check_positive_range, check_slides, io_error, save_image};
+use crate::error::{
+    MAX_SESSION_VIEWS, check_positive_range, check_scale, check_slides, save_image, save_json,
+};
 use crate::render::{LaserStripe, RayMap, RenderOptions, mix_seed};
 use crate::samples::random_tilt;
 use crate::{Error, Result, camera_to_json, laser_to_json};
@@ -69,8 +72,11 @@ impl SessionOptions {
     /// Checks that the options describe a session.
     pub fn validate(&self) -> Result<()> {
         let invalid = |m: String| Err(Error::InvalidOptions(m));
-        if self.n_views == 0 {
-            return invalid("need at least one view".into());
+        if self.n_views == 0 || self.n_views > MAX_SESSION_VIEWS {
+            return invalid(format!(
+                "{} views: a session needs 1 to {MAX_SESSION_VIEWS}",
+                self.n_views
+            ));
         }
         check_positive_range("depth range", self.depth_mm)?;
         check_slides(&self.slides_mm)?;
@@ -80,9 +86,7 @@ impl SessionOptions {
         if !(0.0..=180.0).contains(&self.max_roll_deg) {
             return invalid(format!("roll {} deg must lie in 0..180", self.max_roll_deg));
         }
-        if !(self.scale > 0.0 && self.scale.is_finite()) {
-            return invalid(format!("scale {} must be positive", self.scale));
-        }
+        check_scale(self.scale)?;
         self.board.validate()?;
         self.render.validate()
     }
@@ -402,21 +406,24 @@ impl SimulatedSession {
     /// session.yaml (FORMATS.md).
     pub fn session_yaml(&self) -> String {
         let (cols, rows) = self.board.inner_corners;
-        let (sx, sy) = self.board.square_mm;
-        let square = if sx == sy { format!("{sx:?}") } else { format!("[{sx:?}, {sy:?}]") };
-        let mut text = format!(
-            "# Simulated by alacs-sim (seed {}); ground truth in truth.json.\n\
-             board: {{inner_corners: [{cols}, {rows}], square_mm: {square}}}\nviews:\n",
+        let (square_x_mm, square_y_mm) = self.board.square_mm;
+        let session = Session {
+            dir: PathBuf::new(),
+            board: BoardSpec { cols, rows, square_x_mm, square_y_mm },
+            views: self
+                .views
+                .iter()
+                .map(|v| alacs_model::SessionView {
+                    image: PathBuf::from(&v.image),
+                    slide_mm: v.slide_mm,
+                    image_laser_off: v.image_laser_off.as_ref().map(PathBuf::from),
+                })
+                .collect(),
+        };
+        session.to_yaml_string(&format!(
+            "Simulated by alacs-sim (seed {}); ground truth in truth.json.",
             self.seed
-        );
-        for view in &self.views {
-            text.push_str(&image_entry_yaml(
-                &view.image,
-                view.slide_mm,
-                view.image_laser_off.as_deref(),
-            ));
-        }
-        text
+        ))
     }
 
     /// truth.json (FORMATS.md): the camera rendered, the laser, the board and
@@ -469,7 +476,8 @@ impl SimulatedSession {
     }
 
     /// Writes session.yaml, camera.yaml, truth.json and every image (PNG,
-    /// RGB8) into `dir`, creating it.
+    /// RGB8) into `dir`, creating it ([`OutputDir`]: a folder holding files
+    /// this did not write is refused).
     pub fn write(&self, dir: &Path) -> Result<()> {
         self.write_with_progress(dir, |_, _| {})
     }
@@ -479,30 +487,39 @@ impl SimulatedSession {
     pub fn write_with_progress(
         &self,
         dir: &Path,
+        progress: impl FnMut(usize, usize),
+    ) -> Result<()> {
+        let mut out = OutputDir::create(dir, false)?;
+        self.write_into(&mut out, progress)?;
+        out.finish()?;
+        Ok(())
+    }
+
+    /// [`SimulatedSession::write_with_progress`] into an open output folder
+    /// (the caller may add files and then finishes it).
+    pub fn write_into(
+        &self,
+        out: &mut OutputDir,
         mut progress: impl FnMut(usize, usize),
     ) -> Result<()> {
-        std::fs::create_dir_all(dir).map_err(io_error(dir))?;
         let total = self.image_count();
         let mut done = 0;
         let mut last_off_pose = None;
         for (index, view) in self.views.iter().enumerate() {
-            save_image(&self.render_view(index)?, &dir.join(&view.image), None)?;
+            save_image(out, &view.image, &self.render_view(index)?, None)?;
             done += 1;
             progress(done, total);
             if let Some(off) = &view.image_laser_off
                 && last_off_pose != Some(view.pose)
             {
-                save_image(&self.render_laser_off(index)?, &dir.join(off), None)?;
+                save_image(out, off, &self.render_laser_off(index)?, None)?;
                 last_off_pose = Some(view.pose);
                 done += 1;
                 progress(done, total);
             }
         }
-        let session_path = dir.join("session.yaml");
-        std::fs::write(&session_path, self.session_yaml()).map_err(io_error(&session_path))?;
-        self.camera.to_yaml_file(&dir.join("camera.yaml"))?;
-        let truth_path = dir.join("truth.json");
-        let text = serde_json::to_string_pretty(&self.truth_json()).unwrap_or_default();
-        std::fs::write(&truth_path, text + "\n").map_err(io_error(&truth_path))
+        out.write(SESSION_FILE, self.session_yaml())?;
+        out.write("camera.yaml", self.camera.to_yaml_string())?;
+        save_json(out, "truth.json", &self.truth_json())
     }
 }

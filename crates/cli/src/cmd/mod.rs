@@ -6,6 +6,7 @@ pub mod evaluate;
 pub mod localize;
 pub mod report;
 pub mod scan;
+pub mod session;
 pub mod simulate;
 pub mod stripe;
 pub mod triangulate;

@@ -3,7 +3,7 @@
 //!
 //! 1. Builds an orchard scene (as `alacs simulate scan`), with the RGB-D
 //!    camera's rough position expressed in the RGB-D frame of
-//!    `--rgbd-to-alacs`.
+//!    `--alacs-from-rgbd`.
 //! 2. Runs [`ScanController`] against the simulated slide, camera and laser:
 //!    the seed's plan from the rough position, five frames.
 //! 3. Localizes with the simulation's true camera and laser, or the
@@ -16,12 +16,13 @@ use std::path::Path;
 use std::sync::Arc;
 
 use alacs::locate::{Localization, LocateOptions, Status};
+use alacs::model::io::OutputDir;
 use alacs::scanner::{
     CapturedScan, ControllerConfig, ScanController, SimulatedRig, SimulatedRigOptions,
 };
 use alacs::sim::{OrchardOptions, ScanOptions, SimulatedScan, simulate_scan};
-use alacs::{Camera, Fidelity, LaserModel};
-use anyhow::{Context, anyhow};
+use alacs::{Camera, LaserModel};
+use anyhow::anyhow;
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion};
 use serde_json::{Value, json};
 
@@ -30,15 +31,10 @@ use crate::cmd::simulate::{parse_list, parse_range};
 use crate::failure::{CmdResult, Failure};
 use crate::output;
 
-/// The simulated rig's true laser: the seed paper's Table 1, Method 4.
-const TRUE_ALPHA_DEG: f64 = 19.07;
-const TRUE_BETA_DEG: f64 = 0.69;
-const TRUE_L0_MM: f64 = 381.98;
-
 /// Parses `X,Y,Z,ROLL,PITCH,YAW` (mm, degrees) into the pose of the RGB-D
 /// camera in the ALACS camera frame.
 fn parse_pose(text: &str) -> CmdResult<Isometry3<f64>> {
-    match parse_list(text, "--rgbd-to-alacs")?.as_slice() {
+    match parse_list(text, "--alacs-from-rgbd")?.as_slice() {
         &[x, y, z, roll, pitch, yaw] => Ok(Isometry3::from_parts(
             Translation3::new(x, y, z),
             UnitQuaternion::from_euler_angles(
@@ -48,7 +44,7 @@ fn parse_pose(text: &str) -> CmdResult<Isometry3<f64>> {
             ),
         )),
         _ => Err(Failure::bad_input(anyhow!(
-            "--rgbd-to-alacs takes X,Y,Z,ROLL,PITCH,YAW (mm, degrees), got `{text}`"
+            "--alacs-from-rgbd takes X,Y,Z,ROLL,PITCH,YAW (mm, degrees), got `{text}`"
         ))),
     }
 }
@@ -61,9 +57,9 @@ pub fn run(args: &ScanArgs) -> CmdResult {
              implement alacs::scanner's Slide, FrameCamera and LaserSwitch traits in their own crate"
         )));
     }
-    let rgbd_to_alacs = parse_pose(&args.rgbd_to_alacs)?;
-    let true_laser =
-        LaserModel::from_degrees(Fidelity::High, TRUE_ALPHA_DEG, TRUE_BETA_DEG, TRUE_L0_MM);
+    let alacs_from_rgbd = parse_pose(&args.alacs_from_rgbd)?;
+    // The simulated rig's true laser: the seed paper's Table 1, Method 4.
+    let true_laser = LaserModel::seed_paper();
     let defaults = ScanOptions::default();
     let options = ScanOptions {
         orchard: OrchardOptions {
@@ -82,9 +78,9 @@ pub fn run(args: &ScanArgs) -> CmdResult {
 
     let bar = output::progress_bar(args.json, "building the scene and the camera's rays");
     let sim = Arc::new(simulate_scan(&Camera::blackfly_s_5mp(), &true_laser, &options)?);
-    // The simulated RGB-D camera, mounted at `rgbd_to_alacs`, reports the
+    // The simulated RGB-D camera, mounted at `alacs_from_rgbd`, reports the
     // rough position in its own frame; the controller carries it back.
-    let rough_in_rgbd = rgbd_to_alacs.inverse() * sim.rough_position_mm;
+    let rough_in_rgbd = alacs_from_rgbd.inverse() * sim.rough_position_mm;
     let camera = camera_file.unwrap_or_else(|| sim.camera.clone());
     let laser = laser_file.unwrap_or(true_laser);
     if args.camera.is_none() || args.laser.is_none() {
@@ -102,7 +98,7 @@ pub fn run(args: &ScanArgs) -> CmdResult {
     }
 
     let config = ControllerConfig {
-        rgbd_to_alacs,
+        alacs_from_rgbd,
         capture_laser_off: args.laser_off,
         ..ControllerConfig::default()
     };
@@ -122,9 +118,8 @@ pub fn run(args: &ScanArgs) -> CmdResult {
     })?;
     if let Some(dir) = &args.out {
         bar.set_message("writing");
-        write(dir, &scan, &sim, &camera, &laser, args, &rgbd_to_alacs)
-            .with_context(|| format!("writing the scan to {}", dir.display()))
-            .map_err(Failure::job_failed)?;
+        write(dir, &scan, &sim, &camera, &laser, args, &alacs_from_rgbd)
+            .map_err(|f| f.with_context(dir))?;
     }
     bar.finish_and_clear();
 
@@ -238,16 +233,17 @@ fn write(
     camera: &Camera,
     laser: &LaserModel,
     args: &ScanArgs,
-    rgbd_to_alacs: &Isometry3<f64>,
-) -> anyhow::Result<()> {
-    scan.write(dir)?;
-    camera.to_yaml_file(&dir.join("camera.yaml"))?;
+    alacs_from_rgbd: &Isometry3<f64>,
+) -> CmdResult {
+    let mut out = OutputDir::create(dir, args.force)?;
+    scan.write_into(&mut out)?;
+    out.write("camera.yaml", camera.to_yaml_string())?;
     let header = if args.laser.is_some() {
         "the calibrated laser the scan was planned and localized with"
     } else {
         "true laser of the simulated rig"
     };
-    laser.to_yaml_file(&dir.join("laser.yaml"), header)?;
+    laser.to_yaml_file(&out.file("laser.yaml")?, header)?;
     let mut truth = sim.truth_json();
     if let Value::Object(map) = &mut truth {
         // The scan's slides are the controller's, not the simulator's own plan.
@@ -257,13 +253,11 @@ fn write(
             "rough_position_in_rgbd_mm".into(),
             json!(point(&scan.rough_position_in_rgbd_mm)),
         );
-        map.insert(
-            "rgbd_to_alacs".into(),
-            json!({"matrix": rgbd_to_alacs.to_homogeneous().row_iter().map(|r| r.iter().copied().collect::<Vec<f64>>()).collect::<Vec<_>>()}),
-        );
+        let matrix = alacs_from_rgbd.to_homogeneous();
+        let rows: Vec<Vec<f64>> = matrix.row_iter().map(|r| r.iter().copied().collect()).collect();
+        map.insert("alacs_from_rgbd".into(), json!({"matrix": rows}));
     }
-    let path = dir.join("truth.json");
-    std::fs::write(&path, serde_json::to_string_pretty(&truth)? + "\n")
-        .with_context(|| path.display().to_string())?;
+    out.write("truth.json", serde_json::to_string_pretty(&truth).unwrap_or_default() + "\n")?;
+    out.finish()?;
     Ok(())
 }

@@ -8,6 +8,8 @@ use alacs::{Camera, Fidelity, LaserModel};
 use anyhow::anyhow;
 use serde_json::json;
 
+use alacs::model::io::OutputDir;
+
 use crate::args::{
     RenderArgs, SimulateSamplesArgs, SimulateScanArgs, SimulateSessionArgs, TruthArgs,
 };
@@ -77,7 +79,7 @@ pub fn samples(args: &SimulateSamplesArgs) -> CmdResult {
         ..SampleOptions::default()
     };
     let sim = simulate_samples(&camera, &laser, &options)?;
-    sim.write(&args.out)?;
+    sim.write(&args.out, args.force)?;
     if args.json {
         output::print_json(&json!({
             "out": args.out.display().to_string(),
@@ -113,7 +115,9 @@ pub fn session(args: &SimulateSessionArgs) -> CmdResult {
     let bar = output::progress_bar(args.json, "computing the camera's rays");
     let session = simulate_session(&camera, &laser, &options)?;
     output::start_progress(&bar, session.image_count(), "rendering");
-    session.write_with_progress(&args.out, |done, _| bar.set_position(done as u64))?;
+    let mut out = OutputDir::create(&args.out, args.force)?;
+    session.write_into(&mut out, |done, _| bar.set_position(done as u64))?;
+    out.finish()?;
     bar.finish_and_clear();
     let images: Vec<&str> = session.views.iter().map(|view| view.image.as_str()).collect();
     if args.json {
@@ -162,7 +166,9 @@ pub fn scan(args: &SimulateScanArgs) -> CmdResult {
     let bar = output::progress_bar(args.json, "building the scene and the camera's rays");
     let scan = simulate_scan(&camera, &laser, &options)?;
     output::start_progress(&bar, scan.image_count(), "rendering");
-    scan.write(&args.out, |done, _| bar.set_position(done as u64))?;
+    let mut out = OutputDir::create(&args.out, args.force)?;
+    scan.write_into(&mut out, |done, _| bar.set_position(done as u64))?;
+    out.finish()?;
     bar.finish_and_clear();
     let c = scan.scene.fruit_centre;
     if args.json {

@@ -63,6 +63,16 @@ pub struct Camera {
 /// distorted image, so this only bounds the work on a pixel beyond a fold.
 const UNDISTORT_MAX_ITERATIONS: usize = 100;
 
+/// The largest |coefficient| of a distortion model accepted. Real lenses,
+/// even wide-angle ones under OpenCV's rational model, stay within tens;
+/// 1e4 leaves room for any of them and refuses unit or typing errors (1e10).
+pub const MAX_ABS_DISTORTION: f64 = 1e4;
+
+/// The largest image side accepted, px: beyond any machine-vision sensor
+/// (the seed's is 2448 px), and a bound on the memory a camera.yaml can ask
+/// a simulated render or a ray map for.
+pub const MAX_IMAGE_SIDE_PX: u32 = 20_000;
+
 /// Newton stops once the forward residual |w(p_bar) - m_n| falls below this
 /// (times max(1, |m_n|)): a few units in the last place of f64.
 const UNDISTORT_TARGET_RESIDUAL: f64 = 1e-15;
@@ -95,8 +105,9 @@ impl Camera {
         }
     }
 
-    /// Checks that the parameters describe a usable camera: finite values,
-    /// fx, fy > 0, width, height > 0.
+    /// Checks that the parameters describe a usable camera. Refuses, naming the value: a zero or absurd image size, non-finite
+    /// or non-positive focal lengths, and distortion coefficients that are
+    /// not finite or beyond [`MAX_ABS_DISTORTION`].
     pub fn validate(&self) -> Result<()> {
         let invalid = |message: String| Err(Error::InvalidParameters { what: "camera", message });
         if self.width_px == 0 || self.height_px == 0 {
@@ -125,6 +136,20 @@ impl Camera {
             return invalid(format!(
                 "distortion coefficients must be finite, got {:?}",
                 self.distortion.coefficients()
+            ));
+        }
+        if let Some(k) =
+            self.distortion.coefficients().iter().find(|k| k.abs() > MAX_ABS_DISTORTION)
+        {
+            return invalid(format!(
+                "distortion coefficient {k:e} is beyond +-{MAX_ABS_DISTORTION:e}: no lens has it (a unit or typing error)"
+            ));
+        }
+        let max_size_px = MAX_IMAGE_SIDE_PX;
+        if self.width_px > max_size_px || self.height_px > max_size_px {
+            return invalid(format!(
+                "image size {} x {} px is beyond {max_size_px} px a side",
+                self.width_px, self.height_px
             ));
         }
         Ok(())

@@ -336,8 +336,7 @@ impl Camera {
 
     /// Reads camera.yaml; errors name the file.
     pub fn from_yaml_file(path: &Path) -> Result<Camera> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|error| Error::Io { path: path.to_path_buf(), error })?;
+        let text = crate::io::read_text(path)?;
         Self::parse_yaml(&text, path)
     }
 
@@ -371,10 +370,9 @@ impl Camera {
         out
     }
 
-    /// Writes camera.yaml ([`Camera::to_yaml_string`]).
+    /// Writes camera.yaml ([`Camera::to_yaml_string`]) atomically.
     pub fn to_yaml_file(&self, path: &Path) -> Result<()> {
-        std::fs::write(path, self.to_yaml_string())
-            .map_err(|error| Error::Io { path: path.to_path_buf(), error })
+        crate::io::write_file(path, self.to_yaml_string())
     }
 }
 
