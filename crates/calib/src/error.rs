@@ -52,6 +52,21 @@ pub enum Error {
         /// Inliers needed.
         need: usize,
     },
+    /// RANSAC's best consensus is no better than chance: the samples hold no
+    /// laser line (all outliers, or depths that belong to other pixels).
+    #[error(
+        "RANSAC found no consensus better than chance: its best hypothesis explains {best} of {n} samples within {threshold_mm} mm, while the same samples with their depths shuffled give {chance_percent:.0} %; the samples hold no laser line (check that depths and pixels belong together)"
+    )]
+    NotBetterThanChance {
+        /// Inliers of the best hypothesis.
+        best: usize,
+        /// Number of samples.
+        n: usize,
+        /// The consensus found on the shuffled samples, percent of them.
+        chance_percent: f64,
+        /// Inlier threshold epsilon.
+        threshold_mm: f64,
+    },
     /// An image could not be read, or images of a session do not match.
     #[error(transparent)]
     Vision(#[from] alacs_vision::Error),
@@ -71,6 +86,7 @@ impl Error {
             Error::TooFewSamples { .. }
             | Error::Degenerate(_)
             | Error::NoConsensus { .. }
+            | Error::NotBetterThanChance { .. }
             | Error::FitFailed(_) => ErrorClass::JobFailed,
         }
     }

@@ -296,6 +296,30 @@ fn non_finite_or_non_positive_samples_are_bad_input() {
 }
 
 #[test]
+fn samples_that_are_all_outliers_are_refused_not_calibrated() {
+    // Regression: RANSAC kept 7 of 30 and reported alpha 15.7 deg (truth
+    // 19.07) with exit 0.
+    for seed in 1..=5 {
+        let options = alacs_sim::SampleOptions {
+            outlier_fraction: 1.0,
+            seed,
+            ..alacs_sim::SampleOptions::default()
+        };
+        let sim = alacs_sim::simulate_samples(
+            &Camera::blackfly_s_5mp(),
+            &LaserModel::seed_paper(),
+            &options,
+        )
+        .unwrap();
+        let err =
+            calibrate(&sim.samples, Method::HighFidelityRansac, &CalibrationOptions::default())
+                .unwrap_err();
+        assert!(matches!(err, Error::NotBetterThanChance { .. }), "seed {seed}: {err}");
+        assert!(!err.is_bad_input());
+    }
+}
+
+#[test]
 fn a_threshold_nothing_agrees_with_is_no_consensus() {
     let sim = paper_like(0.0, 3);
     let options = CalibrationOptions { threshold_mm: 1e-6, ..CalibrationOptions::default() };

@@ -65,13 +65,23 @@ pub fn write_file(path: &Path, contents: impl AsRef<[u8]>) -> Result<()> {
 /// Reads a text input whole, refusing one larger than `max_bytes` (naming
 /// the file and the limit) instead of filling memory.
 pub fn read_bounded(path: &Path, max_bytes: u64) -> Result<String> {
+    let bytes = read_bytes_bounded(path, max_bytes)?;
+    String::from_utf8(bytes).map_err(|_| Error::Io {
+        path: path.to_path_buf(),
+        error: std::io::Error::new(std::io::ErrorKind::InvalidData, "not UTF-8 text"),
+    })
+}
+
+/// Reads a binary input whole (an image), refusing one larger than
+/// `max_bytes` as [`read_bounded`] does.
+pub fn read_bytes_bounded(path: &Path, max_bytes: u64) -> Result<Vec<u8>> {
     let file = std::fs::File::open(path).map_err(io_error(path))?;
-    let mut text = String::new();
-    let read = file.take(max_bytes + 1).read_to_string(&mut text).map_err(io_error(path))?;
+    let mut bytes = Vec::new();
+    let read = file.take(max_bytes + 1).read_to_end(&mut bytes).map_err(io_error(path))?;
     if read as u64 > max_bytes {
         return Err(Error::TooLarge { path: path.to_path_buf(), limit: max_bytes });
     }
-    Ok(text)
+    Ok(bytes)
 }
 
 /// [`read_bounded`] with [`MAX_TEXT_INPUT_BYTES`].

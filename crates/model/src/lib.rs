@@ -37,6 +37,7 @@ mod error;
 mod geometry;
 pub mod io;
 mod laser;
+mod pixels;
 pub mod ransac;
 mod samples;
 mod scan;
@@ -47,6 +48,7 @@ pub use camera::*;
 pub use error::{Error, ErrorClass, Result};
 pub use geometry::{Plane, Ray};
 pub use laser::{Fidelity, LaserModel, PreparedLaser, SLIDE_STROKE_MM, SlideTarget};
+pub use pixels::{TriangulateOutput, read_pixels_csv};
 pub use samples::{
     LaserSample, parse_samples_csv, read_samples_csv, samples_csv_string, validate_samples,
     write_samples, write_samples_csv,

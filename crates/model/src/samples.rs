@@ -86,55 +86,87 @@ pub fn read_samples_csv(path: &Path) -> Result<Vec<LaserSample>> {
 
 /// [`read_samples_csv`] from any reader; `path` names the input in errors.
 pub fn parse_samples_csv(reader: impl std::io::Read, path: &Path) -> Result<Vec<LaserSample>> {
-    let csv_error =
-        |line: Option<u64>, message: String| Error::Csv { path: path.to_path_buf(), line, message };
+    let mut samples = Vec::new();
+    read_numeric_csv(reader, path, &["u_n", "v_n", "z_mm"], &["slide_mm"], |line, values| {
+        let sample = LaserSample {
+            u_n: values[0].unwrap_or_default(),
+            v_n: values[1].unwrap_or_default(),
+            z_mm: values[2].unwrap_or_default(),
+            slide_mm: values[3].unwrap_or(0.0),
+        };
+        if let Some(message) = sample.problem() {
+            return Err(csv_error(path, line, message));
+        }
+        samples.push(sample);
+        Ok(())
+    })?;
+    if samples.is_empty() {
+        return Err(csv_error(path, None, "no samples (the file has a header but no rows)".into()));
+    }
+    Ok(samples)
+}
+
+fn csv_error(path: &Path, line: Option<u64>, message: String) -> Error {
+    Error::Csv { path: path.to_path_buf(), line, message }
+}
+
+/// Reads a CSV table of numbers, the one reader of samples.csv and
+/// pixels.csv: a header naming each column once, `#` comments, values
+/// trimmed. `row(line, values)` gets each row's values of the `required`
+/// columns, then of the `optional` ones (`None` where the column is absent
+/// or the cell empty; a required cell is never `None`); other columns are
+/// ignored. Errors name the file, line and column.
+pub(crate) fn read_numeric_csv(
+    reader: impl std::io::Read,
+    path: &Path,
+    required: &[&str],
+    optional: &[&str],
+    mut row: impl FnMut(Option<u64>, &[Option<f64>]) -> Result<()>,
+) -> Result<()> {
     let mut reader =
         csv::ReaderBuilder::new().trim(csv::Trim::All).comment(Some(b'#')).from_reader(reader);
-    let headers = reader.headers().map_err(|e| csv_error(Some(1), e.to_string()))?.clone();
-    check_unique_columns(&headers).map_err(|m| csv_error(Some(1), m))?;
+    let headers = reader.headers().map_err(|e| csv_error(path, Some(1), e.to_string()))?.clone();
+    check_unique_columns(&headers).map_err(|m| csv_error(path, Some(1), m))?;
     let column = |name: &str| headers.iter().position(|h| h == name);
-    let required = |name: &str| {
-        column(name).ok_or_else(|| {
+    let mut columns = Vec::with_capacity(required.len() + optional.len());
+    for name in required {
+        columns.push(Some(column(name).ok_or_else(|| {
             csv_error(
+                path,
                 Some(1),
                 format!(
-                    "missing column `{name}` (header must be u_n,v_n,z_mm[,slide_mm]; found `{}`)",
+                    "missing column `{name}` (header must be {}{}; found `{}`)",
+                    required.join(","),
+                    optional.iter().map(|o| format!("[,{o}]")).collect::<String>(),
                     headers.iter().collect::<Vec<_>>().join(",")
                 ),
             )
-        })
-    };
-    let (i_u, i_v, i_z) = (required("u_n")?, required("v_n")?, required("z_mm")?);
-    let i_slide = column("slide_mm");
-
-    let mut samples = Vec::new();
+        })?));
+    }
+    columns.extend(optional.iter().map(|name| column(name)));
+    let names: Vec<&str> = required.iter().chain(optional).copied().collect();
+    let mut values = vec![None; columns.len()];
     for record in reader.records() {
         let record =
-            record.map_err(|e| csv_error(e.position().map(|p| p.line()), e.to_string()))?;
+            record.map_err(|e| csv_error(path, e.position().map(|p| p.line()), e.to_string()))?;
         let line = record.position().map(|p| p.line());
-        let value = |index: usize, name: &str| -> Result<f64> {
-            let text = record.get(index).unwrap_or("");
-            text.parse::<f64>()
-                .map_err(|_| csv_error(line, format!("column `{name}`: `{text}` is not a number")))
-        };
-        let sample = LaserSample {
-            u_n: value(i_u, "u_n")?,
-            v_n: value(i_v, "v_n")?,
-            z_mm: value(i_z, "z_mm")?,
-            slide_mm: match i_slide {
-                Some(i) if !record.get(i).unwrap_or("").is_empty() => value(i, "slide_mm")?,
-                _ => 0.0,
-            },
-        };
-        if let Some(message) = sample.problem() {
-            return Err(csv_error(line, message));
+        for (k, index) in columns.iter().enumerate() {
+            let text = index.and_then(|i| record.get(i)).unwrap_or("");
+            values[k] = if text.is_empty() && k >= required.len() {
+                None
+            } else {
+                Some(text.parse::<f64>().map_err(|_| {
+                    csv_error(
+                        path,
+                        line,
+                        format!("column `{}`: `{text}` is not a number", names[k]),
+                    )
+                })?)
+            };
         }
-        samples.push(sample);
+        row(line, &values)?;
     }
-    if samples.is_empty() {
-        return Err(csv_error(None, "no samples (the file has a header but no rows)".into()));
-    }
-    Ok(samples)
+    Ok(())
 }
 
 /// A header that names a column twice is refused: which of the two is meant

@@ -2,20 +2,118 @@
 
 use std::path::Path;
 
-use image::DynamicImage;
+use image::{DynamicImage, ImageFormat, RgbImage};
 
 use crate::{Error, Result};
 
-/// Opens and decodes an image (PNG or JPEG, by content); a missing, truncated
-/// or non-image file gives [`Error::Image`] naming it.
+/// The largest image file read: 512 MiB (a 5 MP RGB PNG takes about 15 MB,
+/// a 100 MP one 300 MB). The decoder's own allocation limit (the `image`
+/// crate's default, 512 MiB) bounds what a small file can ask for.
+pub const MAX_IMAGE_FILE_BYTES: u64 = 512 << 20;
+
+/// Opens and decodes an image (PNG or JPEG, by content). A missing,
+/// oversized, truncated or non-image file gives [`Error::Image`] naming it:
+/// a JPEG must end its last scan with the end-of-image marker (a truncated
+/// JPEG otherwise decodes silently, its missing rows grey).
 pub fn read_image(path: &Path) -> Result<DynamicImage> {
     let error = |message: String| Error::Image { path: path.to_path_buf(), message };
-    let reader = image::ImageReader::open(path)
-        .map_err(|e| error(e.to_string()))?
-        .with_guessed_format()
-        .map_err(|e| error(e.to_string()))?;
-    if reader.format().is_none() {
-        return Err(error("not a PNG or JPEG image".into()));
+    let bytes = alacs_model::io::read_bytes_bounded(path, MAX_IMAGE_FILE_BYTES).map_err(|e| {
+        error(match e {
+            alacs_model::Error::Io { error, .. } => error.to_string(),
+            _ => format!(
+                "larger than {MAX_IMAGE_FILE_BYTES} bytes, the most alacs reads for an image"
+            ),
+        })
+    })?;
+    let format =
+        image::guess_format(&bytes).map_err(|_| error("not a PNG or JPEG image".into()))?;
+    if !matches!(format, ImageFormat::Png | ImageFormat::Jpeg) {
+        return Err(error(format!("a {format:?} image; alacs reads PNG and JPEG")));
     }
-    reader.decode().map_err(|e| error(format!("cannot decode: {e}")))
+    if format == ImageFormat::Jpeg && !jpeg_is_complete(&bytes) {
+        return Err(error(
+            "truncated JPEG: no end-of-image marker after the last scan (the file was cut short)"
+                .into(),
+        ));
+    }
+    image::load_from_memory_with_format(&bytes, format)
+        .map_err(|e| error(format!("cannot decode: {e}")))
+}
+
+/// Whether a JPEG's last start-of-scan marker (FF DA) is followed by an
+/// end-of-image marker (FF D9). Entropy-coded data stuffs every FF byte
+/// (FF 00), so an FF D9 after the last scan is the real end; an embedded
+/// thumbnail's own end marker comes before the main image's scans.
+fn jpeg_is_complete(bytes: &[u8]) -> bool {
+    let last_scan = bytes.windows(2).rposition(|w| w == [0xFF, 0xDA]);
+    let last_end = bytes.windows(2).rposition(|w| w == [0xFF, 0xD9]);
+    matches!((last_scan, last_end), (Some(scan), Some(end)) if end > scan)
+}
+
+/// [`read_image`] for the laser stripe's colour score, which needs colour:
+/// a greyscale image (by its colour type, or RGB with every sampled pixel
+/// grey) is refused naming the file, unless `differencing` (a laser-off
+/// image is given, and the difference of the red channels needs no colour).
+pub fn read_colour_image(path: &Path, differencing: bool) -> Result<RgbImage> {
+    let image = read_image(path)?;
+    let grey_type = !image.color().has_color();
+    let rgb = image.into_rgb8();
+    if !differencing && (grey_type || looks_grey(&rgb)) {
+        return Err(Error::Image {
+            path: path.to_path_buf(),
+            message: "a greyscale image: the red laser stripe is found by its colour, so it needs \
+                      an RGB image (or a laser-off image of the same view for differencing)"
+                .into(),
+        });
+    }
+    Ok(rgb)
+}
+
+/// Whether every sampled pixel (about 10,000 over the image) has R = G = B.
+fn looks_grey(image: &RgbImage) -> bool {
+    let n = image.as_raw().len() / 3;
+    let step = (n / 10_000).max(1);
+    image.as_raw().chunks_exact(3).step_by(step).all(|p| p[0] == p[1] && p[1] == p[2])
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    fn jpeg(rgb: &RgbImage) -> Vec<u8> {
+        let mut bytes = Vec::new();
+        image::codecs::jpeg::JpegEncoder::new_with_quality(&mut bytes, 90)
+            .encode_image(rgb)
+            .unwrap();
+        bytes
+    }
+
+    #[test]
+    fn a_truncated_jpeg_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let rgb = RgbImage::from_fn(64, 48, |u, v| image::Rgb([(u * 4) as u8, (v * 5) as u8, 7]));
+        let bytes = jpeg(&rgb);
+        let whole = dir.path().join("whole.jpg");
+        std::fs::write(&whole, &bytes).unwrap();
+        assert!(read_image(&whole).is_ok());
+        let cut = dir.path().join("cut.jpg");
+        std::fs::write(&cut, &bytes[..bytes.len() * 2 / 3]).unwrap();
+        let message = read_image(&cut).unwrap_err().to_string();
+        assert!(message.contains("cut.jpg") && message.contains("truncated"), "{message}");
+    }
+
+    #[test]
+    fn a_grey_frame_is_refused_for_the_colour_score() {
+        let dir = tempfile::tempdir().unwrap();
+        let grey = image::GrayImage::from_fn(32, 32, |u, _| image::Luma([u as u8 * 8]));
+        let path = dir.path().join("grey.png");
+        grey.save(&path).unwrap();
+        let message = read_colour_image(&path, false).unwrap_err().to_string();
+        assert!(message.contains("grey.png") && message.contains("greyscale"), "{message}");
+        assert!(read_colour_image(&path, true).is_ok(), "differencing needs no colour");
+        let as_rgb = dir.path().join("grey_rgb.png");
+        DynamicImage::ImageLuma8(grey).into_rgb8().save(&as_rgb).unwrap();
+        assert!(read_colour_image(&as_rgb, false).is_err());
+    }
 }

@@ -1,6 +1,6 @@
 //! `alacs stripe`: the laser stripe of one frame.
 
-use alacs::vision::{Region, StripeOptions, extract_stripe_rgb, read_image};
+use alacs::vision::{Region, StripeOptions, extract_stripe_rgb, read_colour_image, read_image};
 use anyhow::anyhow;
 use serde_json::json;
 
@@ -35,7 +35,7 @@ pub fn run(args: &StripeArgs) -> CmdResult {
         }
         options.min_strength = min_strength;
     }
-    let on = read_image(&args.image)?.to_rgb8();
+    let on = read_colour_image(&args.image, args.laser_off.is_some())?;
     let off = match &args.laser_off {
         Some(path) => Some(read_image(path)?.to_rgb8()),
         None => None,
