@@ -291,6 +291,9 @@ fn robust_fit(
         need,
     };
     let outcome = ransac::ransac(&estimator, &ransac_options).ok_or_else(|| no_consensus(0))?;
+    if outcome.inliers.len() < need {
+        return Err(no_consensus(outcome.inliers.len()));
+    }
     check_better_than_chance(samples, form, &ransac_options, outcome.inliers.len())?;
     let mut inliers = outcome.inliers;
     let mut laser = outcome.model.model;

@@ -463,6 +463,26 @@ pub struct SimulateSessionArgs {
     pub json: bool,
 }
 
+/// A simulated orchard scene: an apple behind leaves, in shade or sun.
+#[derive(Debug, Args)]
+pub struct SceneArgs {
+    /// Seed: same seed, same scene and bytes.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Fraction of the fruit hidden behind leaves (0 to 1).
+    #[arg(long, value_name = "F", default_value_t = 0.0)]
+    pub occlusion: f64,
+    /// Direct sunlight instead of shade.
+    #[arg(long)]
+    pub sun: bool,
+    /// Fruit distance range MIN,MAX in mm.
+    #[arg(long, value_name = "MIN,MAX", default_value = "600,1200")]
+    pub depth_mm: String,
+    /// Render the camera resized by this factor (camera.yaml holds the resized camera).
+    #[arg(long, value_name = "F", default_value_t = 1.0)]
+    pub scale: f64,
+}
+
 /// The truth a simulator renders with.
 #[derive(Debug, Args)]
 pub struct TruthArgs {
@@ -506,15 +526,9 @@ pub struct SimulateScanArgs {
     /// Write into --out even if it holds files this command did not write.
     #[arg(long)]
     pub force: bool,
-    /// Seed: same seed, same scene and bytes.
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
-    /// Fraction of the fruit hidden behind leaves (0 to 1).
-    #[arg(long, value_name = "F", default_value_t = 0.0)]
-    pub occlusion: f64,
-    /// Direct sunlight instead of shade.
-    #[arg(long)]
-    pub sun: bool,
+    /// The orchard scene.
+    #[command(flatten)]
+    pub scene: SceneArgs,
     /// Also render every frame with the laser off (frameN_off.png).
     #[arg(long)]
     pub laser_off: bool,
@@ -522,12 +536,6 @@ pub struct SimulateScanArgs {
     /// scene is redrawn until the seed's plan fits the stroke unshifted).
     #[arg(long)]
     pub anywhere: bool,
-    /// Fruit distance range MIN,MAX in mm.
-    #[arg(long, value_name = "MIN,MAX", default_value = "600,1200")]
-    pub depth_mm: String,
-    /// Render the camera resized by this factor (camera.yaml holds the resized camera).
-    #[arg(long, value_name = "F", default_value_t = 1.0)]
-    pub scale: f64,
     /// Write JPEG frames of this quality (1-100) instead of PNG.
     #[arg(long, value_name = "Q")]
     pub jpeg: Option<u8>,
@@ -605,24 +613,12 @@ pub struct ScanArgs {
     /// alacs::scanner traits in their own crate.
     #[arg(long)]
     pub sim: bool,
-    /// Seed of the simulated scene.
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
-    /// Fraction of the fruit hidden behind leaves (0 to 1).
-    #[arg(long, value_name = "F", default_value_t = 0.0)]
-    pub occlusion: f64,
-    /// Direct sunlight instead of shade.
-    #[arg(long)]
-    pub sun: bool,
+    /// The simulated orchard scene.
+    #[command(flatten)]
+    pub scene: SceneArgs,
     /// Also capture every frame with the laser off (for differencing).
     #[arg(long)]
     pub laser_off: bool,
-    /// Fruit distance range MIN,MAX in mm.
-    #[arg(long, value_name = "MIN,MAX", default_value = "600,1200")]
-    pub depth_mm: String,
-    /// Render the camera resized by this factor.
-    #[arg(long, value_name = "F", default_value_t = 1.0)]
-    pub scale: f64,
     /// Pose of the RGB-D camera in the ALACS camera frame: translation in mm,
     /// then roll, pitch, yaw in degrees (R = Rz(yaw) Ry(pitch) Rx(roll));
     /// point_in_alacs = R point_in_rgbd + (x, y, z). The simulated RGB-D camera

@@ -27,6 +27,16 @@ fn stdout_json(output: &Output) -> Value {
     serde_json::from_str(text.trim()).unwrap_or_else(|e| panic!("{e}: {text}"))
 }
 
+/// With `--json`, a failure's standard output is exactly one object,
+/// `{"error": {"exit_code": N, "message": ".."}}`, naming the same as stderr.
+fn assert_error_json(output: &Output, code: i64) {
+    let text = String::from_utf8(output.stdout.clone()).unwrap();
+    let json: Value = serde_json::from_str(text.trim()).unwrap_or_else(|e| panic!("{e}: {text}"));
+    assert_eq!(json["error"]["exit_code"].as_i64(), Some(code), "{json}");
+    let message = json["error"]["message"].as_str().unwrap();
+    assert!(stderr(output).contains(message), "{message} vs {}", stderr(output));
+}
+
 fn stderr(output: &Output) -> String {
     String::from_utf8_lossy(&output.stderr).into_owned()
 }
@@ -125,7 +135,7 @@ fn unreadable_input_exits_2_naming_the_file() {
     std::fs::write(&malformed, "u_n,v_n,z_mm\n0.1,0.2,800\n0.1,0.2,NaN\n").unwrap();
     let output = alacs(&["calibrate", "laser", "--samples", malformed.to_str().unwrap(), "--json"]);
     assert_eq!(output.status.code(), Some(2));
-    assert!(output.stdout.is_empty());
+    assert_error_json(&output, 2);
     let message = stderr(&output);
     assert!(message.contains("malformed.csv") && message.contains("line 3"), "{message}");
     assert!(!message.contains("panicked"), "{message}");
@@ -760,7 +770,7 @@ fn report_bad_input_exits_2_naming_the_file() {
         "--json",
     ]);
     assert_eq!(output.status.code(), Some(2));
-    assert!(output.stdout.is_empty());
+    assert_error_json(&output, 2);
     assert!(stderr(&output).contains("no_such_scan"), "{}", stderr(&output));
     let missing = dir.join("no_such_session");
     let output = alacs(&[
@@ -789,4 +799,82 @@ fn scan_without_sim_exits_2_naming_the_simulated_rig() {
     let output = alacs(&["scan", "--sim", "--rgbd-to-alacs", "1,2,3"]);
     assert_eq!(output.status.code(), Some(2));
     assert!(stderr(&output).contains("--alacs-from-rgbd"), "{}", stderr(&output));
+}
+
+#[test]
+fn an_output_folder_with_foreign_files_is_refused_unless_forced() {
+    // Regression: simulate and report wrote silently into existing folders.
+    let dir = scratch("foreign_folder");
+    let out = dir.join("samples");
+    let out_s = out.to_str().unwrap();
+    assert!(alacs(&["simulate", "samples", "--out", out_s]).status.success());
+    // Its own earlier output: replaced.
+    assert!(alacs(&["simulate", "samples", "--out", out_s, "--seed", "3"]).status.success());
+    std::fs::write(out.join("notes.txt"), "mine").unwrap();
+    let output = alacs(&["simulate", "samples", "--out", out_s, "--json"]);
+    assert_eq!(output.status.code(), Some(2));
+    assert_error_json(&output, 2);
+    assert!(stderr(&output).contains("notes.txt") && stderr(&output).contains("--force"));
+    assert!(alacs(&["simulate", "samples", "--out", out_s, "--force"]).status.success());
+    assert_eq!(std::fs::read_to_string(out.join("notes.txt")).unwrap(), "mine");
+}
+
+#[test]
+fn a_write_cut_short_leaves_the_old_laser_yaml_whole() {
+    // Regression: with a file-size limit (or a full disk) an existing
+    // `-o laser.yaml` was left at 0 bytes.
+    let dir = scratch("cut_short");
+    let samples = simulated_samples(&dir.join("sim"), "4");
+    let laser = dir.join("laser.yaml");
+    std::fs::write(&laser, "model: low-fidelity\nalpha_deg: 20\nl0_mm: 380\n").unwrap();
+    let script = format!(
+        "ulimit -f 0; exec {} calibrate laser --samples {samples} -o {}",
+        env!("CARGO_BIN_EXE_alacs"),
+        laser.display()
+    );
+    let output = Command::new("sh").args(["-c", &script]).output().unwrap();
+    assert!(!output.status.success());
+    assert_eq!(
+        std::fs::read_to_string(&laser).unwrap(),
+        "model: low-fidelity\nalpha_deg: 20\nl0_mm: 380\n"
+    );
+    let leftovers: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".tmp"))
+        .collect();
+    assert!(leftovers.len() <= 1, "{leftovers:?}");
+}
+
+#[test]
+fn session_init_lists_the_folders_images_and_refuses_to_overwrite() {
+    let dir = scratch("session_init");
+    for name in ["view01.png", "view01_off.png", "view02.png"] {
+        image_like_grey(&dir.join(name));
+    }
+    let d = dir.to_str().unwrap();
+    let output = alacs(&[
+        "session",
+        "init",
+        d,
+        "--board",
+        "9x6",
+        "--square-mm",
+        "25",
+        "--slide-mm",
+        "50",
+        "--json",
+    ]);
+    let json = stdout_json(&output);
+    assert_eq!(json["n_views"], 2, "{json}");
+    let session = alacs::Session::read(&dir).unwrap();
+    assert_eq!(session.board.cols, 9);
+    assert_eq!(session.views[0].image_laser_off.as_deref(), Some(Path::new("view01_off.png")));
+    assert!(session.views.iter().all(|v| v.slide_mm == 50.0));
+    let again = alacs(&["session", "init", d, "--board", "9x6", "--square-mm", "25"]);
+    assert_eq!(again.status.code(), Some(2));
+    assert!(stderr(&again).contains("--force"), "{}", stderr(&again));
+    let bad = alacs(&["session", "init", d, "--board", "nine", "--square-mm", "25", "--force"]);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(stderr(&bad).contains("--board"), "{}", stderr(&bad));
 }

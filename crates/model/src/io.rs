@@ -145,6 +145,20 @@ impl OutputDir {
         Ok(Self { dir: dir.to_path_buf(), earlier, written: BTreeSet::new() })
     }
 
+    /// Creates `dir` as [`OutputDir::create`] does, lets `write` fill it and
+    /// finishes it; the files written, in name order. Errors of `write` (any
+    /// error type that a model error converts into) come back unchanged,
+    /// and the folder's earlier files are then left as they were.
+    pub fn fill<E: From<Error>>(
+        dir: &Path,
+        force: bool,
+        write: impl FnOnce(&mut OutputDir) -> std::result::Result<(), E>,
+    ) -> std::result::Result<Vec<PathBuf>, E> {
+        let mut out = Self::create(dir, force)?;
+        write(&mut out)?;
+        Ok(out.finish()?)
+    }
+
     /// The folder.
     pub fn path(&self) -> &Path {
         &self.dir

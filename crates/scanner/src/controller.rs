@@ -363,10 +363,7 @@ impl CapturedScan {
     /// write is refused). Localize it with the rig's calibrated camera.yaml
     /// and laser.yaml.
     pub fn write(&self, dir: &Path) -> Result<()> {
-        let mut out = OutputDir::create(dir, false)?;
-        self.write_into(&mut out)?;
-        out.finish()?;
-        Ok(())
+        OutputDir::fill(dir, false, |out| self.write_into(out)).map(drop)
     }
 
     /// [`CapturedScan::write`] into an open output folder (the caller may

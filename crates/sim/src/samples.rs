@@ -194,16 +194,16 @@ impl SimulatedSamples {
     /// creating it ([`OutputDir`]: a folder holding files this did not
     /// write is refused unless `force`).
     pub fn write(&self, dir: &Path, force: bool) -> Result<()> {
-        let mut out = OutputDir::create(dir, force)?;
-        out.write_with("samples.csv", |w| write_samples(w, &self.samples))?;
         let truth = serde_json::json!({
             "camera": camera_to_json(&self.camera),
             "laser": laser_to_json(&self.laser),
             "outliers": self.outliers,
             "true_depth_mm": self.true_depth_mm,
         });
-        save_json(&mut out, "truth.json", &truth)?;
-        out.finish()?;
-        Ok(())
+        OutputDir::fill(dir, force, |out| {
+            out.write_with("samples.csv", |w| write_samples(w, &self.samples))?;
+            save_json(out, "truth.json", &truth)
+        })
+        .map(drop)
     }
 }

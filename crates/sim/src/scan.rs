@@ -449,10 +449,7 @@ impl SimulatedScan {
     /// into `dir`, creating it ([`OutputDir`]: a folder holding files this
     /// did not write is refused); `progress(done, total)` after each image.
     pub fn write(&self, dir: &Path, progress: impl FnMut(usize, usize)) -> Result<()> {
-        let mut out = OutputDir::create(dir, false)?;
-        self.write_into(&mut out, progress)?;
-        out.finish()?;
-        Ok(())
+        OutputDir::fill(dir, false, |out| self.write_into(out, progress)).map(drop)
     }
 
     /// [`SimulatedScan::write`] into an open output folder (the caller may

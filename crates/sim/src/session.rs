@@ -489,10 +489,7 @@ impl SimulatedSession {
         dir: &Path,
         progress: impl FnMut(usize, usize),
     ) -> Result<()> {
-        let mut out = OutputDir::create(dir, false)?;
-        self.write_into(&mut out, progress)?;
-        out.finish()?;
-        Ok(())
+        OutputDir::fill(dir, false, |out| self.write_into(out, progress)).map(drop)
     }
 
     /// [`SimulatedSession::write_with_progress`] into an open output folder

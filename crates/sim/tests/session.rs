@@ -513,7 +513,9 @@ fn invalid_options_are_reported() {
         };
     check(SessionOptions { depth_mm: (900.0, 600.0), ..SessionOptions::default() }, "depth range");
     check(SessionOptions { depth_mm: (0.0, 600.0), ..SessionOptions::default() }, "depth range");
-    check(SessionOptions { n_views: 0, ..SessionOptions::default() }, "at least one view");
+    check(SessionOptions { n_views: 0, ..SessionOptions::default() }, "a session needs 1 to");
+    check(SessionOptions { n_views: 100_000_000, ..SessionOptions::default() }, "1 to 1000");
+    check(SessionOptions { scale: 1000.0, ..SessionOptions::default() }, "scale");
     check(SessionOptions { scale: 0.0, ..SessionOptions::default() }, "scale");
     check(SessionOptions { scale: -1.0, ..SessionOptions::default() }, "scale");
     check(SessionOptions { scale: f64::NAN, ..SessionOptions::default() }, "scale");

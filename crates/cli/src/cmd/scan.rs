@@ -20,14 +20,14 @@ use alacs::model::io::OutputDir;
 use alacs::scanner::{
     CapturedScan, ControllerConfig, ScanController, SimulatedRig, SimulatedRigOptions,
 };
-use alacs::sim::{OrchardOptions, ScanOptions, SimulatedScan, simulate_scan};
+use alacs::sim::{SimulatedScan, simulate_scan};
 use alacs::{Camera, LaserModel};
 use anyhow::anyhow;
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion};
 use serde_json::{Value, json};
 
 use crate::args::ScanArgs;
-use crate::cmd::simulate::{parse_list, parse_range};
+use crate::cmd::simulate::parse_list;
 use crate::failure::{CmdResult, Failure};
 use crate::output;
 
@@ -60,18 +60,7 @@ pub fn run(args: &ScanArgs) -> CmdResult {
     let alacs_from_rgbd = parse_pose(&args.alacs_from_rgbd)?;
     // The simulated rig's true laser: the seed paper's Table 1, Method 4.
     let true_laser = LaserModel::seed_paper();
-    let defaults = ScanOptions::default();
-    let options = ScanOptions {
-        orchard: OrchardOptions {
-            depth_mm: parse_range(&args.depth_mm, "--depth-mm")?,
-            occlusion: args.occlusion,
-            ..defaults.orchard.clone()
-        },
-        sun: args.sun,
-        scale: args.scale,
-        seed: args.seed,
-        ..defaults
-    };
+    let options = args.scene.options()?;
     // The calibrated files, where given, are read before the long work.
     let camera_file = args.camera.as_deref().map(Camera::from_yaml_file).transpose()?;
     let laser_file = args.laser.as_deref().map(LaserModel::from_yaml_file).transpose()?;
@@ -169,11 +158,11 @@ fn summary(
     let slides: Vec<String> = scan.slides_mm().iter().map(|d| format!("{d:.1}")).collect();
     let mut out = format!(
         "scanned a simulated apple (seed {}, {} x {} px{}{}): rough position {} in the RGB-D frame, {} in the ALACS frame\n",
-        args.seed,
+        args.scene.seed,
         sim.camera.width_px,
         sim.camera.height_px,
-        if args.sun { ", sun" } else { "" },
-        if args.occlusion > 0.0 {
+        if args.scene.sun { ", sun" } else { "" },
+        if args.scene.occlusion > 0.0 {
             format!(", {:.0} % hidden", sim.scene.occlusion * 100.0)
         } else {
             String::new()

@@ -11,7 +11,7 @@ use serde_json::json;
 use alacs::model::io::OutputDir;
 
 use crate::args::{
-    RenderArgs, SimulateSamplesArgs, SimulateScanArgs, SimulateSessionArgs, TruthArgs,
+    RenderArgs, SceneArgs, SimulateSamplesArgs, SimulateScanArgs, SimulateSessionArgs, TruthArgs,
 };
 use crate::failure::{CmdResult, Failure};
 use crate::output;
@@ -65,6 +65,24 @@ impl RenderArgs {
     }
 }
 
+impl SceneArgs {
+    /// The simulator's scan options for this scene (defaults elsewhere).
+    pub fn options(&self) -> CmdResult<ScanOptions> {
+        let defaults = ScanOptions::default();
+        Ok(ScanOptions {
+            orchard: OrchardOptions {
+                depth_mm: parse_range(&self.depth_mm, "--depth-mm")?,
+                occlusion: self.occlusion,
+                ..defaults.orchard.clone()
+            },
+            sun: self.sun,
+            scale: self.scale,
+            seed: self.seed,
+            ..defaults
+        })
+    }
+}
+
 /// Runs `alacs simulate samples`.
 pub fn samples(args: &SimulateSamplesArgs) -> CmdResult {
     let (camera, laser) = args.truth.camera_and_laser()?;
@@ -115,9 +133,9 @@ pub fn session(args: &SimulateSessionArgs) -> CmdResult {
     let bar = output::progress_bar(args.json, "computing the camera's rays");
     let session = simulate_session(&camera, &laser, &options)?;
     output::start_progress(&bar, session.image_count(), "rendering");
-    let mut out = OutputDir::create(&args.out, args.force)?;
-    session.write_into(&mut out, |done, _| bar.set_position(done as u64))?;
-    out.finish()?;
+    OutputDir::fill(&args.out, args.force, |out| {
+        session.write_into(out, |done, _| bar.set_position(done as u64))
+    })?;
     bar.finish_and_clear();
     let images: Vec<&str> = session.views.iter().map(|view| view.image.as_str()).collect();
     if args.json {
@@ -147,28 +165,20 @@ pub fn session(args: &SimulateSessionArgs) -> CmdResult {
 /// Runs `alacs simulate scan`.
 pub fn scan(args: &SimulateScanArgs) -> CmdResult {
     let (camera, laser) = args.truth.camera_and_laser()?;
-    let defaults = ScanOptions::default();
+    let defaults = args.scene.options()?;
     let options = ScanOptions {
-        orchard: OrchardOptions {
-            depth_mm: parse_range(&args.depth_mm, "--depth-mm")?,
-            occlusion: args.occlusion,
-            ..defaults.orchard.clone()
-        },
-        sun: args.sun,
         laser_off: args.laser_off,
-        scale: args.scale,
         render: args.render.options(defaults.render),
         jpeg_quality: args.jpeg,
         within_reach: !args.anywhere,
-        seed: args.seed,
         ..defaults
     };
     let bar = output::progress_bar(args.json, "building the scene and the camera's rays");
     let scan = simulate_scan(&camera, &laser, &options)?;
     output::start_progress(&bar, scan.image_count(), "rendering");
-    let mut out = OutputDir::create(&args.out, args.force)?;
-    scan.write_into(&mut out, |done, _| bar.set_position(done as u64))?;
-    out.finish()?;
+    OutputDir::fill(&args.out, args.force, |out| {
+        scan.write_into(out, |done, _| bar.set_position(done as u64))
+    })?;
     bar.finish_and_clear();
     let c = scan.scene.fruit_centre;
     if args.json {

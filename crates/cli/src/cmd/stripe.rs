@@ -35,18 +35,19 @@ pub fn run(args: &StripeArgs) -> CmdResult {
         }
         options.min_strength = min_strength;
     }
+    // The command line is checked before any image is read.
+    let roi = args.roi.as_deref().map(parse_roi).transpose()?;
     let on = read_colour_image(&args.image, args.laser_off.is_some())?;
     let off = match &args.laser_off {
         Some(path) => Some(read_image(path)?.to_rgb8()),
         None => None,
     };
     let (width, height) = on.dimensions();
-    let region = match &args.roi {
-        Some(text) => {
-            let [u0, v0, u1, v1] = parse_roi(text)?;
+    let region = match roi {
+        Some([u0, v0, u1, v1]) => {
             if u0 >= width || v0 >= height {
                 return Err(Failure::bad_input(anyhow!(
-                    "--roi {text} starts outside the {width} x {height} px image"
+                    "--roi {u0},{v0},{u1},{v1} starts outside the {width} x {height} px image"
                 )));
             }
             Region::rect(u0, v0, u1, v1, width, height)
