@@ -15,6 +15,7 @@
 //! - `fusion`: the fused sphere and ellipsoid fit, its checks and its
 //!   fallbacks (a sphere of the prior radius, the fruit's [`outline`]);
 //! - `folder`: reading a scan folder (scan.yaml and its images);
+//! - `output`: the `localize --json` object ([`LocalizeOutput`]);
 //! - [`fit`]: the geometric fits (circle, sphere, ellipsoid).
 
 mod error;
@@ -24,12 +25,14 @@ mod frame;
 mod fusion;
 mod locate;
 pub mod outline;
+mod output;
 mod selection;
 mod types;
 
 pub use error::{Error, Result};
 pub use folder::{ScanImages, locate_scan, locate_scan_images, read_scan_images};
 pub use locate::locate;
+pub use output::{CandidateOutput, FrameOutput, FusedOutput, LocalizeOutput, OutlineOutput};
 pub use types::{
     Candidate, FrameImages, FrameResult, FusedFit, Localization, LocateOptions, Method, Prior,
     Status,

@@ -5,12 +5,15 @@
 use alacs_vision::{StripeOptions, StripePoint};
 use image::RgbImage;
 use nalgebra::{Point2, Point3};
+use serde::{Deserialize, Serialize};
 
 use crate::fit::{Ellipsoid, Sphere};
 use crate::outline::Outline;
 
-/// How the final position is chosen from the frames.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+/// How the final position is chosen from the frames; serialized as
+/// [`Method::as_str`] spells it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Method {
     /// One robust sphere fit over every frame's fruit points.
     #[default]
@@ -170,8 +173,9 @@ pub struct FusedFit {
     pub outline: Option<Outline>,
 }
 
-/// Whether the fruit was found.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// Whether the fruit was found; serialized as [`Status::as_str`] spells it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Status {
     /// `position_mm` holds the fruit centre.
     Ok,
