@@ -15,17 +15,17 @@ use crate::frame::{
     facing_fraction, no_candidate_reason,
 };
 use crate::outline::{PixelBox, find_outline, fit_outline_sphere};
-use crate::{Candidate, FrameImages, FrameResult, FusedFit, Localization, LocateOptions, Status};
+use crate::{Candidate, FrameResult, FusedFit, Localization, LocateOptions, Status};
 
 /// The fused fit and, when it was not trustworthy, why: the free fit
 /// ([`fuse`]), else a sphere of the prior radius started from the
 /// `candidates` ([`fit_prior_radius`]), else, if the options allow it, the
-/// fruit's outline in the `frames` ([`fit_with_outline`]).
+/// fruit's outline in the `views` ([`fit_with_outline`]).
 pub(crate) fn fuse_with_fallbacks(
     results: &[FrameResult],
     context: &FrameContext,
     candidates: &[Candidate],
-    frames: &[FrameImages],
+    views: &[&RgbImage],
 ) -> (Option<FusedFit>, Option<String>) {
     let candidate_positions: Vec<Point3<f64>> = candidates.iter().map(|c| c.position_mm).collect();
     match fuse(results, context) {
@@ -38,10 +38,7 @@ pub(crate) fn fuse_with_fallbacks(
                 } else {
                     format!("{reason}; with the radius prior: {second}")
                 };
-                match context
-                    .options
-                    .use_outline
-                    .then(|| fit_with_outline(results, context, frames))
+                match context.options.use_outline.then(|| fit_with_outline(results, context, views))
                 {
                     Some(Ok(fit)) => (Some(fit), Some(reason)),
                     Some(Err(third)) => {
@@ -270,7 +267,7 @@ fn fit_prior_radius(
 fn fit_with_outline(
     results: &[FrameResult],
     context: &FrameContext,
-    frames: &[FrameImages],
+    views: &[&RgbImage],
 ) -> std::result::Result<FusedFit, String> {
     let (camera, search, options) = (context.camera, context.search, context.options);
     // The search ball's image: a box, the outline's radius range, and where
@@ -289,10 +286,8 @@ fn fit_with_outline(
     let (lo_mm, hi_mm) = context.radius_range_mm();
     let f_px = 0.5 * (camera.fx_px + camera.fy_px);
     let radius_range_px = (f_px * lo_mm / (centre.z + search.radius_mm), f_px * hi_mm / near_mm);
-    let images: Vec<&RgbImage> =
-        frames.iter().map(|f| f.image_laser_off.unwrap_or(f.image)).collect();
     let outline = find_outline(
-        &images,
+        views,
         area,
         radius_range_px,
         |c| (c - centre_px).norm() <= ball_px,

@@ -44,6 +44,7 @@
 //! flat patch) gives `not_found` with the reason, never a point.
 
 use alacs_model::{Camera, LaserModel};
+use image::RgbImage;
 use rayon::prelude::*;
 
 use crate::frame::{FrameContext, SearchBall};
@@ -70,19 +71,23 @@ pub fn locate(
         .enumerate()
         .map(|(index, frame)| context.frame(index, frame))
         .collect::<Result<_>>()?;
-    Ok(conclude(results, &context, frames))
+    let views: Vec<&RgbImage> =
+        frames.iter().map(|f| f.image_laser_off.unwrap_or(f.image)).collect();
+    Ok(conclude(results, &context, &views))
 }
 
 /// From every frame's result to the answer: the holistic selection, the
-/// fused fit, and the answer of the chosen method.
-fn conclude(
+/// fused fit, and the answer of the chosen method. `views` are the frames'
+/// images for the outline (the laser-off image where a frame has one), or
+/// their per-pixel minimum: the outline needs no more.
+pub(crate) fn conclude(
     mut results: Vec<FrameResult>,
     context: &FrameContext,
-    frames: &[FrameImages],
+    views: &[&RgbImage],
 ) -> Localization {
     let (candidates, holistic) = selection::select(&mut results, context);
     let (fused, fused_rejected) =
-        fusion::fuse_with_fallbacks(&results, context, &candidates, frames);
+        fusion::fuse_with_fallbacks(&results, context, &candidates, views);
     let mut answer = Localization {
         status: Status::NotFound,
         position_mm: None,
@@ -104,14 +109,26 @@ fn conclude(
     answer
 }
 
+/// The checks of [`locate`]'s inputs, in its order: frames present, the
+/// prior, each frame ([`check_frame`]), the options.
 fn check_inputs(
     camera: &Camera,
     prior: &Prior,
     frames: &[FrameImages],
     options: &LocateOptions,
 ) -> Result<()> {
+    check_prior(frames.len(), prior)?;
+    for (i, frame) in frames.iter().enumerate() {
+        check_frame(camera, i, frame)?;
+    }
+    check_options(options)
+}
+
+/// Frames present, a rough position in front of the camera and a positive
+/// radius prior.
+pub(crate) fn check_prior(n_frames: usize, prior: &Prior) -> Result<()> {
     let invalid = |m: String| Err(Error::InvalidInput(m));
-    if frames.is_empty() {
+    if n_frames == 0 {
         return invalid("the scan has no frames".into());
     }
     let r = &prior.rough_position_mm;
@@ -127,31 +144,40 @@ fn check_inputs(
             prior.fruit_radius_mm
         ));
     }
-    for (i, frame) in frames.iter().enumerate() {
-        if frame.image.dimensions() != (camera.width_px, camera.height_px) {
-            return invalid(format!(
-                "frame {i} is {} x {} px, the camera {} x {} px",
-                frame.image.width(),
-                frame.image.height(),
-                camera.width_px,
-                camera.height_px
-            ));
-        }
-        if let Some(off) = frame.image_laser_off
-            && off.dimensions() != frame.image.dimensions()
-        {
-            return invalid(format!(
-                "frame {i}: the laser-off image is {} x {} px, the frame {} x {} px",
-                off.width(),
-                off.height(),
-                frame.image.width(),
-                frame.image.height()
-            ));
-        }
-        if !frame.slide_mm.is_finite() {
-            return invalid(format!("frame {i}: slide_mm {} is not finite", frame.slide_mm));
-        }
+    Ok(())
+}
+
+/// Frame `i`'s images fit the camera and its slide position is finite.
+pub(crate) fn check_frame(camera: &Camera, i: usize, frame: &FrameImages) -> Result<()> {
+    let invalid = |m: String| Err(Error::InvalidInput(m));
+    if frame.image.dimensions() != (camera.width_px, camera.height_px) {
+        return invalid(format!(
+            "frame {i} is {} x {} px, the camera {} x {} px",
+            frame.image.width(),
+            frame.image.height(),
+            camera.width_px,
+            camera.height_px
+        ));
     }
+    if let Some(off) = frame.image_laser_off
+        && off.dimensions() != frame.image.dimensions()
+    {
+        return invalid(format!(
+            "frame {i}: the laser-off image is {} x {} px, the frame {} x {} px",
+            off.width(),
+            off.height(),
+            frame.image.width(),
+            frame.image.height()
+        ));
+    }
+    if !frame.slide_mm.is_finite() {
+        return invalid(format!("frame {i}: slide_mm {} is not finite", frame.slide_mm));
+    }
+    Ok(())
+}
+
+/// Options within their ranges.
+pub(crate) fn check_options(options: &LocateOptions) -> Result<()> {
     let (lo, hi) = options.radius_factors;
     let positive = [
         options.rough_depth_error,
@@ -160,7 +186,7 @@ fn check_inputs(
         options.max_fit_rms_mm,
     ];
     if !(positive.iter().all(|v| v.is_finite() && *v >= 0.0) && lo > 0.0 && hi > lo) {
-        return invalid(format!("invalid localization options: {options:?}"));
+        return Err(Error::InvalidInput(format!("invalid localization options: {options:?}")));
     }
     Ok(())
 }
