@@ -5,9 +5,9 @@ use std::fmt::Write as _;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use alacs::LaserCalibration;
-use alacs::locate::{Localization, Status};
+use alacs::locate::{Localization, LocalizeOutput, Status};
 use alacs::model::Fidelity;
-use serde_json::{Value, json};
+use serde_json::Value;
 
 use crate::failure::{CmdResult, Failure};
 
@@ -110,51 +110,12 @@ pub fn start_progress(bar: &ProgressBar, len: usize, message: &'static str) {
     bar.set_message(message);
 }
 
-/// FORMATS.md's `localize --json` object for `answer`, with the method,
-/// the fused fit and each frame's stripe and fruit point counts added.
+/// FORMATS.md's `localize --json` object for `answer`: its owner,
+/// [`LocalizeOutput`], serialized.
 pub fn localization_json(answer: &Localization) -> Value {
-    let point = |p: &nalgebra::Point3<f64>| json!([p.x, p.y, p.z]);
-    json!({
-        "position_mm": answer.position_mm.as_ref().map(point),
-        "radius_mm": answer.radius_mm,
-        "candidates": answer.candidates.iter().map(|c| json!({
-            "frame": c.frame,
-            "slide_mm": c.slide_mm,
-            "position_mm": point(&c.position_mm),
-            "n_points": c.n_points,
-            "score": c.score,
-            "circle_radius_mm": c.circle_radius_mm,
-            "continuity": c.continuity,
-            "fit_rms_mm": c.fit_rms_mm,
-        })).collect::<Vec<_>>(),
-        "selected": answer.selected,
-        "status": answer.status.as_str(),
-        "reason": answer.reason,
-        "method": answer.method.as_str(),
-        "holistic_selection": answer.holistic,
-        "fused": answer.fused.as_ref().map(|f| json!({
-            "sphere_centre_mm": point(&f.sphere.centre),
-            "sphere_radius_mm": f.sphere.radius_mm,
-            "ellipsoid_semi_axes_mm": f.ellipsoid.map(|e| { let a = e.semi_axes_mm(); [a.x, a.y, a.z] }),
-            "n_points": f.n_points,
-            "n_frames": f.n_frames,
-            "rms_mm": f.rms_mm,
-            "radius_from_prior": f.radius_from_prior,
-            "outline": f.outline.as_ref().map(|o| json!({
-                "centre_px": [o.centre_px.x, o.centre_px.y],
-                "radius_px": o.radius_px,
-                "support": o.support,
-                "fill": o.fill,
-            })),
-        })),
-        "fused_rejected": answer.fused_rejected,
-        "frames": answer.frames.iter().map(|f| json!({
-            "slide_mm": f.slide_mm,
-            "stripe_points": f.stripe.len(),
-            "fruit_points": f.fruit.len(),
-            "rejected": f.rejected,
-        })).collect::<Vec<_>>(),
-    })
+    // Serializing fails only for maps with keys that are not strings; the
+    // object has none.
+    serde_json::to_value(LocalizeOutput::from(answer)).unwrap_or(Value::Null)
 }
 
 /// A readable summary of a localization.

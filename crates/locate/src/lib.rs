@@ -5,14 +5,38 @@
 //! See [`locate`](crate::locate()) for the method, step by step. The entry
 //! points are [`locate_scan`] (a scan folder, FORMATS.md) and [`locate`]
 //! (frames in memory, as the scan controller captures them).
+//!
+//! The modules follow the steps:
+//! - `types`: what localization takes and gives ([`LocateOptions`],
+//!   [`FrameImages`], [`Prior`], [`Localization`] with its [`FrameResult`]s,
+//!   [`Candidate`]s and [`FusedFit`]);
+//! - `frame`: one frame, from the search region to its candidate;
+//! - `selection`: the seed paper's holistic scoring and selection;
+//! - `fusion`: the fused sphere and ellipsoid fit, its checks and its
+//!   fallbacks (a sphere of the prior radius, the fruit's [`outline`]);
+//! - `folder`: reading a scan folder (scan.yaml and its images);
+//! - `output`: the `localize --json` object ([`LocalizeOutput`]);
+//! - [`fit`]: the geometric fits (circle, sphere, ellipsoid).
 
 mod error;
 pub mod fit;
+mod folder;
+mod frame;
+mod fusion;
 mod locate;
 pub mod outline;
+mod output;
+mod selection;
+mod types;
 
 pub use error::{Error, Result};
-pub use locate::{
+pub use folder::{
+    MAX_FRAMES_IN_FLIGHT, MAX_SCAN_FRAMES, ScanImages, locate_scan, locate_scan_images,
+    read_scan_images,
+};
+pub use locate::locate;
+pub use output::{CandidateOutput, FrameOutput, FusedOutput, LocalizeOutput, OutlineOutput};
+pub use types::{
     Candidate, FrameImages, FrameResult, FusedFit, Localization, LocateOptions, Method, Prior,
-    ScanImages, Status, locate, locate_scan, locate_scan_images, read_scan_images,
+    Status,
 };

@@ -1,0 +1,181 @@
+//! Reading a scan folder (FORMATS.md): its scan.yaml and its images.
+//!
+//! [`locate_scan`] decodes a few frames at a time ([`MAX_FRAMES_IN_FLIGHT`])
+//! and keeps of each only what the answer needs (its [`FrameResult`], and
+//! the per-pixel minimum of the views for the outline), so its memory does
+//! not grow with the images. [`read_scan_images`] holds every image, for
+//! callers that show them (the scan report), and refuses scans of more than
+//! [`MAX_SCAN_FRAMES`].
+
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use alacs_model::{Camera, LaserModel, SCAN_FILE, Scan, ScanFrameSpec};
+use alacs_vision::read_image;
+use image::RgbImage;
+use rayon::prelude::*;
+
+use crate::frame::{FrameContext, SearchBall};
+use crate::locate::{check_frame, check_options, check_prior, conclude};
+use crate::{Error, FrameImages, FrameResult, Localization, LocateOptions, Prior, Result, locate};
+
+/// Most frames a scan folder may have. The seed paper's scan has 5 (the
+/// laser stepped 10 mm across an apple 80 mm wide); 64 allow steps of
+/// 2 mm over 120 mm, finer than the stripe's own width on the fruit. A
+/// scan.yaml with more is bad input, not a scan: localization keeps each
+/// frame's stripe, and the scan report holds every image (about 1 MB per
+/// frame at the simulator's scaled resolution, 15 MB at 5 MP).
+pub const MAX_SCAN_FRAMES: usize = 64;
+
+/// Frames [`locate_scan`] decodes at once: rayon's threads, at most this.
+pub const MAX_FRAMES_IN_FLIGHT: usize = 4;
+
+/// The images of a scan's frames, in frame order: the laser-on image and
+/// the laser-off one where the frame has it.
+pub type ScanImages = Vec<(RgbImage, Option<RgbImage>)>;
+
+/// Refuses a scan of more than [`MAX_SCAN_FRAMES`] frames, naming its file.
+fn check_frame_count(scan: &Scan) -> Result<()> {
+    if scan.frames.len() > MAX_SCAN_FRAMES {
+        return Err(Error::InvalidInput(format!(
+            "{}: {} frames, more than the {MAX_SCAN_FRAMES} a scan may have",
+            scan.dir.join(SCAN_FILE).display(),
+            scan.frames.len()
+        )));
+    }
+    Ok(())
+}
+
+/// Decodes one frame's images.
+fn read_frame(scan: &Scan, frame: &ScanFrameSpec) -> Result<(RgbImage, Option<RgbImage>)> {
+    let on = read_image(&scan.path_of(&frame.image))?.to_rgb8();
+    let off = match &frame.image_laser_off {
+        Some(path) => Some(read_image(&scan.path_of(path))?.to_rgb8()),
+        None => None,
+    };
+    Ok((on, off))
+}
+
+/// Reads every image of a scan folder ([`Scan`]) in parallel, for callers
+/// that need them all (the scan report); [`locate_scan`] does not.
+/// Refuses more than [`MAX_SCAN_FRAMES`] frames. `progress(done, total)`
+/// after each frame read.
+pub fn read_scan_images(scan: &Scan, progress: impl Fn(usize, usize) + Sync) -> Result<ScanImages> {
+    check_frame_count(scan)?;
+    let total = scan.frames.len();
+    let done = AtomicUsize::new(0);
+    scan.frames
+        .par_iter()
+        .map(|frame| {
+            let images = read_frame(scan, frame)?;
+            progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
+            Ok(images)
+        })
+        .collect()
+}
+
+/// The prior of a scan's scan.yaml.
+fn prior_of(scan: &Scan) -> Prior {
+    Prior { rough_position_mm: scan.rough_position_mm, fruit_radius_mm: scan.fruit_radius_mm }
+}
+
+/// Names the scan folder in an input error.
+fn in_folder(scan: &Scan, error: Error) -> Error {
+    match error {
+        Error::InvalidInput(message) => {
+            Error::InvalidInput(format!("{}: {message}", scan.dir.display()))
+        }
+        other => other,
+    }
+}
+
+/// Locates the fruit from a scan folder ([`Scan`]), as [`locate`] does
+/// with its frames in memory, decoding at most [`MAX_FRAMES_IN_FLIGHT`]
+/// frames at a time and dropping their images once processed. Refuses
+/// more than [`MAX_SCAN_FRAMES`] frames. `progress(done, total)` after
+/// each frame read.
+pub fn locate_scan(
+    scan: &Scan,
+    camera: &Camera,
+    laser: &LaserModel,
+    options: &LocateOptions,
+    progress: impl Fn(usize, usize) + Sync,
+) -> Result<Localization> {
+    check_frame_count(scan)?;
+    let prior = prior_of(scan);
+    camera.validate()?;
+    laser.validate()?;
+    check_prior(scan.frames.len(), &prior).map_err(|e| in_folder(scan, e))?;
+    check_options(options).map_err(|e| in_folder(scan, e))?;
+    let search = SearchBall::new(&prior, options);
+    let context = FrameContext { camera, laser, prior: &prior, search: &search, options };
+    let total = scan.frames.len();
+    let done = AtomicUsize::new(0);
+    let chunk = rayon::current_num_threads().clamp(1, MAX_FRAMES_IN_FLIGHT);
+    let mut results: Vec<FrameResult> = Vec::with_capacity(total);
+    // The per-pixel minimum of the frames' views: all the outline needs.
+    let mut least: Option<RgbImage> = None;
+    for (first, specs) in scan.frames.chunks(chunk).enumerate().map(|(k, c)| (k * chunk, c)) {
+        let processed: Vec<(FrameResult, (RgbImage, Option<RgbImage>))> = specs
+            .par_iter()
+            .enumerate()
+            .map(|(j, spec)| {
+                let (on, off) = read_frame(scan, spec)?;
+                progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
+                let index = first + j;
+                let frame = FrameImages {
+                    image: &on,
+                    image_laser_off: off.as_ref(),
+                    slide_mm: spec.slide_mm,
+                };
+                check_frame(camera, index, &frame).map_err(|e| in_folder(scan, e))?;
+                let result = context.frame(index, &frame)?;
+                Ok((result, (on, off)))
+            })
+            .collect::<Result<_>>()?;
+        for (result, (on, off)) in processed {
+            results.push(result);
+            if options.use_outline {
+                darken(&mut least, off.unwrap_or(on));
+            }
+        }
+    }
+    let views: Vec<&RgbImage> = least.iter().collect();
+    Ok(conclude(results, &context, &views))
+}
+
+/// Folds `view` into the per-pixel minimum `least` (the views share their
+/// size, [`check_frame`]).
+fn darken(least: &mut Option<RgbImage>, view: RgbImage) {
+    match least {
+        None => *least = Some(view),
+        Some(least) => {
+            for (l, v) in least.pixels_mut().zip(view.pixels()) {
+                for c in 0..3 {
+                    l.0[c] = l.0[c].min(v.0[c]);
+                }
+            }
+        }
+    }
+}
+
+/// [`locate`] on a scan's images already read ([`read_scan_images`]), with
+/// the prior and slide positions of its scan.yaml.
+pub fn locate_scan_images(
+    scan: &Scan,
+    images: &[(RgbImage, Option<RgbImage>)],
+    camera: &Camera,
+    laser: &LaserModel,
+    options: &LocateOptions,
+) -> Result<Localization> {
+    let frames: Vec<FrameImages> = scan
+        .frames
+        .iter()
+        .zip(images)
+        .map(|(frame, (on, off))| FrameImages {
+            image: on,
+            image_laser_off: off.as_ref(),
+            slide_mm: frame.slide_mm,
+        })
+        .collect();
+    locate(camera, laser, &prior_of(scan), &frames, options).map_err(|e| in_folder(scan, e))
+}

@@ -1,0 +1,303 @@
+//! One frame, steps 1-4 of [`crate::locate()`]: the search region, the
+//! stripe, the triangulated points, the circle fit and the frame's
+//! candidate.
+
+use alacs_model::ransac::{RansacOptions, ransac_refit};
+use alacs_model::{Camera, LaserModel};
+use alacs_vision::{Region, extract_stripe_rgb};
+use nalgebra::{Point2, Point3, Unit, Vector3};
+
+use crate::fit::{Circle, CircleEstimator, line_rms_mm, rms_mm};
+use crate::{Candidate, FrameImages, FrameResult, LocateOptions, Prior, Result};
+
+/// The ball around the rough position that holds the fruit.
+pub(crate) struct SearchBall {
+    pub(crate) centre: Point3<f64>,
+    pub(crate) radius_mm: f64,
+}
+
+impl SearchBall {
+    pub(crate) fn new(prior: &Prior, options: &LocateOptions) -> SearchBall {
+        let depth = prior.rough_position_mm.coords.norm();
+        SearchBall {
+            centre: prior.rough_position_mm,
+            radius_mm: 1.25 * prior.fruit_radius_mm
+                + options.rough_depth_error * depth
+                + options.rough_lateral_error_mm,
+        }
+    }
+}
+
+/// What every frame shares.
+pub(crate) struct FrameContext<'a> {
+    pub(crate) camera: &'a Camera,
+    pub(crate) laser: &'a LaserModel,
+    pub(crate) prior: &'a Prior,
+    pub(crate) search: &'a SearchBall,
+    pub(crate) options: &'a LocateOptions,
+}
+
+/// Points on the outline of the search region.
+const OUTLINE_POINTS: usize = 48;
+
+/// A laser plane with a unit normal and an orthonormal basis in it.
+pub(crate) struct PlaneFrame {
+    pub(crate) normal: Unit<Vector3<f64>>,
+    pub(crate) origin: Point3<f64>,
+    pub(crate) e1: Vector3<f64>,
+    pub(crate) e2: Vector3<f64>,
+}
+
+impl PlaneFrame {
+    pub(crate) fn new(laser: &LaserModel, slide_mm: f64) -> Option<PlaneFrame> {
+        let plane = laser.plane_in_camera(slide_mm);
+        let norm = plane.normal.norm();
+        if norm.is_nan() || norm <= 0.0 {
+            return None;
+        }
+        let normal = Unit::new_unchecked(plane.normal / norm);
+        let origin = Point3::from(normal.into_inner() * (plane.offset_mm / norm));
+        // e1 along the camera's y (the plane nearly contains it), e2 across.
+        let y = Vector3::y();
+        let e1 = (y - normal.into_inner() * normal.dot(&y)).try_normalize(1e-9)?;
+        let e2 = normal.cross(&e1);
+        Some(PlaneFrame { normal, origin, e1, e2 })
+    }
+
+    pub(crate) fn to_plane(&self, p: &Point3<f64>) -> Point2<f64> {
+        let d = p - self.origin;
+        Point2::new(d.dot(&self.e1), d.dot(&self.e2))
+    }
+
+    pub(crate) fn point_at(&self, q: &Point2<f64>) -> Point3<f64> {
+        self.origin + self.e1 * q.x + self.e2 * q.y
+    }
+
+    pub(crate) fn signed_distance_mm(&self, p: &Point3<f64>) -> f64 {
+        self.normal.dot(&(p - self.origin))
+    }
+}
+
+impl FrameContext<'_> {
+    pub(crate) fn frame(&self, index: usize, frame: &FrameImages) -> Result<FrameResult> {
+        let mut result = FrameResult {
+            slide_mm: frame.slide_mm,
+            region_outline_px: Vec::new(),
+            stripe: Vec::new(),
+            points_in_camera: Vec::new(),
+            fruit: Vec::new(),
+            candidate: None,
+            rejected: None,
+        };
+        let Some(plane) = PlaneFrame::new(self.laser, frame.slide_mm) else {
+            result.rejected = Some("the laser plane is degenerate".into());
+            return Ok(result);
+        };
+        // 1. The search ball's disk on the laser plane, and its image.
+        let offset = plane.signed_distance_mm(&self.search.centre);
+        let disk_radius_squared = self.search.radius_mm.powi(2) - offset.powi(2);
+        if disk_radius_squared <= 0.0 {
+            result.rejected = Some(format!(
+                "the laser plane passes {:.0} mm from the rough position, outside the {:.0} mm search ball",
+                offset.abs(),
+                self.search.radius_mm
+            ));
+            return Ok(result);
+        }
+        let disk_centre = self.search.centre - plane.normal.into_inner() * offset;
+        let disk_radius = disk_radius_squared.sqrt();
+        result.region_outline_px = (0..OUTLINE_POINTS)
+            .filter_map(|k| {
+                let t = std::f64::consts::TAU * k as f64 / OUTLINE_POINTS as f64;
+                let p = disk_centre + (plane.e1 * t.cos() + plane.e2 * t.sin()) * disk_radius;
+                self.camera.project(&p).ok()
+            })
+            .collect();
+        let region = Region::convex_polygon(
+            &result.region_outline_px,
+            0.0,
+            self.camera.width_px,
+            self.camera.height_px,
+        );
+        // 2. The stripe.
+        result.stripe =
+            extract_stripe_rgb(frame.image, frame.image_laser_off, &region, &self.options.stripe)?;
+        // 3. Triangulated points inside the ball.
+        let prepared = self.laser.prepare();
+        result.points_in_camera = result
+            .stripe
+            .iter()
+            .enumerate()
+            .filter_map(|(i, s)| {
+                let normalized = self.camera.undistort_pixel(&Point2::new(s.u_px, s.v_px)).ok()?;
+                let p = prepared.triangulate(&normalized, frame.slide_mm).ok()?;
+                ((p - self.search.centre).norm() <= self.search.radius_mm).then_some((i, p))
+            })
+            .collect();
+        match self.frame_candidate(index, frame.slide_mm, &plane, &result) {
+            Ok((fruit, candidate)) => {
+                result.fruit = fruit;
+                result.candidate = Some(candidate);
+            }
+            Err(reason) => result.rejected = Some(reason),
+        }
+        Ok(result)
+    }
+
+    /// Rows a fruit of the prior radius spans at the rough depth.
+    pub(crate) fn expected_rows(&self) -> f64 {
+        2.0 * self.prior.fruit_radius_mm * self.camera.fy_px / self.prior.rough_position_mm.z
+    }
+
+    pub(crate) fn min_points(&self) -> usize {
+        ((self.options.min_points_fraction * self.expected_rows()).ceil() as usize).max(MIN_POINTS)
+    }
+
+    pub(crate) fn radius_range_mm(&self) -> (f64, f64) {
+        let (lo, hi) = self.options.radius_factors;
+        (lo * self.prior.fruit_radius_mm, hi * self.prior.fruit_radius_mm)
+    }
+
+    /// Steps 3 and 4 of the module docs: the fruit's arc and the candidate.
+    fn frame_candidate(
+        &self,
+        index: usize,
+        slide_mm: f64,
+        plane: &PlaneFrame,
+        result: &FrameResult,
+    ) -> std::result::Result<(Vec<usize>, Candidate), String> {
+        let min_points = self.min_points();
+        if result.points_in_camera.len() < min_points {
+            return Err(format!(
+                "{} stripe points near the fruit, fewer than {min_points}",
+                result.points_in_camera.len()
+            ));
+        }
+        let in_plane: Vec<Point2<f64>> =
+            result.points_in_camera.iter().map(|(_, p)| plane.to_plane(p)).collect();
+        let (_, hi) = self.radius_range_mm();
+        let estimator = CircleEstimator {
+            points: &in_plane,
+            radius_range_mm: (CIRCLE_MIN_RADIUS_FACTOR * self.prior.fruit_radius_mm, hi),
+        };
+        let threshold = self.options.inlier_threshold_mm;
+        let ransac_options = RansacOptions {
+            threshold,
+            confidence: 0.999,
+            max_iterations: 500,
+            seed: self.options.seed ^ index as u64,
+        };
+        let Some(outcome) = ransac_refit(&estimator, &ransac_options, 2) else {
+            return Err("no circle through the stripe points".into());
+        };
+        let (circle, inliers) = (outcome.model, outcome.inliers);
+        if inliers.len() < min_points {
+            return Err(format!(
+                "{} points on the best circle, fewer than {min_points}",
+                inliers.len()
+            ));
+        }
+        if !(estimator.radius_range_mm.0..=estimator.radius_range_mm.1).contains(&circle.radius_mm)
+        {
+            return Err(format!("the circle's radius {:.1} mm is out of range", circle.radius_mm));
+        }
+        let arc: Vec<Point2<f64>> = inliers.iter().map(|&i| in_plane[i]).collect();
+        let fit_rms_mm = rms_mm(arc.iter().map(|p| circle.distance_mm(p)));
+        if fit_rms_mm > self.options.max_fit_rms_mm {
+            return Err(format!(
+                "the arc's points scatter {fit_rms_mm:.2} mm RMS about the circle, more than {:.2} mm",
+                self.options.max_fit_rms_mm
+            ));
+        }
+        let straightness = line_rms_mm(&arc);
+        if straightness < CURVATURE_SIGNIFICANCE * fit_rms_mm.max(MIN_NOISE_MM) {
+            return Err(format!(
+                "the points are nearly straight ({straightness:.2} mm RMS from a line): a flat surface, not a fruit"
+            ));
+        }
+        let position_mm = self.centre_from_circle(plane, &circle, &arc);
+        let rows: Vec<f64> =
+            inliers.iter().map(|&i| result.stripe[result.points_in_camera[i].0].v_px).collect();
+        let (first, last) = rows
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+        let continuity = inliers.len() as f64 / (last - first + 1.0).max(1.0);
+        let fruit: Vec<usize> = inliers.iter().map(|&i| result.points_in_camera[i].0).collect();
+        Ok((
+            fruit,
+            Candidate {
+                frame: index,
+                slide_mm,
+                position_mm,
+                circle_radius_mm: circle.radius_mm,
+                n_points: inliers.len(),
+                continuity: continuity.min(1.0),
+                fit_rms_mm,
+                score: 0.0,
+            },
+        ))
+    }
+
+    /// The fruit centre on the circle's axis, sqrt(R^2 - rho^2) off the
+    /// plane (R the prior, at least rho), on the side from which the arc's
+    /// points face the camera (ties: the side nearer the rough position).
+    fn centre_from_circle(
+        &self,
+        plane: &PlaneFrame,
+        circle: &Circle,
+        arc: &[Point2<f64>],
+    ) -> Point3<f64> {
+        let centre_on_plane = plane.point_at(&circle.centre);
+        let radius = self.prior.fruit_radius_mm.max(circle.radius_mm);
+        let height = (radius * radius - circle.radius_mm * circle.radius_mm).max(0.0).sqrt();
+        let points: Vec<Point3<f64>> = arc.iter().map(|q| plane.point_at(q)).collect();
+        let option = |sign: f64| {
+            let centre = centre_on_plane + plane.normal.into_inner() * (sign * height);
+            let facing = facing_fraction(&centre, &points);
+            let distance = (centre - self.prior.rough_position_mm).norm();
+            (centre, facing, distance)
+        };
+        let (a, b) = (option(1.0), option(-1.0));
+        let better_a = if (a.1 - b.1).abs() > 0.05 { a.1 > b.1 } else { a.2 <= b.2 };
+        if better_a { a.0 } else { b.0 }
+    }
+}
+
+/// Fraction of surface points whose outward normal (from `centre`) faces
+/// the camera at the origin.
+pub(crate) fn facing_fraction(centre: &Point3<f64>, points: &[Point3<f64>]) -> f64 {
+    if points.is_empty() {
+        return 0.0;
+    }
+    let facing = points.iter().filter(|p| (*p - centre).dot(&(-p.coords)) > 0.0).count();
+    facing as f64 / points.len() as f64
+}
+
+/// Fewest fruit points of a frame at any resolution.
+pub(crate) const MIN_POINTS: usize = 6;
+
+/// Smallest circle, as a fraction of the radius prior: the plane grazing
+/// the fruit's side.
+const CIRCLE_MIN_RADIUS_FACTOR: f64 = 0.15;
+
+/// An arc counts as curved when its points lie this many times farther from
+/// a straight line than from the circle.
+pub(crate) const CURVATURE_SIGNIFICANCE: f64 = 4.0;
+
+/// The floor of the scatter used by the curvature test, mm (noise-free
+/// points must still bend visibly).
+pub(crate) const MIN_NOISE_MM: f64 = 0.15;
+
+/// Why no frame gave a candidate, from the frames' own reasons.
+pub(crate) fn no_candidate_reason(results: &[FrameResult]) -> String {
+    let reasons: Vec<String> = results
+        .iter()
+        .enumerate()
+        .filter_map(|(k, r)| r.rejected.as_ref().map(|why| format!("frame {k}: {why}")))
+        .collect();
+    if reasons.is_empty() {
+        "no frame shows the fruit".into()
+    } else {
+        format!("no frame shows the fruit ({})", reasons.join("; "))
+    }
+}

@@ -1,0 +1,452 @@
+//! The fused answer: one robust sphere fit over every frame's fruit points,
+//! refined to an ellipsoid where it fits clearly better, with the checks
+//! that make it trustworthy; the fallbacks of a sphere of the prior radius
+//! and of the fruit's outline ([`crate::outline`]).
+
+use alacs_model::ransac::{RansacOptions, ransac_refit};
+use image::RgbImage;
+use nalgebra::{Point2, Point3, Vector3};
+
+use crate::fit::{
+    Sphere, SphereEstimator, fit_circle, fit_ellipsoid_robust, line_rms_mm, plane_rms_mm, rms_mm,
+};
+use crate::frame::{
+    CURVATURE_SIGNIFICANCE, FrameContext, MIN_NOISE_MM, MIN_POINTS, PlaneFrame, SearchBall,
+    facing_fraction, no_candidate_reason,
+};
+use crate::outline::{PixelBox, find_outline, fit_outline_sphere};
+use crate::{Candidate, FrameResult, FusedFit, Localization, LocateOptions, Status};
+
+/// The fused fit and, when it was not trustworthy, why: the free fit
+/// ([`fuse`]), else a sphere of the prior radius started from the
+/// `candidates` ([`fit_prior_radius`]), else, if the options allow it, the
+/// fruit's outline in the `views` ([`fit_with_outline`]).
+pub(crate) fn fuse_with_fallbacks(
+    results: &[FrameResult],
+    context: &FrameContext,
+    candidates: &[Candidate],
+    views: &[&RgbImage],
+) -> (Option<FusedFit>, Option<String>) {
+    let candidate_positions: Vec<Point3<f64>> = candidates.iter().map(|c| c.position_mm).collect();
+    match fuse(results, context) {
+        Ok(fit) => (Some(fit), None),
+        Err(reason) => match fit_prior_radius(results, context, &candidate_positions) {
+            Ok(fit) => (Some(fit), Some(reason)),
+            Err(second) => {
+                let reason = if candidate_positions.is_empty() {
+                    reason
+                } else {
+                    format!("{reason}; with the radius prior: {second}")
+                };
+                match context.options.use_outline.then(|| fit_with_outline(results, context, views))
+                {
+                    Some(Ok(fit)) => (Some(fit), Some(reason)),
+                    Some(Err(third)) => {
+                        (None, Some(format!("{reason}; with the outline: {third}")))
+                    }
+                    None => (None, Some(reason)),
+                }
+            }
+        },
+    }
+}
+
+/// The fused method's answer: the fused fit's centre (the ellipsoid's,
+/// where it replaced the sphere) and how it was found, or why not.
+pub(crate) fn answer_fused(answer: &mut Localization) {
+    match (&answer.fused, &answer.fused_rejected) {
+        (Some(fit), _) => {
+            answer.status = Status::Ok;
+            let (centre, radius) = match &fit.ellipsoid {
+                Some(e) => (e.centre, e.equal_volume_radius_mm()),
+                None => (fit.sphere.centre, fit.sphere.radius_mm),
+            };
+            answer.position_mm = Some(centre);
+            answer.radius_mm = Some(radius);
+            answer.reason = if let Some(outline) = &fit.outline {
+                format!(
+                    "sphere fitted to the fruit's outline ({:.0} % of it visible) and {} laser points from {} frames, RMS {:.2} mm (the laser alone did not fix the fruit: {})",
+                    100.0 * outline.support,
+                    fit.n_points,
+                    fit.n_frames,
+                    fit.rms_mm,
+                    answer.fused_rejected.as_deref().unwrap_or_default()
+                )
+            } else if fit.radius_from_prior {
+                format!(
+                    "sphere of the prior radius fitted to {} points from {} frames, RMS {:.2} mm (the free fit failed: {})",
+                    fit.n_points,
+                    fit.n_frames,
+                    fit.rms_mm,
+                    answer.fused_rejected.as_deref().unwrap_or_default()
+                )
+            } else {
+                format!(
+                    "sphere fit over {} points from {} frames, RMS {:.2} mm",
+                    fit.n_points, fit.n_frames, fit.rms_mm
+                )
+            };
+        }
+        (None, reason) => {
+            answer.reason = reason.clone().unwrap_or_default();
+        }
+    }
+}
+
+/// The fused estimate: one robust sphere fit over every frame's fruit
+/// points, with the checks that make it trustworthy.
+fn fuse(results: &[FrameResult], context: &FrameContext) -> std::result::Result<FusedFit, String> {
+    let (search, prior, options) = (context.search, context.prior, context.options);
+    let (points, frame_of) = fruit_points(results);
+    let frames_with_points = count_frames(&frame_of, 0..points.len());
+    if frames_with_points < 2 {
+        return Err(match frames_with_points {
+            0 => no_candidate_reason(results),
+            _ => "the fruit was seen in one frame only; a sphere needs two cuts".into(),
+        });
+    }
+    let (lo, hi) = options.radius_factors;
+    let radius_range_mm = (lo * prior.fruit_radius_mm, hi * prior.fruit_radius_mm);
+    let estimator = SphereEstimator { points: &points, radius_range_mm };
+    let threshold = options.inlier_threshold_mm;
+    let ransac_options =
+        RansacOptions { threshold, confidence: 0.999, max_iterations: 1000, seed: options.seed };
+    let outcome = ransac_refit(&estimator, &ransac_options, 3)
+        .ok_or_else(|| "no sphere through the fruit points of the frames".to_string())?;
+    let (sphere, inliers) = (outcome.model, outcome.inliers);
+    let on_sphere: Vec<Point3<f64>> = inliers.iter().map(|&i| points[i]).collect();
+    let n_frames = count_frames(&frame_of, inliers.iter().copied());
+    if n_frames < 2 {
+        return Err("the frames' fruit points do not lie on one sphere".into());
+    }
+    let rms = rms_mm(on_sphere.iter().map(|p| sphere.distance_mm(p)));
+    if !(radius_range_mm.0..=radius_range_mm.1).contains(&sphere.radius_mm) {
+        return Err(format!(
+            "the fitted radius {:.1} mm is outside {:.0}-{:.0} mm",
+            sphere.radius_mm, radius_range_mm.0, radius_range_mm.1
+        ));
+    }
+    // The sphere predicts how many rows each frame's cut spans; a fruit
+    // hidden behind leaves shows part of them, a chance fit to clutter few.
+    let expected_rows: f64 = results
+        .iter()
+        .filter_map(|r| PlaneFrame::new(context.laser, r.slide_mm))
+        .map(|plane| {
+            let d = plane.signed_distance_mm(&sphere.centre);
+            let rho = (sphere.radius_mm.powi(2) - d * d).max(0.0).sqrt();
+            2.0 * rho * context.camera.fy_px / sphere.centre.z
+        })
+        .sum();
+    let coverage = inliers.len() as f64 / expected_rows.max(1.0);
+    if coverage < options.min_coverage {
+        return Err(format!(
+            "the fitted fruit shows {:.0} % of the stripe rows it should ({} of {:.0}): too little to trust",
+            100.0 * coverage,
+            inliers.len(),
+            expected_rows
+        ));
+    }
+    check_sphere(&sphere, &on_sphere, rms, search, options)?;
+    // The ellipsoid replaces the sphere only where it fits clearly better:
+    // on a round fruit its extra freedom only follows the noise.
+    let ellipsoid =
+        fit_ellipsoid_robust(&on_sphere, &sphere, rms.max(MIN_NOISE_MM), ELLIPSOID_PRIOR_POINTS)
+            .filter(|e| {
+                let ellipsoid_rms = rms_mm(on_sphere.iter().map(|p| e.distance_mm(p)));
+                ellipsoid_rms * ellipsoid_rms < (1.0 - MIN_SSE_REDUCTION) * rms * rms
+            });
+    Ok(FusedFit {
+        sphere,
+        ellipsoid,
+        n_points: inliers.len(),
+        n_frames,
+        rms_mm: rms,
+        radius_from_prior: false,
+        outline: None,
+    })
+}
+
+/// Weight of the ellipsoid's roundness prior, in points. On 21 simulated
+/// ellipsoidal fruit (semi-axes within 8 % of the mean) weights of 10 and
+/// 50 gave the same mean 3-D error, 1.7 mm (the sphere alone: 2.6 mm); the
+/// front of a fruit does not fix its depth semi-axis, so the prior decides
+/// it, and the worst cases stay near 5 mm either way.
+const ELLIPSOID_PRIOR_POINTS: f64 = 20.0;
+
+/// The ellipsoid must cut the sum of squared distances by this fraction
+/// (measured: on simulated spheres it cuts 1-25 %, on fruit with semi-axes
+/// 8 % apart mostly 40-90 %).
+const MIN_SSE_REDUCTION: f64 = 0.3;
+
+/// Every frame's fruit points, with the frame each came from.
+fn fruit_points(results: &[FrameResult]) -> (Vec<Point3<f64>>, Vec<usize>) {
+    let mut points = Vec::new();
+    let mut frame_of = Vec::new();
+    for (k, result) in results.iter().enumerate() {
+        for (i, p) in &result.points_in_camera {
+            if result.fruit.contains(i) {
+                points.push(*p);
+                frame_of.push(k);
+            }
+        }
+    }
+    (points, frame_of)
+}
+
+/// The fallback when the free fit is not trustworthy: a sphere of the
+/// prior radius through the frames' fruit points (Gauss-Newton on the
+/// centre from each frame's candidate and the rough position, keeping the
+/// start with most points within the inlier threshold), with the same
+/// checks as the free fit except the coverage, which a fruit mostly hidden
+/// cannot meet.
+fn fit_prior_radius(
+    results: &[FrameResult],
+    context: &FrameContext,
+    starts: &[Point3<f64>],
+) -> std::result::Result<FusedFit, String> {
+    let (search, prior, options) = (context.search, context.prior, context.options);
+    let (points, frame_of) = fruit_points(results);
+    let min_points = 2 * context.min_points();
+    if points.len() < min_points {
+        return Err(format!("{} fruit points, fewer than {min_points}", points.len()));
+    }
+    let radius = prior.fruit_radius_mm;
+    let threshold = options.inlier_threshold_mm;
+    let mut best: Option<(Sphere, Vec<usize>, f64)> = None;
+    for start in starts.iter().chain(std::iter::once(&search.centre)) {
+        let mut sphere = Sphere { centre: *start, radius_mm: radius };
+        let mut inliers: Vec<usize> = (0..points.len()).collect();
+        for _ in 0..4 {
+            let chosen: Vec<Point3<f64>> = inliers.iter().map(|&i| points[i]).collect();
+            let Some(centre) = fit_centre_for_radius(&chosen, &sphere.centre, radius) else {
+                break;
+            };
+            sphere.centre = centre;
+            inliers = (0..points.len())
+                .filter(|&i| sphere.distance_mm(&points[i]) <= threshold)
+                .collect();
+            if inliers.len() < 4 {
+                break;
+            }
+        }
+        let rms = rms_mm(inliers.iter().map(|&i| sphere.distance_mm(&points[i])));
+        let better = match &best {
+            None => true,
+            Some((_, b, b_rms)) => {
+                inliers.len() > b.len() || (inliers.len() == b.len() && rms < *b_rms)
+            }
+        };
+        if better {
+            best = Some((sphere, inliers, rms));
+        }
+    }
+    let Some((sphere, inliers, rms)) = best else {
+        return Err("no sphere of the prior radius fits the fruit points".into());
+    };
+    if inliers.len() < min_points {
+        return Err(format!("{} points on the sphere, fewer than {min_points}", inliers.len()));
+    }
+    let on_sphere: Vec<Point3<f64>> = inliers.iter().map(|&i| points[i]).collect();
+    check_sphere(&sphere, &on_sphere, rms, search, options)?;
+    Ok(FusedFit {
+        sphere,
+        ellipsoid: None,
+        n_points: inliers.len(),
+        n_frames: count_frames(&frame_of, inliers.iter().copied()),
+        rms_mm: rms,
+        radius_from_prior: true,
+        outline: None,
+    })
+}
+
+/// The last resort ([`crate::outline`]): the fruit's outline in the
+/// frames, and a sphere fitted to it and to the laser points near the
+/// fruit, from every frame (not only the arcs the frames kept). The laser
+/// must confirm a curved surface in at least one frame, and the sphere
+/// passes the same checks as the others.
+fn fit_with_outline(
+    results: &[FrameResult],
+    context: &FrameContext,
+    views: &[&RgbImage],
+) -> std::result::Result<FusedFit, String> {
+    let (camera, search, options) = (context.camera, context.search, context.options);
+    // The search ball's image: a box, the outline's radius range, and where
+    // its centre may lie.
+    let centre = search.centre;
+    let near_mm = (centre.z - search.radius_mm).max(0.5 * centre.z);
+    let centre_px = camera.project(&centre).map_err(|e| e.to_string())?;
+    let ball_px = camera.fx_px.max(camera.fy_px) * search.radius_mm / near_mm;
+    let clip = |x: f64, size: u32| x.clamp(0.0, f64::from(size)) as u32;
+    let area = PixelBox {
+        u0: clip(centre_px.x - ball_px, camera.width_px),
+        v0: clip(centre_px.y - ball_px, camera.height_px),
+        u1: clip(centre_px.x + ball_px + 1.0, camera.width_px),
+        v1: clip(centre_px.y + ball_px + 1.0, camera.height_px),
+    };
+    let (lo_mm, hi_mm) = context.radius_range_mm();
+    let f_px = 0.5 * (camera.fx_px + camera.fy_px);
+    let radius_range_px = (f_px * lo_mm / (centre.z + search.radius_mm), f_px * hi_mm / near_mm);
+    let outline = find_outline(
+        views,
+        area,
+        radius_range_px,
+        |c| (c - centre_px).norm() <= ball_px,
+        options.seed,
+    )?;
+    let mut points = Vec::new();
+    let mut frame_of = Vec::new();
+    for (k, result) in results.iter().enumerate() {
+        for (_, p) in &result.points_in_camera {
+            points.push(*p);
+            frame_of.push(k);
+        }
+    }
+    let threshold = options.inlier_threshold_mm;
+    let fit = fit_outline_sphere(camera, &outline, &points, threshold)?;
+    let min_points = context.min_points();
+    if fit.inliers.len() < min_points {
+        return Err(format!(
+            "{} laser points on the sphere of the fruit's outline, fewer than {min_points}",
+            fit.inliers.len()
+        ));
+    }
+    if fit.outline_rms_mm > MAX_OUTLINE_RMS_MM {
+        return Err(format!(
+            "the outline's rays miss the fitted sphere by {:.2} mm RMS, more than {MAX_OUTLINE_RMS_MM:.1} mm",
+            fit.outline_rms_mm
+        ));
+    }
+    if !(lo_mm..=hi_mm).contains(&fit.sphere.radius_mm) {
+        return Err(format!(
+            "the radius {:.1} mm from the outline is outside {lo_mm:.0}-{hi_mm:.0} mm",
+            fit.sphere.radius_mm
+        ));
+    }
+    // The laser must see a curved surface: some frame's points on the
+    // sphere bend away from a straight line in the laser plane, beyond
+    // their scatter about their own circle (the test of a frame's arc).
+    let curved = results.iter().enumerate().any(|(k, result)| {
+        let Some(plane) = PlaneFrame::new(context.laser, result.slide_mm) else { return false };
+        let arc: Vec<Point2<f64>> = fit
+            .inliers
+            .iter()
+            .filter(|&&i| frame_of[i] == k)
+            .map(|&i| plane.to_plane(&points[i]))
+            .collect();
+        let Some(circle) = fit_circle(&arc).filter(|_| arc.len() >= MIN_POINTS) else {
+            return false;
+        };
+        let scatter = rms_mm(arc.iter().map(|p| circle.distance_mm(p)));
+        line_rms_mm(&arc) >= CURVATURE_SIGNIFICANCE * scatter.max(MIN_NOISE_MM)
+    });
+    if !curved {
+        return Err("the laser points on the outline's sphere are nearly straight in every frame: not a fruit".into());
+    }
+    let on_sphere: Vec<Point3<f64>> = fit.inliers.iter().map(|&i| points[i]).collect();
+    check_sphere_fit(&fit.sphere, &on_sphere, fit.rms_mm, search, options)?;
+    Ok(FusedFit {
+        sphere: fit.sphere,
+        ellipsoid: None,
+        n_points: fit.inliers.len(),
+        n_frames: count_frames(&frame_of, fit.inliers.iter().copied()),
+        rms_mm: fit.rms_mm,
+        radius_from_prior: false,
+        outline: Some(outline),
+    })
+}
+
+/// Largest RMS distance of the outline's rays from the fitted sphere, mm: a
+/// pixel is about 0.5 mm at 1.2 m, and a fruit 8 % from round departs a few
+/// millimetres from any sphere.
+const MAX_OUTLINE_RMS_MM: f64 = 3.0;
+
+/// The checks every fused sphere must pass, free or of the prior radius:
+/// those of [`check_sphere_fit`], and a surface curved beyond its noise.
+fn check_sphere(
+    sphere: &Sphere,
+    on_sphere: &[Point3<f64>],
+    rms: f64,
+    search: &SearchBall,
+    options: &LocateOptions,
+) -> std::result::Result<(), String> {
+    check_sphere_fit(sphere, on_sphere, rms, search, options)?;
+    let flatness = plane_rms_mm(on_sphere);
+    if flatness < CURVATURE_SIGNIFICANCE * rms.max(MIN_NOISE_MM) {
+        return Err(format!(
+            "the points are nearly flat ({flatness:.2} mm RMS from a plane): not a fruit"
+        ));
+    }
+    Ok(())
+}
+
+/// The checks of any fitted sphere: the points' scatter about it, its
+/// centre within the search ball, and the points facing the camera from it.
+fn check_sphere_fit(
+    sphere: &Sphere,
+    on_sphere: &[Point3<f64>],
+    rms: f64,
+    search: &SearchBall,
+    options: &LocateOptions,
+) -> std::result::Result<(), String> {
+    if rms > options.max_fit_rms_mm {
+        return Err(format!(
+            "the fruit points scatter {rms:.2} mm RMS about the fitted sphere, more than {:.2} mm",
+            options.max_fit_rms_mm
+        ));
+    }
+    let offset = (sphere.centre - search.centre).norm();
+    if offset > search.radius_mm {
+        return Err(format!(
+            "the fitted centre lies {offset:.0} mm from the rough position, beyond the {:.0} mm search ball",
+            search.radius_mm
+        ));
+    }
+    let facing = facing_fraction(&sphere.centre, on_sphere);
+    if facing < MIN_FACING_FRACTION {
+        return Err(format!(
+            "only {:.0} % of the points face the camera on the fitted sphere",
+            100.0 * facing
+        ));
+    }
+    Ok(())
+}
+
+/// Gauss-Newton on the centre of a sphere of known radius, from `start`.
+fn fit_centre_for_radius(
+    points: &[Point3<f64>],
+    start: &Point3<f64>,
+    radius_mm: f64,
+) -> Option<Point3<f64>> {
+    let mut centre = *start;
+    for _ in 0..20 {
+        let mut jtj = nalgebra::Matrix3::zeros();
+        let mut jtr = Vector3::zeros();
+        for p in points {
+            let d = p - centre;
+            let n = d.norm();
+            if n <= 0.0 {
+                continue;
+            }
+            let j = -d / n;
+            jtj += j * j.transpose();
+            jtr += j * (n - radius_mm);
+        }
+        let step = jtj.lu().solve(&(-jtr))?;
+        centre += step;
+        if step.norm() < 1e-6 {
+            break;
+        }
+    }
+    centre.coords.iter().all(|c| c.is_finite()).then_some(centre)
+}
+
+/// Every point on a fruit's surface that the camera sees faces it; a few
+/// may not, from noise at the silhouette.
+const MIN_FACING_FRACTION: f64 = 0.9;
+
+fn count_frames(frame_of: &[usize], indices: impl Iterator<Item = usize>) -> usize {
+    let mut frames: Vec<usize> = indices.map(|i| frame_of[i]).collect();
+    frames.sort_unstable();
+    frames.dedup();
+    frames.len()
+}

@@ -1,0 +1,80 @@
+//! The `localize --json` object ([`LocalizeOutput`]) on simulated scans.
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
+
+use alacs_locate::{
+    FrameImages, Localization, LocalizeOutput, LocateOptions, Method, Prior, Status, locate,
+};
+use alacs_model::{Camera, Fidelity, LaserModel};
+use alacs_sim::{ScanOptions, simulate_scan};
+use nalgebra::Point3;
+use serde_json::Value;
+
+fn laser() -> LaserModel {
+    LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98)
+}
+
+/// FORMATS.md's keys (checked once against the object the command line
+/// built by hand with `json!`, then that code was dropped), and read back
+/// unchanged (exactly: serde_json's `float_roundtrip`).
+fn check(answer: &Localization) {
+    let output = LocalizeOutput::from(answer);
+    let value = serde_json::to_value(&output).unwrap();
+    let keys = |v: &Value| v.as_object().unwrap().keys().cloned().collect::<Vec<_>>().join(" ");
+    assert_eq!(
+        keys(&value),
+        "candidates frames fused fused_rejected holistic_selection method position_mm radius_mm reason selected status"
+    );
+    assert_eq!(value["status"], answer.status.as_str());
+    assert_eq!(value["method"], answer.method.as_str());
+    if let Some(c) = value["candidates"].get(0) {
+        assert_eq!(
+            keys(c),
+            "circle_radius_mm continuity fit_rms_mm frame n_points position_mm score slide_mm"
+        );
+    }
+    if !value["fused"].is_null() {
+        assert_eq!(
+            keys(&value["fused"]),
+            "ellipsoid_semi_axes_mm n_frames n_points outline radius_from_prior rms_mm sphere_centre_mm sphere_radius_mm"
+        );
+    }
+    assert_eq!(keys(&value["frames"][0]), "fruit_points rejected slide_mm stripe_points");
+    let text = serde_json::to_string(&output).unwrap();
+    let back: LocalizeOutput = serde_json::from_str(&text).unwrap();
+    assert_eq!(back, output);
+}
+
+#[test]
+fn the_localize_object_keeps_its_keys_and_values_and_reads_back() {
+    let options = ScanOptions { scale: 0.25, seed: 3, ..ScanOptions::default() };
+    let scan = simulate_scan(&Camera::blackfly_s_5mp(), &laser(), &options).unwrap();
+    let images: Vec<_> =
+        (0..scan.frames.len()).map(|i| scan.render_frame(i, true).unwrap()).collect();
+    let frames: Vec<_> = images
+        .iter()
+        .zip(&scan.frames)
+        .map(|(image, f)| FrameImages { image, image_laser_off: None, slide_mm: f.slide_mm })
+        .collect();
+    let prior = Prior { rough_position_mm: scan.rough_position_mm, fruit_radius_mm: 40.0 };
+    for method in [Method::Fused, Method::Holistic] {
+        let options = LocateOptions { method, ..LocateOptions::default() };
+        let answer = locate(&scan.camera, &scan.laser, &prior, &frames, &options).unwrap();
+        assert_eq!(answer.status, Status::Ok, "{}", answer.reason);
+        check(&answer);
+    }
+
+    // Not found: nulls and every frame's reason.
+    let camera = Camera::blackfly_s_5mp().scaled(0.2);
+    let black = image::RgbImage::new(camera.width_px, camera.height_px);
+    let frames: Vec<_> = (0..3)
+        .map(|k| FrameImages {
+            image: &black,
+            image_laser_off: None,
+            slide_mm: 70.0 + 10.0 * k as f64,
+        })
+        .collect();
+    let prior = Prior { rough_position_mm: Point3::new(0.0, 0.0, 800.0), fruit_radius_mm: 40.0 };
+    let answer = locate(&camera, &laser(), &prior, &frames, &LocateOptions::default()).unwrap();
+    assert_eq!(answer.status, Status::NotFound);
+    check(&answer);
+}
