@@ -10,7 +10,7 @@
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use alacs_model::{Camera, LaserModel, SCAN_FILE, Scan, ScanFrameSpec};
-use alacs_vision::read_image;
+use alacs_vision::{read_colour_image, read_image};
 use image::RgbImage;
 use rayon::prelude::*;
 
@@ -47,7 +47,8 @@ fn check_frame_count(scan: &Scan) -> Result<()> {
 
 /// Decodes one frame's images.
 fn read_frame(scan: &Scan, frame: &ScanFrameSpec) -> Result<(RgbImage, Option<RgbImage>)> {
-    let on = read_image(&scan.path_of(&frame.image))?.to_rgb8();
+    // The colour score needs colour; with a laser-off image the difference does not.
+    let on = read_colour_image(&scan.path_of(&frame.image), frame.image_laser_off.is_some())?;
     let off = match &frame.image_laser_off {
         Some(path) => Some(read_image(&scan.path_of(path))?.to_rgb8()),
         None => None,
@@ -178,4 +179,30 @@ pub fn locate_scan_images(
         })
         .collect();
     locate(camera, laser, &prior_of(scan), &frames, options).map_err(|e| in_folder(scan, e))
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    #[test]
+    fn a_scan_of_more_frames_than_the_limit_is_refused() {
+        // Regression: a scan of 10,000 frames was decoded all at once until
+        // the process aborted (948 MB at 1,000 frames).
+        let mut text = String::from("rough_position_mm: [0, 0, 800]\nframes:\n");
+        for k in 0..=MAX_SCAN_FRAMES {
+            text.push_str(&format!("  - {{image: frame{k}.png, slide_mm: {k}}}\n"));
+        }
+        let dir = std::path::Path::new("/nonexistent/scan");
+        let scan = Scan::parse(&text, dir, &dir.join(SCAN_FILE)).unwrap();
+        let camera = Camera::blackfly_s_5mp();
+        let laser = LaserModel::seed_paper();
+        let error =
+            locate_scan(&scan, &camera, &laser, &LocateOptions::default(), |_, _| {}).unwrap_err();
+        let message = error.to_string();
+        assert!(message.contains("scan.yaml") && message.contains("65 frames"), "{message}");
+        assert!(error.is_bad_input());
+        assert!(read_scan_images(&scan, |_, _| {}).is_err());
+    }
 }
