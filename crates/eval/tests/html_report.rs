@@ -258,39 +258,15 @@ fn a_failed_report_leaves_no_empty_images() {
 
 #[test]
 fn scan_report_is_self_contained() {
-    let options = ScanOptions { scale: 0.25, seed: 3, ..ScanOptions::default() };
-    let scan = simulate_scan(&Camera::blackfly_s_5mp(), &laser(), &options).unwrap();
-    let images: Vec<_> =
-        (0..scan.frames.len()).map(|i| scan.render_frame(i, true).unwrap()).collect();
-    let frames: Vec<_> = images
-        .iter()
-        .zip(&scan.frames)
-        .map(|(image, f)| FrameImages { image, image_laser_off: None, slide_mm: f.slide_mm })
-        .collect();
-    let prior = Prior { rough_position_mm: scan.rough_position_mm, fruit_radius_mm: 40.0 };
-    let answer =
-        locate(&scan.camera, &scan.laser, &prior, &frames, &LocateOptions::default()).unwrap();
-    let report_frames: Vec<_> = images
-        .iter()
-        .zip(&scan.frames)
-        .map(|(image, f)| ScanReportFrame { name: &f.image, image })
-        .collect();
+    let fixture = scan_fixture();
+    let (scan, answer) = (&fixture.scan, &fixture.answer);
     let dir = temp_dir("scan");
-    let mut out = open_output(&dir, OutputKind::ReportScan, false).unwrap();
-    let files = write_scan_html(
-        &mut out,
-        &ScanReport {
-            source: "simulated",
-            camera: &scan.camera,
-            laser: &scan.laser,
-            prior: &prior,
-            frames: &report_frames,
-            localization: &answer,
-        },
-    )
-    .unwrap();
-    out.finish().unwrap();
-    assert_eq!(files.len(), 2 + scan.frames.len());
+    fixture.write(&dir, &fixture.images, false).unwrap();
+    assert_eq!(
+        files_below(&dir).len(),
+        4 + scan.frames.len(),
+        "page, overview, frames, manifest, kind"
+    );
     let (html, refs) = check_self_contained(&dir);
     assert!(refs.iter().any(|r| r == "images/overview.jpg"));
     for i in 1..=scan.frames.len() {
