@@ -38,6 +38,7 @@ mod calibrate;
 mod error;
 mod intrinsics;
 mod linear;
+mod output;
 mod refine;
 mod session;
 
@@ -57,6 +58,7 @@ pub use error::{Error, Result};
 pub use intrinsics::{
     BoardObservation, IntrinsicsFit, IntrinsicsOptions, ViewFit, board_pose, calibrate_intrinsics,
 };
+pub use output::{CalibrationOutput, StdDevOutput};
 pub use refine::Residual;
 pub use session::{
     LaserSessionCalibration, LaserSessionOptions, ViewBoard, ViewSamples, calibrate_camera_session,

@@ -148,6 +148,10 @@ pub struct EvaluateCalibrationArgs {
     /// calibration.json, calibration_residuals_method{1..4}.png and .svg.
     #[arg(long, value_name = "DIR", default_value = "evaluation")]
     pub out: PathBuf,
+    /// Write into an output folder even if it holds files this command did
+    /// not write (they stay, unless an earlier run of it wrote them).
+    #[arg(long)]
+    pub force: bool,
     /// RANSAC inlier threshold epsilon on |z - z_hat|, in mm.
     #[arg(long, value_name = "E", default_value_t = alacs::calib::DEFAULT_THRESHOLD_MM)]
     pub threshold_mm: f64,
@@ -198,6 +202,10 @@ pub struct ReportCalibrationArgs {
     /// Folder for the report (created): index.html, images/, plots.
     #[arg(long, value_name = "DIR", default_value = "report")]
     pub out: PathBuf,
+    /// Write into an output folder even if it holds files this command did
+    /// not write (they stay, unless an earlier run of it wrote them).
+    #[arg(long)]
+    pub force: bool,
     /// Print one JSON object on standard output: {"html": .., "files": [..], ..}.
     #[arg(long)]
     pub json: bool,
@@ -221,6 +229,10 @@ pub struct ReportScanArgs {
     /// Folder for the report (created): index.html and images/.
     #[arg(long, value_name = "DIR", default_value = "report")]
     pub out: PathBuf,
+    /// Write into an output folder even if it holds files this command did
+    /// not write (they stay, unless an earlier run of it wrote them).
+    #[arg(long)]
+    pub force: bool,
     /// Print one JSON object on standard output: {"html": .., "files": [..],
     /// "localization": {...as localize --json}}.
     #[arg(long)]
@@ -243,6 +255,10 @@ pub struct EvaluateAccuracyArgs {
     /// accuracy_boxplots.png and .svg.
     #[arg(long, value_name = "DIR", default_value = "evaluation")]
     pub out: PathBuf,
+    /// Write into an output folder even if it holds files this command did
+    /// not write (they stay, unless an earlier run of it wrote them).
+    #[arg(long)]
+    pub force: bool,
     /// Points per view: all, or 3 as the seed paper.
     #[arg(long, value_enum, default_value = "all")]
     pub points: PointsArg,
@@ -600,6 +616,10 @@ pub struct DemoArgs {
     /// (report_calibration/index.html, report_scan/index.html).
     #[arg(long, value_name = "DIR", default_value = "alacs-demo")]
     pub out: PathBuf,
+    /// Write into an output folder even if it holds files this command did
+    /// not write (they stay, unless an earlier run of it wrote them).
+    #[arg(long)]
+    pub force: bool,
     /// Print one JSON object on standard output instead of text.
     #[arg(long)]
     pub json: bool,

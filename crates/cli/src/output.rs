@@ -11,7 +11,13 @@ use serde_json::Value;
 
 use crate::failure::{CmdResult, Failure};
 
-pub use alacs::eval::{calibration_json, table_1};
+pub use alacs::eval::table_1;
+
+/// One calibration as FORMATS.md's `calibrate laser --json` object
+/// (alacs-calib's [`alacs::calib::CalibrationOutput`]).
+pub fn calibration_json(c: &LaserCalibration) -> Value {
+    serde_json::to_value(c.to_output()).unwrap_or(Value::Null)
+}
 
 /// `print!` to standard output through [`print_text`]: returns from the
 /// calling command with its failure when standard output cannot be written.

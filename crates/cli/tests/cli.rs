@@ -207,6 +207,36 @@ fn evaluate_calibration_writes_table_1_and_residual_plots() {
 }
 
 #[test]
+fn evaluate_refuses_a_foreign_or_unwritable_folder_with_exit_2() {
+    let dir = scratch("evaluate_foreign");
+    let samples = simulated_samples(&dir, "5");
+    let out = dir.join("mine");
+    std::fs::create_dir_all(&out).unwrap();
+    std::fs::write(out.join("notes.txt"), "keep").unwrap();
+    let run = |extra: &[&str]| {
+        let mut args = vec!["evaluate", "calibration", "--samples", &samples];
+        args.extend_from_slice(&["--out", out.to_str().unwrap()]);
+        args.extend_from_slice(extra);
+        alacs(&args)
+    };
+    let output = run(&[]);
+    assert_eq!(output.status.code(), Some(2), "{}", stderr(&output));
+    assert!(stderr(&output).contains("--force"), "{}", stderr(&output));
+    assert!(!out.join("calibration.json").exists());
+    let output = run(&["--force"]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    assert_eq!(std::fs::read_to_string(out.join("notes.txt")).unwrap(), "keep");
+    // notes.txt stays foreign: a rerun without --force is refused again.
+    assert_eq!(run(&[]).status.code(), Some(2));
+    // An output path that is a file: exit 2.
+    let file = dir.join("a_file");
+    std::fs::write(&file, "x").unwrap();
+    let output =
+        alacs(&["evaluate", "calibration", "--samples", &samples, "--out", file.to_str().unwrap()]);
+    assert_eq!(output.status.code(), Some(2), "{}", stderr(&output));
+}
+
+#[test]
 fn degenerate_samples_exit_1_with_a_reason() {
     let dir = scratch("degenerate");
     let path = dir.join("one_depth.csv");

@@ -73,29 +73,10 @@ pub fn evaluate_calibration(
     Ok(CalibrationEvaluation { samples: samples.to_vec(), methods, options: *options })
 }
 
-/// One calibration as FORMATS.md's `calibrate laser --json` object, with
-/// `method`, `name` and the fit's statistics added.
-pub fn calibration_json(c: &LaserCalibration) -> Value {
-    json!({
-        "model": c.laser.fidelity.as_str(),
-        "alpha_deg": c.laser.alpha_deg(),
-        "beta_deg": c.laser.beta_deg(),
-        "l0_mm": c.laser.l0_mm,
-        "inliers": c.inliers,
-        "mean_abs_error_mm": c.mean_abs_error_mm,
-        "mean_abs_error_all_mm": c.mean_abs_error_all_mm,
-        "n_samples": c.n_samples,
-        "method": c.method.number(),
-        "name": c.method.name(),
-        "rms_error_mm": c.rms_error_mm,
-        "residual": c.residual.as_str(),
-        "ransac_iterations": c.ransac_iterations,
-        "std_dev": c.std_dev.map(|s| json!({
-            "alpha_deg": s.alpha_deg,
-            "l0_mm": s.l0_mm,
-            "beta_deg": s.beta_deg,
-        })),
-    })
+/// One calibration as FORMATS.md's `calibrate laser --json` object
+/// (alacs-calib's [`alacs_calib::CalibrationOutput`]).
+fn calibration_json(c: &LaserCalibration) -> Value {
+    serde_json::to_value(c.to_output()).unwrap_or(Value::Null)
 }
 
 /// The seed paper's Table 1 for `results`, as text.

@@ -11,7 +11,8 @@
 //!   median, quartiles, whiskers to the extremes, as the paper's figure)
 //!   and the predicted noise floor sigma_z = z^2 cos(alpha) sigma_px / (f L);
 //! - [`write_calibration_report`], [`write_accuracy_report`]: text, JSON,
-//!   CSV and plots (PNG and SVG, plotters with a built-in font);
+//!   CSV and plots (PNG and SVG, plotters with a built-in font), written
+//!   atomically into a folder [`open_output`] opened for one command;
 //! - [`html`]: self-contained HTML reports of a calibration (per-view
 //!   images with the corners and the stripe drawn over them) and of a scan
 //!   (frames with the stripe, the fruit points and the candidate).
@@ -33,6 +34,7 @@ mod accuracy;
 mod calibration;
 mod error;
 pub mod html;
+mod output;
 mod plot;
 mod report;
 mod stats;
@@ -41,14 +43,13 @@ pub use accuracy::{
     AccuracyEvaluation, AccuracyOptions, AccuracyPoint, PointsPerView, SlideAccuracy,
     evaluate_accuracy, noise_floor_mm,
 };
-pub use calibration::{
-    CalibrationEvaluation, MethodEvaluation, calibration_json, evaluate_calibration, table_1,
-};
+pub use calibration::{CalibrationEvaluation, MethodEvaluation, evaluate_calibration, table_1};
 pub use error::{Error, Result};
 pub use html::{
     CalibrationReport, ScanReport, ScanReportFrame, calibration_report,
     calibration_report_from_views, write_calibration_html, write_scan_html,
 };
+pub use output::{KIND_FILE, OutputKind, open_output, open_sub_output};
 pub use plot::{write_accuracy_boxplots, write_residual_plot};
 pub use report::{write_accuracy_report, write_calibration_report};
 pub use stats::{BoxStats, median, quantile_sorted};

@@ -7,8 +7,12 @@
 //! library is needed.
 
 use std::error::Error as StdError;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::OnceLock;
+
+use alacs_model::io::OutputDir;
+use image::ImageEncoder as _;
+use image::codecs::png::PngEncoder;
 
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -29,6 +33,15 @@ const BOXPLOT_SIZE: (u32, u32) = (1500, 900);
 
 /// Size of a residual figure, px.
 const RESIDUAL_SIZE: (u32, u32) = (900, 560);
+
+/// Most points a residual plot draws (half for the inliers, half for the
+/// outliers). Past it each series is decimated deterministically
+/// ([`decimate`]): per depth column its lowest and highest residual (the
+/// envelope, so that every outlier band still shows) and an even stride of
+/// the rest. An SVG point takes about 80-180 bytes, so that a plot stays
+/// near 3 MB (under 10 MB) whatever the number of samples; the legend
+/// still counts every sample.
+pub const MAX_PLOT_POINTS: usize = 20_000;
 
 /// A normal distribution's quartiles lie 0.6745 standard deviations from its median.
 const QUARTILE_IN_SIGMAS: f64 = 0.6745;
@@ -60,33 +73,38 @@ trait Figure {
         DB::ErrorType: 'static;
 }
 
-/// Draws `figure` into `stem`.png and `stem`.svg; returns both paths.
-fn write_png_and_svg(stem: &Path, size: (u32, u32), figure: &impl Figure) -> Result<Vec<PathBuf>> {
+/// Draws `figure` into `stem`.png and `stem`.svg in `out` (each encoded in
+/// memory, then written atomically); returns both paths.
+fn write_png_and_svg(
+    out: &mut OutputDir,
+    stem: &str,
+    size: (u32, u32),
+    figure: &impl Figure,
+) -> Result<Vec<PathBuf>> {
     ensure_font()?;
-    let png = stem.with_extension("png");
-    let svg = stem.with_extension("svg");
-    let plot_error = |path: &Path, e: Box<dyn StdError>| Error::Plot {
-        path: path.to_path_buf(),
-        message: e.to_string(),
-    };
+    let (png, svg) = (format!("{stem}.png"), format!("{stem}.svg"));
+    let plot_error =
+        |name: &str, message: String| Error::Plot { path: out.path().join(name), message };
 
     let mut pixels = vec![0u8; size.0 as usize * size.1 as usize * 3];
     {
         let root = BitMapBackend::with_buffer(&mut pixels, size).into_drawing_area();
-        figure.draw(&root).map_err(|e| plot_error(&png, e))?;
-        root.present().map_err(|e| plot_error(&png, e.into()))?;
+        figure.draw(&root).map_err(|e| plot_error(&png, e.to_string()))?;
+        root.present().map_err(|e| plot_error(&png, e.to_string()))?;
     }
-    image::save_buffer(&png, &pixels, size.0, size.1, image::ExtendedColorType::Rgb8)
-        .map_err(|e| Error::Plot { path: png.clone(), message: e.to_string() })?;
+    let mut encoded = Vec::new();
+    PngEncoder::new(&mut encoded)
+        .write_image(&pixels, size.0, size.1, image::ExtendedColorType::Rgb8)
+        .map_err(|e| plot_error(&png, e.to_string()))?;
+    drop(pixels);
 
     let mut text = String::new();
     {
         let root = SVGBackend::with_string(&mut text, size).into_drawing_area();
-        figure.draw(&root).map_err(|e| plot_error(&svg, e))?;
-        root.present().map_err(|e| plot_error(&svg, e.into()))?;
+        figure.draw(&root).map_err(|e| plot_error(&svg, e.to_string()))?;
+        root.present().map_err(|e| plot_error(&svg, e.to_string()))?;
     }
-    std::fs::write(&svg, text).map_err(|error| Error::Io { path: svg.clone(), error })?;
-    Ok(vec![png, svg])
+    Ok(vec![out.write(&png, encoded)?, out.write(&svg, text)?])
 }
 
 /// A tick label: at most three decimals, trailing zeros dropped, no "-0".
@@ -279,6 +297,44 @@ impl Figure for BoxPlots<'_> {
 struct Residuals<'a> {
     eval: &'a MethodEvaluation,
     depths_mm: &'a [f64],
+    /// At most this many points drawn ([`MAX_PLOT_POINTS`]).
+    max_points: usize,
+}
+
+/// The points of a series of `n` (`series` yields them, again on each
+/// call) to draw, at most `max`: all of them when they are few; else, with
+/// x in `x_range` cut into `max / 4` columns, each column's lowest and
+/// highest y (the envelope and its outliers) and every k-th point with
+/// k = ceil(2 n / max). Deterministic: the same points give the same plot.
+fn decimate<I: Iterator<Item = (f64, f64)>>(
+    series: impl Fn() -> I,
+    n: usize,
+    x_range: (f64, f64),
+    max: usize,
+) -> Vec<(f64, f64)> {
+    if n <= max {
+        return series().collect();
+    }
+    let columns = (max / 4).max(1);
+    let width = (x_range.1 - x_range.0).max(f64::MIN_POSITIVE);
+    let mut low: Vec<Option<(f64, f64)>> = vec![None; columns];
+    let mut high: Vec<Option<(f64, f64)>> = vec![None; columns];
+    let step = (2 * n).div_ceil(max.max(1)).max(1);
+    let mut kept = Vec::with_capacity(max);
+    for (i, (x, y)) in series().enumerate() {
+        let column = (((x - x_range.0) / width * columns as f64) as usize).min(columns - 1);
+        if low[column].is_none_or(|(_, lo)| y < lo) {
+            low[column] = Some((x, y));
+        }
+        if high[column].is_none_or(|(_, hi)| y > hi) {
+            high[column] = Some((x, y));
+        }
+        if i % step == 0 {
+            kept.push((x, y));
+        }
+    }
+    kept.extend(low.into_iter().chain(high).flatten());
+    kept
 }
 
 impl Figure for Residuals<'_> {
@@ -337,16 +393,22 @@ impl Figure for Residuals<'_> {
                 .filter(move |(_, flag)| **flag == inlier)
                 .map(|((&z, &r), _)| (z, r))
         };
+        let per_series = self.max_points / 2;
         let n_in = points(true).count();
         let n_out = points(false).count();
+        let drawn = |n: usize, shown: usize| {
+            if shown < n { format!("{n} ({shown} drawn)") } else { n.to_string() }
+        };
+        let inliers = decimate(|| points(true), n_in, (z_lo, z_hi), per_series);
         chart
-            .draw_series(points(true).map(|p| Circle::new(p, 2, BOX_LINE.filled())))?
-            .label(format!("fitted (inlier), {n_in}"))
+            .draw_series(inliers.iter().map(|&p| Circle::new(p, 2, BOX_LINE.filled())))?
+            .label(format!("fitted (inlier), {}", drawn(n_in, inliers.len())))
             .legend(|(x, y)| Circle::new((x + 10, y), 3, BOX_LINE.filled()));
         if n_out > 0 {
+            let outliers = decimate(|| points(false), n_out, (z_lo, z_hi), per_series);
             chart
-                .draw_series(points(false).map(|p| Cross::new(p, 4, RED.stroke_width(2))))?
-                .label(format!("rejected (outlier), {n_out}"))
+                .draw_series(outliers.iter().map(|&p| Cross::new(p, 4, RED.stroke_width(2))))?
+                .label(format!("rejected (outlier), {}", drawn(n_out, outliers.len())))
                 .legend(|(x, y)| Cross::new((x + 10, y), 4, RED.stroke_width(2)));
         }
         chart
@@ -360,24 +422,46 @@ impl Figure for Residuals<'_> {
     }
 }
 
-/// Writes the accuracy box plots to `stem`.png and `stem`.svg.
-pub fn write_accuracy_boxplots(stem: &Path, eval: &AccuracyEvaluation) -> Result<Vec<PathBuf>> {
-    write_png_and_svg(stem, BOXPLOT_SIZE, &BoxPlots { eval })
+/// Writes the accuracy box plots to `stem`.png and `stem`.svg in `out`.
+pub fn write_accuracy_boxplots(
+    out: &mut OutputDir,
+    stem: &str,
+    eval: &AccuracyEvaluation,
+) -> Result<Vec<PathBuf>> {
+    write_png_and_svg(out, stem, BOXPLOT_SIZE, &BoxPlots { eval })
 }
 
 /// Writes one method's residual scatter (z - z_hat against z, inliers and
-/// outliers marked) to `stem`.png and `stem`.svg.
+/// outliers marked) to `stem`.png and `stem`.svg in `out`.
 pub fn write_residual_plot(
-    stem: &Path,
+    out: &mut OutputDir,
+    stem: &str,
     method: &MethodEvaluation,
     depths_mm: &[f64],
 ) -> Result<Vec<PathBuf>> {
-    write_png_and_svg(stem, RESIDUAL_SIZE, &Residuals { eval: method, depths_mm })
+    write_png_and_svg(
+        out,
+        stem,
+        RESIDUAL_SIZE,
+        &Residuals { eval: method, depths_mm, max_points: MAX_PLOT_POINTS },
+    )
 }
 
 #[cfg(test)]
 mod tests {
-    use super::tick_label;
+    use super::{decimate, tick_label};
+
+    #[test]
+    fn decimation_keeps_the_extremes_and_the_cap() {
+        let n = 100_000;
+        let y = |i: usize| if i == 77_777 { 500.0 } else { ((i * 7919) % 1000) as f64 / 1000.0 };
+        let series = || (0..n).map(|i| (i as f64 / n as f64, y(i)));
+        let kept = decimate(series, n, (0.0, 1.0), 1000);
+        assert!(kept.len() <= 1000, "{}", kept.len());
+        assert!(kept.contains(&(0.77777, 500.0)), "the outlier shows");
+        assert_eq!(kept, decimate(series, n, (0.0, 1.0), 1000), "deterministic");
+        assert_eq!(decimate(series, n, (0.0, 1.0), n).len(), n, "few points: all");
+    }
 
     #[test]
     fn tick_labels_are_short() {

@@ -1,6 +1,7 @@
 //! Writing an evaluation's artefacts into a folder: text, JSON, CSV and
-//! plots (PNG and SVG). Names are fixed so that a calibration and an
-//! accuracy evaluation can share one folder:
+//! plots (PNG and SVG), each file written atomically through an
+//! [`OutputDir`] (see [`crate::open_output`]: a folder belongs to one
+//! command, which replaces its own earlier files). The names:
 //!
 //! | file | what |
 //! |---|---|
@@ -11,48 +12,41 @@
 //! | `accuracy_points.csv` | every point's truth and error |
 //! | `accuracy_boxplots.png`, `.svg` | x, y, z errors per slide position |
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
+
+use alacs_model::io::OutputDir;
 
 use crate::plot::{write_accuracy_boxplots, write_residual_plot};
-use crate::{AccuracyEvaluation, CalibrationEvaluation, Error, Result};
+use crate::{AccuracyEvaluation, CalibrationEvaluation, Result};
 
-/// Creates `dir` (and its parents).
-fn create_dir(dir: &Path) -> Result<()> {
-    std::fs::create_dir_all(dir).map_err(|error| Error::Io { path: dir.to_path_buf(), error })
-}
-
-/// Writes `contents` to `dir`/`name`, returning the path.
-fn write_file(dir: &Path, name: &str, contents: &str) -> Result<PathBuf> {
-    let path = dir.join(name);
-    std::fs::write(&path, contents).map_err(|error| Error::Io { path: path.clone(), error })?;
-    Ok(path)
-}
-
-/// Writes the calibration evaluation's Table 1, JSON and residual plots into
-/// `dir` (created); returns the files written.
-pub fn write_calibration_report(dir: &Path, eval: &CalibrationEvaluation) -> Result<Vec<PathBuf>> {
-    create_dir(dir)?;
+/// Writes the calibration evaluation's Table 1, JSON and residual plots
+/// into `out`; returns the files written.
+pub fn write_calibration_report(
+    out: &mut OutputDir,
+    eval: &CalibrationEvaluation,
+) -> Result<Vec<PathBuf>> {
     let mut files = vec![
-        write_file(dir, "calibration_table1.txt", &eval.table_1())?,
-        write_file(dir, "calibration.json", &format!("{:#}\n", eval.to_json()))?,
+        out.write("calibration_table1.txt", eval.table_1())?,
+        out.write("calibration.json", format!("{:#}\n", eval.to_json()))?,
     ];
     let depths_mm: Vec<f64> = eval.samples.iter().map(|s| s.z_mm).collect();
     for method in &eval.methods {
-        let stem =
-            dir.join(format!("calibration_residuals_method{}", method.calibration.method.number()));
-        files.extend(write_residual_plot(&stem, method, &depths_mm)?);
+        let stem = format!("calibration_residuals_method{}", method.calibration.method.number());
+        files.extend(write_residual_plot(out, &stem, method, &depths_mm)?);
     }
     Ok(files)
 }
 
 /// Writes the accuracy evaluation's JSON, points CSV and box plots into
-/// `dir` (created); returns the files written.
-pub fn write_accuracy_report(dir: &Path, eval: &AccuracyEvaluation) -> Result<Vec<PathBuf>> {
-    create_dir(dir)?;
+/// `out`; returns the files written.
+pub fn write_accuracy_report(
+    out: &mut OutputDir,
+    eval: &AccuracyEvaluation,
+) -> Result<Vec<PathBuf>> {
     let mut files = vec![
-        write_file(dir, "accuracy.json", &format!("{:#}\n", eval.to_json()))?,
-        write_file(dir, "accuracy_points.csv", &eval.points_csv())?,
+        out.write("accuracy.json", format!("{:#}\n", eval.to_json()))?,
+        out.write("accuracy_points.csv", eval.points_csv())?,
     ];
-    files.extend(write_accuracy_boxplots(&dir.join("accuracy_boxplots"), eval)?);
+    files.extend(write_accuracy_boxplots(out, "accuracy_boxplots", eval)?);
     Ok(files)
 }

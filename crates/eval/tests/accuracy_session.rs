@@ -10,7 +10,8 @@
 use std::path::PathBuf;
 
 use alacs_eval::{
-    AccuracyOptions, BoxStats, PointsPerView, evaluate_accuracy, write_accuracy_report,
+    AccuracyOptions, BoxStats, OutputKind, PointsPerView, evaluate_accuracy, open_output,
+    write_accuracy_report,
 };
 use alacs_model::{Camera, Fidelity, LaserModel, Session};
 use alacs_sim::{SessionOptions, simulate_session};
@@ -42,7 +43,9 @@ fn five_slide_positions_agree_with_the_noise_floor() {
         evaluate_accuracy(&session, &simulated.camera, &truth, &AccuracyOptions::default(), &|| {})
             .unwrap();
     let out = dir.join("report");
-    let files = write_accuracy_report(&out, &eval).unwrap();
+    let mut output = open_output(&out, OutputKind::EvaluateAccuracy, false).unwrap();
+    let files = write_accuracy_report(&mut output, &eval).unwrap();
+    output.finish().unwrap();
     for file in &files {
         assert!(std::fs::metadata(file).unwrap().len() > 0, "{}", file.display());
     }

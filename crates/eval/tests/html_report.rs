@@ -7,7 +7,8 @@
 use std::path::{Path, PathBuf};
 
 use alacs_eval::{
-    ScanReport, ScanReportFrame, calibration_report, write_calibration_html, write_scan_html,
+    OutputKind, ScanReport, ScanReportFrame, calibration_report, open_output,
+    write_calibration_html, write_scan_html,
 };
 use alacs_locate::{FrameImages, LocateOptions, Prior, locate};
 use alacs_model::{Camera, Fidelity, LaserModel, Session};
@@ -92,7 +93,9 @@ fn calibration_report_is_self_contained_and_flags_a_bad_view() {
     assert!(report.table_1.is_ok() && report.accuracy.is_ok());
 
     let out = dir.join("report <&>");
-    let files = write_calibration_html(&out, &session, &report, "session <&>").unwrap();
+    let mut output = open_output(&out, OutputKind::ReportCalibration, false).unwrap();
+    let files = write_calibration_html(&mut output, &session, &report, "session <&>").unwrap();
+    output.finish().unwrap();
     assert_eq!(files[0], out.join("index.html"));
     let (html, refs) = check_self_contained(&out);
     for i in 1..=8 {
@@ -106,8 +109,15 @@ fn calibration_report_is_self_contained_and_flags_a_bad_view() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-#[test]
-fn scan_report_is_self_contained() {
+/// A simulated quarter-scale scan, its frames and its localization.
+struct ScanFixture {
+    scan: alacs_sim::SimulatedScan,
+    images: Vec<image::RgbImage>,
+    prior: Prior,
+    answer: alacs_locate::Localization,
+}
+
+fn scan_fixture() -> ScanFixture {
     let options = ScanOptions { scale: 0.25, seed: 3, ..ScanOptions::default() };
     let scan = simulate_scan(&Camera::blackfly_s_5mp(), &laser(), &options).unwrap();
     let images: Vec<_> =
@@ -120,25 +130,143 @@ fn scan_report_is_self_contained() {
     let prior = Prior { rough_position_mm: scan.rough_position_mm, fruit_radius_mm: 40.0 };
     let answer =
         locate(&scan.camera, &scan.laser, &prior, &frames, &LocateOptions::default()).unwrap();
-    let report_frames: Vec<_> = images
-        .iter()
-        .zip(&scan.frames)
-        .map(|(image, f)| ScanReportFrame { name: &f.image, image })
+    ScanFixture { scan, images, prior, answer }
+}
+
+impl ScanFixture {
+    /// Writes the report of the first `n` frames (`images` in place of the
+    /// fixture's) into `dir`.
+    fn write(&self, dir: &Path, images: &[image::RgbImage], force: bool) -> alacs_eval::Result<()> {
+        let frames: Vec<_> = images
+            .iter()
+            .zip(&self.scan.frames)
+            .map(|(image, f)| ScanReportFrame { name: &f.image, image })
+            .collect();
+        let mut out = open_output(dir, OutputKind::ReportScan, force)?;
+        write_scan_html(
+            &mut out,
+            &ScanReport {
+                source: "simulated",
+                camera: &self.scan.camera,
+                laser: &self.scan.laser,
+                prior: &self.prior,
+                frames: &frames,
+                localization: &self.answer,
+            },
+        )?;
+        out.finish()?;
+        Ok(())
+    }
+}
+
+/// The files below `dir`, relative, sorted.
+fn files_below(dir: &Path) -> Vec<String> {
+    let mut found = Vec::new();
+    for sub in ["", "images"] {
+        for entry in std::fs::read_dir(dir.join(sub)).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_file() {
+                found.push(path.strip_prefix(dir).unwrap().display().to_string());
+            }
+        }
+    }
+    found.sort();
+    found
+}
+
+#[test]
+fn a_scan_report_refuses_a_calibration_reports_folder() {
+    let fixture = scan_fixture();
+    let dir = temp_dir("refuses");
+    let mut out = open_output(&dir, OutputKind::ReportCalibration, false).unwrap();
+    out.write("index.html", "the calibration report").unwrap();
+    out.finish().unwrap();
+    let refused = fixture.write(&dir, &fixture.images, false).unwrap_err();
+    assert!(refused.is_bad_input(), "{refused}");
+    assert!(refused.to_string().contains("--force"), "{refused}");
+    let page = std::fs::read_to_string(dir.join("index.html")).unwrap();
+    assert_eq!(page, "the calibration report", "the calibration report's page is kept");
+    // A folder with a file of no alacs command is refused too.
+    let other = temp_dir("refuses-notes");
+    std::fs::create_dir_all(&other).unwrap();
+    std::fs::write(other.join("notes.txt"), "mine").unwrap();
+    assert!(fixture.write(&other, &fixture.images, false).unwrap_err().is_bad_input());
+    // --force writes over both.
+    fixture.write(&dir, &fixture.images, true).unwrap();
+    fixture.write(&other, &fixture.images, true).unwrap();
+    assert_eq!(std::fs::read_to_string(other.join("notes.txt")).unwrap(), "mine");
+    check_self_contained(&dir);
+    std::fs::remove_dir_all(&dir).ok();
+    std::fs::remove_dir_all(&other).ok();
+}
+
+#[test]
+fn a_rerun_report_removes_its_stale_frames() {
+    let fixture = scan_fixture();
+    let n = fixture.scan.frames.len();
+    assert!(n >= 3);
+    let dir = temp_dir("rerun");
+    fixture.write(&dir, &fixture.images, false).unwrap();
+    assert!(dir.join(format!("images/frame{n:02}.jpg")).exists());
+    // The same command again, with two frames: the other frames' images go.
+    fixture.write(&dir, &fixture.images[..2], false).unwrap();
+    let files = files_below(&dir);
+    assert_eq!(
+        files,
+        [
+            ".alacs-kind",
+            ".alacs-output",
+            "images/frame01.jpg",
+            "images/frame02.jpg",
+            "images/overview.jpg",
+            "index.html"
+        ]
+    );
+    check_self_contained(&dir);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn a_failed_report_leaves_no_empty_images() {
+    let fixture = scan_fixture();
+    let dir = temp_dir("failed");
+    fixture.write(&dir, &fixture.images, false).unwrap();
+    let before: Vec<(String, Vec<u8>)> = files_below(&dir)
+        .into_iter()
+        .map(|f| (f.clone(), std::fs::read(dir.join(&f)).unwrap()))
         .collect();
+    // The middle frame (the overview's) too tall for a JPEG (65535 rows at most).
+    let mut images = fixture.images.clone();
+    let middle = images.len() / 2;
+    images[middle] = image::RgbImage::new(1, 66_000);
+    let failed = fixture.write(&dir, &images, false).unwrap_err();
+    assert!(failed.is_bad_input(), "{failed}");
+    assert!(failed.to_string().contains("overview.jpg"), "{failed}");
+    // The earlier report is whole: no file emptied, none half-written, no temporary file.
+    let after: Vec<(String, Vec<u8>)> = files_below(&dir)
+        .into_iter()
+        .map(|f| (f.clone(), std::fs::read(dir.join(&f)).unwrap()))
+        .collect();
+    assert_eq!(after.len(), before.len());
+    for ((name, old), (name_after, new)) in before.iter().zip(&after) {
+        assert_eq!(name, name_after);
+        assert!(!new.is_empty(), "{name} is empty");
+        assert_eq!(old, new, "{name} changed");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn scan_report_is_self_contained() {
+    let fixture = scan_fixture();
+    let (scan, answer) = (&fixture.scan, &fixture.answer);
     let dir = temp_dir("scan");
-    let files = write_scan_html(
-        &dir,
-        &ScanReport {
-            source: "simulated",
-            camera: &scan.camera,
-            laser: &scan.laser,
-            prior: &prior,
-            frames: &report_frames,
-            localization: &answer,
-        },
-    )
-    .unwrap();
-    assert_eq!(files.len(), 2 + scan.frames.len());
+    fixture.write(&dir, &fixture.images, false).unwrap();
+    assert_eq!(
+        files_below(&dir).len(),
+        4 + scan.frames.len(),
+        "page, overview, frames, manifest, kind"
+    );
     let (html, refs) = check_self_contained(&dir);
     assert!(refs.iter().any(|r| r == "images/overview.jpg"));
     for i in 1..=scan.frames.len() {

@@ -22,11 +22,13 @@ use alacs::calib::{
     IntrinsicsOptions, LaserSessionOptions, calibrate_camera_session, calibrate_laser_session,
 };
 use alacs::eval::{
-    AccuracyEvaluation, AccuracyOptions, ScanReport, ScanReportFrame,
-    calibration_report_from_views, evaluate_accuracy, evaluate_calibration, write_accuracy_report,
-    write_calibration_html, write_calibration_report, write_scan_html,
+    AccuracyEvaluation, AccuracyOptions, OutputKind, ScanReport, ScanReportFrame,
+    calibration_report_from_views, evaluate_accuracy, evaluate_calibration, open_output,
+    open_sub_output, write_accuracy_report, write_calibration_html, write_calibration_report,
+    write_scan_html,
 };
 use alacs::locate::{FrameImages, LocateOptions, Prior, Status, locate};
+use alacs::model::io::OutputDir;
 use alacs::sim::{
     OrchardOptions, SampleOptions, ScanOptions, SessionOptions, simulate_samples, simulate_scan,
     simulate_session,
@@ -131,6 +133,7 @@ struct ConditionErrors {
 /// images, then locates simulated fruit with that calibration.
 fn image_pipeline(
     args: &DemoArgs,
+    out: &mut OutputDir,
     truth: &LaserModel,
     bar: &indicatif::ProgressBar,
 ) -> CmdResult<Pipeline> {
@@ -168,13 +171,21 @@ fn image_pipeline(
         per_view,
         &|| {},
     );
-    let report_dir = args.out.join("report_calibration");
     let report_files = report.and_then(|report| {
-        write_calibration_html(&report_dir, &session, &report, "the demo's rendered session")
+        let mut report_out =
+            open_sub_output(out, "report_calibration", OutputKind::ReportCalibration, args.force)?;
+        let files = write_calibration_html(
+            &mut report_out,
+            &session,
+            &report,
+            "the demo's rendered session",
+        )?;
+        report_out.finish()?;
+        Ok(files)
     });
     std::fs::remove_dir_all(&dir).ok();
     let mut report_files = report_files?;
-    let mut reports = vec![report_dir.join("index.html")];
+    let mut reports = vec![args.out.join("report_calibration").join("index.html")];
     bar.inc(1);
 
     bar.set_message(format!(
@@ -242,10 +253,11 @@ fn image_pipeline(
                     .zip(&scan.frames)
                     .map(|(image, f)| ScanReportFrame { name: &f.image, image })
                     .collect();
-                let report_dir = args.out.join("report_scan");
+                let mut report_out =
+                    open_sub_output(out, "report_scan", OutputKind::ReportScan, args.force)?;
                 let source = format!("simulated ({label}, fruit {})", k + 1);
                 report_files.extend(write_scan_html(
-                    &report_dir,
+                    &mut report_out,
                     &ScanReport {
                         source: &source,
                         camera: &fit.camera,
@@ -255,7 +267,8 @@ fn image_pipeline(
                         localization: &answer,
                     },
                 )?);
-                reports.push(report_dir.join("index.html"));
+                report_out.finish()?;
+                reports.push(args.out.join("report_scan").join("index.html"));
             }
             errors.scans += 1;
             if let (Status::Ok, Some(p)) = (answer.status, answer.position_mm) {
@@ -291,6 +304,7 @@ fn mean_max(errors: &[[f64; 4]], axis: usize) -> (f64, f64) {
 pub fn run(args: &DemoArgs) -> CmdResult {
     let camera = Camera::blackfly_s_5mp();
     let truth = LaserModel::from_degrees(Fidelity::High, TRUE_ALPHA_DEG, TRUE_BETA_DEG, TRUE_L0_MM);
+    let mut out = open_output(&args.out, OutputKind::Demo, args.force)?;
     let bar = output::progress_bar(args.json, "calibrating");
     let scans = SCAN_CONDITIONS.len() * SCANS_PER_CONDITION as usize;
     output::start_progress(&bar, 1 + ACCURACY_SLIDES_MM.len() + 6 + scans, "calibrating");
@@ -316,10 +330,11 @@ pub fn run(args: &DemoArgs) -> CmdResult {
         accuracy.push(accuracy_at(&camera, &truth, &method4.laser, slide_mm, seed)?);
         bar.inc(1);
     }
-    let pipeline = image_pipeline(args, &truth, &bar)?;
+    let pipeline = image_pipeline(args, &mut out, &truth, &bar)?;
     bar.finish_and_clear();
-    let mut files = write_calibration_report(&args.out, &calibration_eval)?;
-    files.extend(write_accuracy_report(&args.out, &pipeline.accuracy)?);
+    let mut files = write_calibration_report(&mut out, &calibration_eval)?;
+    files.extend(write_accuracy_report(&mut out, &pipeline.accuracy)?);
+    out.finish()?;
     let condition_json = |c: &ConditionErrors| {
         let stat = |axis| {
             let (mean, max) = mean_max(&c.errors_mm, axis);

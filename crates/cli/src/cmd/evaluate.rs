@@ -6,8 +6,8 @@ use alacs::calib::{
     calibrate_laser_session, read_samples_csv,
 };
 use alacs::eval::{
-    AccuracyOptions, PointsPerView, evaluate_accuracy, evaluate_calibration, write_accuracy_report,
-    write_calibration_report,
+    AccuracyOptions, OutputKind, PointsPerView, evaluate_accuracy, evaluate_calibration,
+    open_output, write_accuracy_report, write_calibration_report,
 };
 use alacs::{Camera, LaserModel, LaserSample, Session};
 use anyhow::anyhow;
@@ -70,6 +70,7 @@ pub fn calibration(args: &EvaluateCalibrationArgs) -> CmdResult {
             return Err(Failure::bad_input(anyhow!("give --samples FILE or --session DIR")));
         }
     };
+    let mut out = open_output(&args.out, OutputKind::EvaluateCalibration, args.force)?;
     let options = CalibrationOptions {
         threshold_mm: args.threshold_mm,
         seed: args.seed,
@@ -77,7 +78,8 @@ pub fn calibration(args: &EvaluateCalibrationArgs) -> CmdResult {
     };
     let eval = evaluate_calibration(&samples, &options)
         .map_err(|e| Failure::from(e).with_context(&source))?;
-    let files = write_calibration_report(&args.out, &eval)?;
+    let files = write_calibration_report(&mut out, &eval)?;
+    out.finish()?;
     if args.json {
         let mut value = eval.to_json();
         if let Value::Object(map) = &mut value {
@@ -123,6 +125,7 @@ pub fn accuracy(args: &EvaluateAccuracyArgs) -> CmdResult {
     let session = Session::read(&args.session)?;
     let camera = Camera::from_yaml_file(&args.camera)?;
     let laser = LaserModel::from_yaml_file(&args.laser)?;
+    let mut out = open_output(&args.out, OutputKind::EvaluateAccuracy, args.force)?;
     let options = AccuracyOptions {
         points: match args.points {
             PointsArg::All => PointsPerView::All,
@@ -141,7 +144,8 @@ pub fn accuracy(args: &EvaluateAccuracyArgs) -> CmdResult {
             eprintln!("warning: {}: not used: {reason}", view.image);
         }
     }
-    let files = write_accuracy_report(&args.out, &eval)?;
+    let files = write_accuracy_report(&mut out, &eval)?;
+    out.finish()?;
     if args.json {
         let mut value = eval.to_json();
         if let Value::Object(map) = &mut value {

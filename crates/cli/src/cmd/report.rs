@@ -4,7 +4,8 @@
 use std::path::{Path, PathBuf};
 
 use alacs::eval::{
-    ScanReport, ScanReportFrame, calibration_report, write_calibration_html, write_scan_html,
+    OutputKind, ScanReport, ScanReportFrame, calibration_report, open_output,
+    write_calibration_html, write_scan_html,
 };
 use alacs::locate::{LocateOptions, Prior, locate_scan_images, read_scan_images};
 use alacs::{Camera, LaserModel, Scan, Session};
@@ -32,6 +33,7 @@ pub fn calibration(args: &ReportCalibrationArgs) -> CmdResult {
     let session = Session::read(&args.session)?;
     let camera = Camera::from_yaml_file(&args.camera)?;
     let laser = LaserModel::from_yaml_file(&args.laser)?;
+    let mut out = open_output(&args.out, OutputKind::ReportCalibration, args.force)?;
     let bar = output::progress_bar(args.json, "views");
     output::start_progress(&bar, 2 * session.views.len(), "views: corners, board pose, stripe");
     let report = calibration_report(&session, &camera, &laser, &|| bar.inc(1));
@@ -45,9 +47,10 @@ pub fn calibration(args: &ReportCalibrationArgs) -> CmdResult {
     };
     bar.set_message("writing the page and its images");
     let files =
-        write_calibration_html(&args.out, &session, &report, &args.session.display().to_string());
+        write_calibration_html(&mut out, &session, &report, &args.session.display().to_string());
     bar.finish_and_clear();
     let files = files?;
+    out.finish()?;
     let flagged: Vec<&str> =
         report.views.iter().filter(|v| v.flag.is_some()).map(|v| v.view.image.as_str()).collect();
     if args.json {
@@ -80,6 +83,7 @@ pub fn scan(args: &ReportScanArgs) -> CmdResult {
     let scan = Scan::read(&args.scan)?;
     let camera = Camera::from_yaml_file(&args.camera)?;
     let laser = LaserModel::from_yaml_file(&args.laser)?;
+    let mut out = open_output(&args.out, OutputKind::ReportScan, args.force)?;
     let bar = output::progress_bar(args.json, "frames");
     output::start_progress(&bar, scan.frames.len(), "frames read");
     let images = read_scan_images(&scan, |_, _| bar.inc(1));
@@ -97,7 +101,7 @@ pub fn scan(args: &ReportScanArgs) -> CmdResult {
         .collect();
     let source = args.scan.display().to_string();
     let files = write_scan_html(
-        &args.out,
+        &mut out,
         &ScanReport {
             source: &source,
             camera: &camera,
@@ -107,6 +111,7 @@ pub fn scan(args: &ReportScanArgs) -> CmdResult {
             localization: &answer,
         },
     )?;
+    out.finish()?;
     if args.json {
         output::print_json(&report_json(
             &args.out,

@@ -8,6 +8,7 @@ use alacs_calib::{
     CalibrationOptions, LaserSample, ViewSamples, depth_error_mm, detect_session_boards,
     view_samples,
 };
+use alacs_model::io::OutputDir;
 use alacs_model::{Camera, LaserModel, Session};
 use alacs_vision::{StripeOptions, read_image};
 use nalgebra::Point2;
@@ -207,7 +208,7 @@ fn view_image(
     view: &CalibrationReportView,
     threshold_mm: f64,
     path: &Path,
-) -> Result<()> {
+) -> Result<Vec<u8>> {
     let image = read_image(&session.path_of(spec_image)).map_err(alacs_calib::Error::from)?;
     let mut canvas = Canvas::whole(&image.to_rgb8(), MAX_VIEW_WIDTH_PX);
     for (p, r) in view.stripe_px.iter().zip(&view.residuals_mm) {
@@ -216,7 +217,7 @@ fn view_image(
     for p in &view.corners_px {
         canvas.cross(p, 5.0, GREEN);
     }
-    canvas.write_jpeg(path)
+    canvas.jpeg(path)
 }
 
 /// Writes the report as `dir`/index.html with its images (`images/`) and
@@ -224,36 +225,33 @@ fn view_image(
 /// [`write_accuracy_report`]) beside it; `source` names the session on the
 /// page. Returns every file written, the page first.
 pub fn write_calibration_html(
-    dir: &Path,
+    out: &mut OutputDir,
     session: &Session,
     report: &CalibrationReport,
     source: &str,
 ) -> Result<Vec<PathBuf>> {
-    let images_dir = dir.join("images");
-    std::fs::create_dir_all(&images_dir)
-        .map_err(|error| crate::Error::Io { path: images_dir.clone(), error })?;
-    let mut files = Vec::new();
-    if let Ok(eval) = &report.table_1 {
-        files.extend(write_calibration_report(dir, eval)?);
-    }
-    if let Ok(eval) = &report.accuracy {
-        files.extend(write_accuracy_report(dir, eval)?);
-    }
     let image_names: Vec<String> =
         (0..report.views.len()).map(|i| format!("images/view{:02}.jpg", i + 1)).collect();
-    let written: Vec<Result<PathBuf>> = session
+    // Every image encoded first: one that fails leaves the folder as it was.
+    let dir = out.path().to_path_buf();
+    let images: Vec<Vec<u8>> = session
         .views
         .par_iter()
         .zip(&report.views)
         .zip(&image_names)
         .map(|((spec, view), name)| {
-            let path = dir.join(name);
-            view_image(session, &spec.image, view, report.threshold_mm, &path)?;
-            Ok(path)
+            view_image(session, &spec.image, view, report.threshold_mm, &dir.join(name))
         })
-        .collect();
-    for path in written {
-        files.push(path?);
+        .collect::<Result<_>>()?;
+    let mut files = Vec::new();
+    if let Ok(eval) = &report.table_1 {
+        files.extend(write_calibration_report(out, eval)?);
+    }
+    if let Ok(eval) = &report.accuracy {
+        files.extend(write_accuracy_report(out, eval)?);
+    }
+    for (name, bytes) in image_names.iter().zip(images) {
+        files.push(out.write(name, bytes)?);
     }
 
     let title = "alacs calibration report";
@@ -293,7 +291,7 @@ pub fn write_calibration_html(
         page.figure(&[name], &caption, view.flag.as_deref());
     }
     page.grid_end();
-    files.insert(0, page.write(dir, title)?);
+    files.insert(0, page.write(out, title)?);
     Ok(files)
 }
 

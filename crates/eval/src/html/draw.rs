@@ -192,14 +192,15 @@ impl Canvas {
         }
     }
 
-    /// Writes the canvas as a JPEG.
-    pub fn write_jpeg(&self, path: &Path) -> Result<()> {
-        let file = std::fs::File::create(path)
-            .map_err(|error| Error::Io { path: path.to_path_buf(), error })?;
-        let mut writer = std::io::BufWriter::new(file);
-        JpegEncoder::new_with_quality(&mut writer, JPEG_QUALITY)
+    /// The canvas encoded as a JPEG in memory (written later, atomically,
+    /// so that a failed encoding leaves no empty file); `path` names it in
+    /// an error.
+    pub fn jpeg(&self, path: &Path) -> Result<Vec<u8>> {
+        let mut bytes = Vec::new();
+        JpegEncoder::new_with_quality(&mut bytes, JPEG_QUALITY)
             .encode_image(&self.image)
-            .map_err(|e| Error::Image { path: path.to_path_buf(), message: e.to_string() })
+            .map_err(|e| Error::Image { path: path.to_path_buf(), message: e.to_string() })?;
+        Ok(bytes)
     }
 }
 

@@ -2,9 +2,11 @@
 //! the page, inline CSS, no scripts and no external links.
 
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-use crate::{Error, Result};
+use alacs_model::io::OutputDir;
+
+use crate::Result;
 
 /// The page's style sheet, inline so that the page is self-contained.
 const STYLE: &str = "\
@@ -152,16 +154,14 @@ impl Page {
         self.body.push_str("</figcaption></figure>\n");
     }
 
-    /// Writes the page to `dir`/index.html; returns its path.
-    pub fn write(&self, dir: &Path, title: &str) -> Result<PathBuf> {
-        let path = dir.join("index.html");
+    /// Writes the page to `index.html` in `out`; returns its path.
+    pub fn write(&self, out: &mut OutputDir, title: &str) -> Result<PathBuf> {
         let html = format!(
             "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>{}</title>\n<style>{STYLE}</style>\n</head>\n<body>\n{}</body>\n</html>\n",
             escape(title),
             self.body
         );
-        std::fs::write(&path, html).map_err(|error| Error::Io { path: path.clone(), error })?;
-        Ok(path)
+        Ok(out.write("index.html", html)?)
     }
 }
 

@@ -2,10 +2,11 @@
 //! region, the stripe, the fruit points, the candidate and the fitted
 //! sphere's silhouette drawn over a crop around the fruit.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use alacs_locate::fit::Sphere;
 use alacs_locate::{Localization, Prior};
+use alacs_model::io::OutputDir;
 use alacs_model::{Camera, LaserModel};
 use image::RgbImage;
 use nalgebra::{Point2, Point3, Vector3};
@@ -13,7 +14,7 @@ use rayon::prelude::*;
 
 use super::draw::{BLUE, CYAN, Canvas, LIME, MAGENTA, ORANGE, WHITE, YELLOW};
 use super::page::{Page, fixed, num, txt};
-use crate::{Error, Result};
+use crate::Result;
 
 /// Widest overview image on the page (px).
 const MAX_OVERVIEW_WIDTH_PX: u32 = 1224;
@@ -147,10 +148,7 @@ fn draw_frame(canvas: &mut Canvas, report: &ScanReport, index: usize, silhouette
 
 /// Writes the report as `dir`/index.html with its images (`images/`)
 /// beside it. Returns every file written, the page first.
-pub fn write_scan_html(dir: &Path, report: &ScanReport) -> Result<Vec<PathBuf>> {
-    let images_dir = dir.join("images");
-    std::fs::create_dir_all(&images_dir)
-        .map_err(|error| Error::Io { path: images_dir.clone(), error })?;
+pub fn write_scan_html(out: &mut OutputDir, report: &ScanReport) -> Result<Vec<PathBuf>> {
     let answer = report.localization;
     let silhouette = answer
         .fused
@@ -161,38 +159,45 @@ pub fn write_scan_html(dir: &Path, report: &ScanReport) -> Result<Vec<PathBuf>> 
     let search_half_px =
         report.camera.fx_px * answer.search_radius_mm / report.prior.rough_position_mm.z.max(1.0);
     let n = report.frames.len().min(answer.frames.len());
-    let crops: Vec<Result<PathBuf>> = (0..n)
-        .into_par_iter()
-        .map(|i| {
+    let dir = out.path().to_path_buf();
+    // The overview (the middle frame whole, every frame's region on it),
+    // then a crop per frame; all encoded before any is written, so that one
+    // that fails leaves the folder as it was.
+    let names: Vec<String> = (n > 0)
+        .then(|| "images/overview.jpg".to_string())
+        .into_iter()
+        .chain((0..n).map(|i| format!("images/frame{:02}.jpg", i + 1)))
+        .collect();
+    let images: Vec<Vec<u8>> = names
+        .par_iter()
+        .enumerate()
+        .map(|(k, name)| {
+            let path = dir.join(name);
+            if k == 0 {
+                let middle = n / 2;
+                let mut canvas = Canvas::whole(report.frames[middle].image, MAX_OVERVIEW_WIDTH_PX);
+                for frame in &answer.frames {
+                    canvas.polyline(&frame.region_outline_px, true, YELLOW);
+                }
+                draw_frame(&mut canvas, report, middle, &silhouette);
+                if let Some(p) = &rough_px {
+                    canvas.cross(p, 12.0, ORANGE);
+                }
+                return canvas.jpeg(&path);
+            }
+            let i = k - 1;
             let mut outline = answer.frames[i].region_outline_px.clone();
             outline.extend_from_slice(&silhouette);
             let rect = crop_rect(&outline, rough_px, search_half_px);
             let mut canvas =
                 Canvas::crop(report.frames[i].image, rect, MIN_CROP_WIDTH_PX, MAX_CROP_WIDTH_PX);
             draw_frame(&mut canvas, report, i, &silhouette);
-            let path = dir.join(format!("images/frame{:02}.jpg", i + 1));
-            canvas.write_jpeg(&path)?;
-            Ok(path)
+            canvas.jpeg(&path)
         })
-        .collect();
+        .collect::<Result<_>>()?;
     let mut files = Vec::new();
-    // The overview: the middle frame whole, every frame's region on it.
-    if n > 0 {
-        let middle = n / 2;
-        let mut canvas = Canvas::whole(report.frames[middle].image, MAX_OVERVIEW_WIDTH_PX);
-        for frame in &answer.frames {
-            canvas.polyline(&frame.region_outline_px, true, YELLOW);
-        }
-        draw_frame(&mut canvas, report, middle, &silhouette);
-        if let Some(p) = &rough_px {
-            canvas.cross(p, 12.0, ORANGE);
-        }
-        let path = dir.join("images/overview.jpg");
-        canvas.write_jpeg(&path)?;
-        files.push(path);
-    }
-    for crop in crops {
-        files.push(crop?);
+    for (name, bytes) in names.iter().zip(images) {
+        files.push(out.write(name, bytes)?);
     }
 
     let title = "alacs scan report";
@@ -232,7 +237,7 @@ pub fn write_scan_html(dir: &Path, report: &ScanReport) -> Result<Vec<PathBuf>> 
         page.figure(&[&name], &caption, frame.rejected.as_deref());
     }
     page.grid_end();
-    files.insert(0, page.write(dir, title)?);
+    files.insert(0, page.write(out, title)?);
     Ok(files)
 }
 

@@ -1,0 +1,127 @@
+//! A calibration as the `calibrate laser --json` object (docs/FORMATS.md):
+//! [`CalibrationOutput`], built by [`LaserCalibration::to_output`].
+
+use serde::{Deserialize, Serialize};
+
+use crate::LaserCalibration;
+
+/// The parameter standard deviations of a [`CalibrationOutput`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct StdDevOutput {
+    /// Of alpha, degrees.
+    pub alpha_deg: f64,
+    /// Of L0, mm.
+    pub l0_mm: f64,
+    /// Of beta, degrees (`null` for the low-fidelity model).
+    pub beta_deg: Option<f64>,
+}
+
+/// One calibration as the `calibrate laser --json` object: the laser
+/// (`model`, `alpha_deg`, `beta_deg`, `l0_mm`), the fit's `inliers` and
+/// statistics, and the paper's `method` number and `name`. Keys in
+/// alphabetical order, as the CLI has always printed them.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CalibrationOutput {
+    /// alpha, degrees.
+    pub alpha_deg: f64,
+    /// beta, degrees (0 for the low-fidelity model).
+    pub beta_deg: f64,
+    /// 0-based indices of the samples the final fit used.
+    pub inliers: Vec<usize>,
+    /// L0, mm.
+    pub l0_mm: f64,
+    /// Mean |z - z_hat| over all samples, mm.
+    pub mean_abs_error_all_mm: f64,
+    /// Mean |z - z_hat| over the inliers, mm (the paper's Table 1 metric).
+    pub mean_abs_error_mm: f64,
+    /// The paper's method number, 1 to 4.
+    pub method: u8,
+    /// `low` or `high`.
+    pub model: String,
+    /// Number of samples given.
+    pub n_samples: usize,
+    /// The paper's name of the method.
+    pub name: String,
+    /// Hypotheses RANSAC drew (`null` for methods 1 and 3).
+    pub ransac_iterations: Option<usize>,
+    /// What the least-squares step minimized: `depth` or `plane`.
+    pub residual: String,
+    /// RMS of z - z_hat over the inliers, mm.
+    pub rms_error_mm: f64,
+    /// Parameter standard deviations, where defined.
+    pub std_dev: Option<StdDevOutput>,
+}
+
+impl LaserCalibration {
+    /// The calibration as the `calibrate laser --json` object.
+    pub fn to_output(&self) -> CalibrationOutput {
+        CalibrationOutput {
+            alpha_deg: self.laser.alpha_deg(),
+            beta_deg: self.laser.beta_deg(),
+            inliers: self.inliers.clone(),
+            l0_mm: self.laser.l0_mm,
+            mean_abs_error_all_mm: self.mean_abs_error_all_mm,
+            mean_abs_error_mm: self.mean_abs_error_mm,
+            method: self.method.number(),
+            model: self.laser.fidelity.as_str().to_owned(),
+            n_samples: self.n_samples,
+            name: self.method.name().to_owned(),
+            ransac_iterations: self.ransac_iterations,
+            residual: self.residual.as_str().to_owned(),
+            rms_error_mm: self.rms_error_mm,
+            std_dev: self.std_dev.map(|s| StdDevOutput {
+                alpha_deg: s.alpha_deg,
+                l0_mm: s.l0_mm,
+                beta_deg: s.beta_deg,
+            }),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use crate::{CalibrationOptions, LaserSample, Method, calibrate};
+    use alacs_model::{Fidelity, LaserModel};
+    use nalgebra::Point2;
+
+    #[test]
+    fn the_output_has_the_calibrate_laser_json_keys_and_reads_back() {
+        let truth = LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98);
+        let samples: Vec<LaserSample> = (0..30)
+            .map(|i| {
+                let (u_n, v_n) = (-0.3 + 0.02 * f64::from(i), -0.4 + 0.8 * f64::from(i % 6) / 5.0);
+                let z_mm = truth.depth_mm(&Point2::new(u_n, v_n), 0.0).unwrap();
+                LaserSample { u_n, v_n, z_mm, slide_mm: 0.0 }
+            })
+            .collect();
+        let fit = calibrate(&samples, Method::HighFidelityRansac, &CalibrationOptions::default())
+            .unwrap();
+        let value = serde_json::to_value(fit.to_output()).unwrap();
+        let keys: Vec<&str> = value.as_object().unwrap().keys().map(String::as_str).collect();
+        assert_eq!(
+            keys,
+            [
+                "alpha_deg",
+                "beta_deg",
+                "inliers",
+                "l0_mm",
+                "mean_abs_error_all_mm",
+                "mean_abs_error_mm",
+                "method",
+                "model",
+                "n_samples",
+                "name",
+                "ransac_iterations",
+                "residual",
+                "rms_error_mm",
+                "std_dev"
+            ]
+        );
+        assert_eq!(value["method"], 4);
+        assert_eq!(value["model"], "high");
+        assert_eq!(value["inliers"].as_array().unwrap().len(), 30);
+        let back: super::CalibrationOutput = serde_json::from_value(value).unwrap();
+        assert_eq!(back, fit.to_output());
+    }
+}
