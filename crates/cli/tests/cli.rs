@@ -558,7 +558,8 @@ fn calibrate_from_a_simulated_session_end_to_end() {
         "--laser",
         laser.to_str().unwrap(),
         "--out",
-        eval_out,
+        // A folder of its own: an output folder belongs to one command.
+        dir.join("accuracy").to_str().unwrap(),
         "--points",
         "3",
         "--json",
