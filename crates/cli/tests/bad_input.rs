@@ -173,7 +173,6 @@ fn judge(output: &Output, json: bool, needles: &[String], expect: Expect) -> Res
 /// but fail only `known_bugs_fail_strictly` (ignored).
 const KNOWN_BUGS: &[(&[&str], &str)] = &[
     (&["stripe greyscale laser-off"], "a greyscale --laser-off image is accepted"),
-    (&["stripe laser-off of another size"], "the size mismatch names neither image file"),
     (&["localize: greyscale frame"], "a greyscale scan frame is accepted (exit 0)"),
     (&["localize: frame of another size"], "names the scan folder and frame index, not the file"),
     (&["localize: camera of another size"], "names the scan folder, not camera.yaml"),
@@ -2137,4 +2136,20 @@ fn known_bugs_fail_strictly() {
         .map(|(i, _)| i)
         .collect();
     assert!(failed.is_empty(), "strict failures in tests {failed:?}");
+}
+
+/// Regression: the size mismatch of `stripe --laser-off` named neither file.
+#[test]
+fn a_laser_off_image_of_another_size_is_refused_naming_it() {
+    let f = fixture();
+    let dir = scratch("laser_off_size");
+    let frame = f.scan.join("frame0.png");
+    let colour = image::open(&frame).unwrap();
+    let off = dir.join("off_small.png");
+    std::fs::write(&off, encode(colour.crop_imm(0, 0, 60, 40), image::ImageFormat::Png)).unwrap();
+    let mut suite = Suite::default();
+    let command =
+        a(&["stripe", "--image", frame.to_str().unwrap(), "--laser-off", off.to_str().unwrap()]);
+    suite.case("stripe --laser-off 60 x 40", &command, &["off_small.png"], Expect::Refused, None);
+    suite.finish("laser-off size");
 }
