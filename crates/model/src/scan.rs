@@ -186,7 +186,8 @@ impl Scan {
             for (key, value) in
                 [("slide_mm", Some(frame.slide_mm)), ("planned_slide_mm", frame.planned_slide_mm)]
             {
-                if let Some(value) = value.filter(|v| !(v.abs() <= MAX_ABS_SLIDE_MM)) {
+                if let Some(value) = value.filter(|v| !v.is_finite() || v.abs() > MAX_ABS_SLIDE_MM)
+                {
                     return Err(parse_error(format!(
                         "frames[{i}] ({}): `{key}` is {value}; it must be finite and within +-{MAX_ABS_SLIDE_MM} mm",
                         frame.image

@@ -65,7 +65,7 @@ pub(crate) fn check_slides(slides_mm: &[f64]) -> Result<()> {
     let limit = alacs_model::MAX_ABS_SLIDE_MM;
     if slides_mm.is_empty()
         || slides_mm.len() > MAX_SLIDE_POSITIONS
-        || slides_mm.iter().any(|d| !(d.abs() <= limit))
+        || slides_mm.iter().any(|d| !d.is_finite() || d.abs() > limit)
     {
         return Err(Error::InvalidOptions(format!(
             "slide positions must be 1 to {MAX_SLIDE_POSITIONS}, each finite and within +-{limit} mm"

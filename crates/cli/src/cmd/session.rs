@@ -26,9 +26,9 @@ fn parse_board(text: &str) -> CmdResult<(usize, usize)> {
 /// Runs `alacs session init`.
 pub fn init(args: &SessionInitArgs) -> CmdResult {
     let (cols, rows) = parse_board(&args.board)?;
-    let (square_x_mm, square_y_mm) = match parse_list(&args.square_mm, "--square-mm")?.as_slice() {
-        &[s] => (s, s),
-        &[x, y] => (x, y),
+    let (square_x_mm, square_y_mm) = match *parse_list(&args.square_mm, "--square-mm")?.as_slice() {
+        [s] => (s, s),
+        [x, y] => (x, y),
         _ => {
             return Err(Failure::bad_input(anyhow!(
                 "--square-mm takes S or X,Y in mm, got `{}`",

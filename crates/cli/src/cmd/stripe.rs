@@ -39,7 +39,21 @@ pub fn run(args: &StripeArgs) -> CmdResult {
     let roi = args.roi.as_deref().map(parse_roi).transpose()?;
     let on = read_colour_image(&args.image, args.laser_off.is_some())?;
     let off = match &args.laser_off {
-        Some(path) => Some(read_image(path)?.to_rgb8()),
+        Some(path) => {
+            let off = read_image(path)?.to_rgb8();
+            if off.dimensions() != on.dimensions() {
+                return Err(Failure::bad_input(anyhow!(
+                    "{}: the laser-off image is {} x {} px, the laser image {} is {} x {} px",
+                    path.display(),
+                    off.width(),
+                    off.height(),
+                    args.image.display(),
+                    on.width(),
+                    on.height()
+                )));
+            }
+            Some(off)
+        }
         None => None,
     };
     let (width, height) = on.dimensions();
