@@ -119,7 +119,7 @@ mod tests {
             ]
         );
         assert_eq!(value["method"], 4);
-        assert_eq!(value["model"], "high");
+        assert_eq!(value["model"], "high-fidelity");
         assert_eq!(value["inliers"].as_array().unwrap().len(), 30);
         let back: super::CalibrationOutput = serde_json::from_value(value).unwrap();
         assert_eq!(back, fit.to_output());
