@@ -126,7 +126,9 @@ impl OutputDir {
             for entry in std::fs::read_dir(dir).map_err(io_error(dir))? {
                 let entry = entry.map_err(io_error(dir))?;
                 let name = entry.file_name().to_string_lossy().into_owned();
-                let ours = name == MANIFEST_FILE
+                // `.alacs-*` files are alacs' own bookkeeping (the manifest, a
+                // folder's owner, a temporary file a crash left behind).
+                let ours = name.starts_with(".alacs-")
                     || earlier.contains(&name)
                     || earlier.iter().any(|e| e.starts_with(&format!("{name}/")));
                 if !ours {
@@ -263,6 +265,11 @@ mod tests {
         assert!(refused.to_string().contains("notes.txt"), "{refused}");
         assert!(OutputDir::create(&out, true).is_ok());
         assert_eq!(std::fs::read_to_string(out.join("notes.txt")).unwrap(), "mine");
+        // Regression: a failed run's bookkeeping (written before the manifest)
+        // made the next run refuse the folder.
+        std::fs::remove_file(out.join("notes.txt")).unwrap();
+        std::fs::write(out.join(".alacs-kind"), "report scan\n").unwrap();
+        assert!(OutputDir::create(&out, false).is_ok());
     }
 
     #[test]
