@@ -12,7 +12,9 @@ use alacs_eval::{
 };
 use alacs_locate::{FrameImages, LocateOptions, Prior, locate};
 use alacs_model::{Camera, Fidelity, LaserModel, Session};
-use alacs_sim::{ScanOptions, SessionOptions, simulate_scan, simulate_session};
+use alacs_sim::{
+    RenderedScan, ScanOptions, SessionOptions, simulate_rendered_scan, simulate_session,
+};
 
 fn temp_dir(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("alacs-html-{name}-{}", std::process::id()));
@@ -119,17 +121,12 @@ struct ScanFixture {
 
 fn scan_fixture() -> ScanFixture {
     let options = ScanOptions { scale: 0.25, seed: 3, ..ScanOptions::default() };
-    let scan = simulate_scan(&Camera::blackfly_s_5mp(), &laser(), &options).unwrap();
-    let images: Vec<_> =
-        (0..scan.frames.len()).map(|i| scan.render_frame(i, true).unwrap()).collect();
-    let frames: Vec<_> = images
-        .iter()
-        .zip(&scan.frames)
-        .map(|(image, f)| FrameImages { image, image_laser_off: None, slide_mm: f.slide_mm })
-        .collect();
-    let prior = Prior { rough_position_mm: scan.rough_position_mm, fruit_radius_mm: 40.0 };
-    let answer =
-        locate(&scan.camera, &scan.laser, &prior, &frames, &LocateOptions::default()).unwrap();
+    let sim = simulate_rendered_scan(&Camera::blackfly_s_5mp(), &laser(), &options).unwrap();
+    let frames: Vec<_> = sim.frames().map(FrameImages::from).collect();
+    let prior = Prior { rough_position_mm: sim.scan.rough_position_mm, fruit_radius_mm: 40.0 };
+    let (camera, laser) = (&sim.scan.camera, &sim.scan.laser);
+    let answer = locate(camera, laser, &prior, &frames, &LocateOptions::default()).unwrap();
+    let RenderedScan { scan, images } = sim;
     ScanFixture { scan, images, prior, answer }
 }
 

@@ -4,16 +4,15 @@
 
 use alacs_locate::{FrameImages, LocateOptions, Prior, locate, locate_scan};
 use alacs_model::{Camera, Fidelity, LaserModel, Scan};
-use alacs_sim::{ScanOptions, simulate_scan};
+use alacs_sim::{ScanOptions, simulate_rendered_scan};
 use alacs_vision::{Region, StripeOptions, extract_stripe_rgb};
 use criterion::{Criterion, criterion_group, criterion_main};
 
 fn localization(c: &mut Criterion) {
     let laser = LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98);
     let options = ScanOptions { seed: 4, sun: true, ..ScanOptions::default() };
-    let scan = simulate_scan(&Camera::blackfly_s_5mp(), &laser, &options).unwrap();
-    let images: Vec<_> =
-        (0..scan.frames.len()).map(|i| scan.render_frame(i, true).unwrap()).collect();
+    let sim = simulate_rendered_scan(&Camera::blackfly_s_5mp(), &laser, &options).unwrap();
+    let (scan, images) = (&sim.scan, &sim.images);
     let mut group = c.benchmark_group("5mp");
     group.sample_size(10);
 
@@ -23,11 +22,7 @@ fn localization(c: &mut Criterion) {
         b.iter(|| extract_stripe_rgb(&images[0], None, &region, &StripeOptions::orchard()).unwrap())
     });
 
-    let frames: Vec<_> = images
-        .iter()
-        .zip(&scan.frames)
-        .map(|(image, f)| FrameImages { image, image_laser_off: None, slide_mm: f.slide_mm })
-        .collect();
+    let frames: Vec<_> = sim.frames().map(FrameImages::from).collect();
     let prior = Prior { rough_position_mm: scan.rough_position_mm, fruit_radius_mm: 40.0 };
     group.bench_function("locate_5_frames_in_memory", |b| {
         b.iter(|| locate(&scan.camera, &laser, &prior, &frames, &LocateOptions::default()).unwrap())

@@ -5,7 +5,7 @@
 
 use alacs_locate::{FrameImages, LocateOptions, Method, Prior, Status, locate};
 use alacs_model::{Camera, Fidelity, LaserModel};
-use alacs_sim::{OrchardOptions, ScanOptions, simulate_scan};
+use alacs_sim::{OrchardOptions, ScanOptions, simulate_rendered_scan};
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
@@ -28,14 +28,9 @@ fn main() {
             seed,
             ..ScanOptions::default()
         };
-        let scan = simulate_scan(&Camera::blackfly_s_5mp(), &laser, &options).unwrap();
-        let images: Vec<_> =
-            (0..scan.frames.len()).map(|i| scan.render_frame(i, true).unwrap()).collect();
-        let frames: Vec<_> = images
-            .iter()
-            .zip(&scan.frames)
-            .map(|(image, f)| FrameImages { image, image_laser_off: None, slide_mm: f.slide_mm })
-            .collect();
+        let sim = simulate_rendered_scan(&Camera::blackfly_s_5mp(), &laser, &options).unwrap();
+        let scan = &sim.scan;
+        let frames: Vec<_> = sim.frames().map(FrameImages::from).collect();
         let prior = Prior { rough_position_mm: scan.rough_position_mm, fruit_radius_mm: 40.0 };
         let truth = scan.scene.fruit_centre;
         let start = std::time::Instant::now();

@@ -95,6 +95,13 @@ pub struct FrameImages<'a> {
     pub slide_mm: f64,
 }
 
+impl<'a> From<(&'a RgbImage, f64)> for FrameImages<'a> {
+    /// A frame with the laser on and no laser-off image, at slide travel mm.
+    fn from((image, slide_mm): (&'a RgbImage, f64)) -> Self {
+        Self { image, image_laser_off: None, slide_mm }
+    }
+}
+
 /// What localization knows before it looks at the frames.
 #[derive(Debug, Clone, Copy)]
 pub struct Prior {

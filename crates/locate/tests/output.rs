@@ -4,14 +4,12 @@
 use alacs_locate::{
     FrameImages, Localization, LocalizeOutput, LocateOptions, Method, Prior, Status, locate,
 };
-use alacs_model::{Camera, Fidelity, LaserModel};
-use alacs_sim::{ScanOptions, simulate_scan};
-use nalgebra::Point3;
+use alacs_model::Camera;
+use alacs_sim::{ScanOptions, simulate_rendered_scan};
+use common::{laser, locate_in_black_frames};
 use serde_json::Value;
 
-fn laser() -> LaserModel {
-    LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98)
-}
+mod common;
 
 /// FORMATS.md's keys (checked once against the object the command line
 /// built by hand with `json!`, then that code was dropped), and read back
@@ -47,14 +45,9 @@ fn check(answer: &Localization) {
 #[test]
 fn the_localize_object_keeps_its_keys_and_values_and_reads_back() {
     let options = ScanOptions { scale: 0.25, seed: 3, ..ScanOptions::default() };
-    let scan = simulate_scan(&Camera::blackfly_s_5mp(), &laser(), &options).unwrap();
-    let images: Vec<_> =
-        (0..scan.frames.len()).map(|i| scan.render_frame(i, true).unwrap()).collect();
-    let frames: Vec<_> = images
-        .iter()
-        .zip(&scan.frames)
-        .map(|(image, f)| FrameImages { image, image_laser_off: None, slide_mm: f.slide_mm })
-        .collect();
+    let sim = simulate_rendered_scan(&Camera::blackfly_s_5mp(), &laser(), &options).unwrap();
+    let scan = &sim.scan;
+    let frames: Vec<_> = sim.frames().map(FrameImages::from).collect();
     let prior = Prior { rough_position_mm: scan.rough_position_mm, fruit_radius_mm: 40.0 };
     for method in [Method::Fused, Method::Holistic] {
         let options = LocateOptions { method, ..LocateOptions::default() };
@@ -64,17 +57,7 @@ fn the_localize_object_keeps_its_keys_and_values_and_reads_back() {
     }
 
     // Not found: nulls and every frame's reason.
-    let camera = Camera::blackfly_s_5mp().scaled(0.2);
-    let black = image::RgbImage::new(camera.width_px, camera.height_px);
-    let frames: Vec<_> = (0..3)
-        .map(|k| FrameImages {
-            image: &black,
-            image_laser_off: None,
-            slide_mm: 70.0 + 10.0 * k as f64,
-        })
-        .collect();
-    let prior = Prior { rough_position_mm: Point3::new(0.0, 0.0, 800.0), fruit_radius_mm: 40.0 };
-    let answer = locate(&camera, &laser(), &prior, &frames, &LocateOptions::default()).unwrap();
+    let answer = locate_in_black_frames(3, 70.0);
     assert_eq!(answer.status, Status::NotFound);
     check(&answer);
 }

@@ -2,27 +2,22 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
 
 use alacs_locate::{Error, FrameImages, Localization, LocateOptions, Prior, Status, locate};
-use alacs_model::{Camera, Fidelity, LaserModel};
-use alacs_sim::{OrchardOptions, ScanOptions, SimulatedScan, simulate_scan};
+use alacs_model::Camera;
+use alacs_sim::{OrchardOptions, RenderedScan, ScanOptions, SimulatedScan, simulate_rendered_scan};
+use common::{laser, locate_in_black_frames};
 use nalgebra::Point3;
 
-fn laser() -> LaserModel {
-    LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98)
+mod common;
+
+/// Simulates and renders the scan.
+fn scan(options: ScanOptions) -> RenderedScan {
+    simulate_rendered_scan(&Camera::blackfly_s_5mp(), &laser(), &options).unwrap()
 }
 
-fn scan(options: ScanOptions) -> SimulatedScan {
-    simulate_scan(&Camera::blackfly_s_5mp(), &laser(), &options).unwrap()
-}
-
-/// Renders the scan and locates its fruit with the true camera and laser.
-fn run(scan: &SimulatedScan) -> Localization {
-    let images: Vec<_> =
-        (0..scan.frames.len()).map(|i| scan.render_frame(i, true).unwrap()).collect();
-    let frames: Vec<_> = images
-        .iter()
-        .zip(&scan.frames)
-        .map(|(image, f)| FrameImages { image, image_laser_off: None, slide_mm: f.slide_mm })
-        .collect();
+/// Locates the scan's fruit with the true camera and laser.
+fn run(sim: &RenderedScan) -> Localization {
+    let frames: Vec<_> = sim.frames().map(FrameImages::from).collect();
+    let scan = &sim.scan;
     let prior = Prior { rough_position_mm: scan.rough_position_mm, fruit_radius_mm: 40.0 };
     locate(&scan.camera, &scan.laser, &prior, &frames, &LocateOptions::default()).unwrap()
 }
@@ -39,17 +34,18 @@ fn error_mm(scan: &SimulatedScan, answer: &Localization) -> Option<f64> {
 fn unoccluded_fruit_within_4_mm() {
     let mut checked = 0;
     for (seed, ellipticity) in [(0, 0.0), (1, 0.0), (2, 0.08), (3, 0.08), (4, 0.08), (5, 0.08)] {
-        let scan = scan(ScanOptions {
+        let sim = scan(ScanOptions {
             orchard: OrchardOptions { max_ellipticity: ellipticity, ..OrchardOptions::default() },
             seed,
             ..ScanOptions::default()
         });
+        let scan = &sim.scan;
         if scan.plan.shifted {
             continue;
         }
-        let answer = run(&scan);
+        let answer = run(&sim);
         assert_eq!(answer.status, Status::Ok, "seed {seed}: {}", answer.reason);
-        let error = error_mm(&scan, &answer).unwrap();
+        let error = error_mm(scan, &answer).unwrap();
         eprintln!("seed {seed} ellipticity {ellipticity}: {error:.2} mm");
         assert!(error < 4.0, "seed {seed}: {error:.2} mm");
         let radius = answer.radius_mm.unwrap();
@@ -69,16 +65,17 @@ fn occluded_fruit_is_near_or_not_found() {
     let mut found = 0;
     let mut from_outline = 0;
     for (seed, occlusion) in [(1, 0.4), (2, 0.4), (9, 0.4), (30, 0.4), (300, 1.0), (301, 1.0)] {
-        let scan = scan(ScanOptions {
+        let sim = scan(ScanOptions {
             orchard: OrchardOptions { occlusion, ..OrchardOptions::default() },
             sun: true,
             seed,
             ..ScanOptions::default()
         });
-        let answer = run(&scan);
+        let scan = &sim.scan;
+        let answer = run(&sim);
         match answer.status {
             Status::Ok => {
-                let error = error_mm(&scan, &answer).unwrap();
+                let error = error_mm(scan, &answer).unwrap();
                 eprintln!("seed {seed}: {error:.2} mm ({})", answer.reason);
                 assert!(occlusion < 1.0, "seed {seed}: a fully hidden fruit was found");
                 assert!(error < 15.0, "seed {seed}: {error:.1} mm");
@@ -118,17 +115,7 @@ fn frames_that_do_not_fit_the_camera_are_refused() {
 /// gives `not_found` with a reason naming the frames, not an error.
 #[test]
 fn an_empty_scan_is_not_found_with_a_reason() {
-    let camera = Camera::blackfly_s_5mp().scaled(0.2);
-    let image = image::RgbImage::new(camera.width_px, camera.height_px);
-    let frames: Vec<_> = (0..5)
-        .map(|k| FrameImages {
-            image: &image,
-            image_laser_off: None,
-            slide_mm: 60.0 + 10.0 * k as f64,
-        })
-        .collect();
-    let prior = Prior { rough_position_mm: Point3::new(0.0, 0.0, 800.0), fruit_radius_mm: 40.0 };
-    let answer = locate(&camera, &laser(), &prior, &frames, &LocateOptions::default()).unwrap();
+    let answer = locate_in_black_frames(5, 60.0);
     assert_eq!(answer.status, Status::NotFound);
     assert!(answer.position_mm.is_none());
     assert!(answer.reason.contains("frame 0"), "{}", answer.reason);

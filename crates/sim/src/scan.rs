@@ -477,3 +477,34 @@ impl SimulatedScan {
         save_json(out, "truth.json", &self.truth_json())
     }
 }
+
+/// A simulated scan with every frame of its plan rendered with the laser on:
+/// what a localization is tested, swept and benchmarked on
+/// ([`simulate_rendered_scan`]).
+#[derive(Debug)]
+pub struct RenderedScan {
+    /// The scan: camera, laser, scene with the truth, rough position, plan.
+    pub scan: SimulatedScan,
+    /// The laser-on image of each of `scan.frames`, in order.
+    pub images: Vec<RgbImage>,
+}
+
+impl RenderedScan {
+    /// Each laser-on image with its slide travel in mm, in the plan's order.
+    pub fn frames(&self) -> impl Iterator<Item = (&RgbImage, f64)> {
+        self.images.iter().zip(&self.scan.frames).map(|(image, f)| (image, f.slide_mm))
+    }
+}
+
+/// [`simulate_scan`], then every frame rendered with the laser on
+/// ([`SimulatedScan::render_frame`]).
+pub fn simulate_rendered_scan(
+    camera: &Camera,
+    laser: &LaserModel,
+    options: &ScanOptions,
+) -> Result<RenderedScan> {
+    let scan = simulate_scan(camera, laser, options)?;
+    let images =
+        (0..scan.frames.len()).map(|i| scan.render_frame(i, true)).collect::<Result<_>>()?;
+    Ok(RenderedScan { scan, images })
+}
