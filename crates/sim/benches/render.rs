@@ -10,24 +10,39 @@
 use alacs_model::{Camera, LaserModel};
 use alacs_sim::{OrchardOptions, ScanOptions, SessionOptions, simulate_scan, simulate_session};
 use criterion::{Criterion, criterion_group, criterion_main};
+use image::RgbImage;
+
+/// The simulated scene, or a panic naming `what` could not be simulated.
+fn simulated<T>(what: &str, scene: alacs_sim::Result<T>) -> T {
+    match scene {
+        Ok(scene) => scene,
+        Err(e) => panic!("simulating {what}: {e}"),
+    }
+}
+
+/// Times each of `frames` (name, render). A frame takes a few hundred
+/// milliseconds: 10 samples are plenty.
+fn bench_frames(c: &mut Criterion, frames: &[(&str, &dyn Fn() -> alacs_sim::Result<RgbImage>)]) {
+    let mut group = c.benchmark_group("render");
+    group.sample_size(10);
+    for (name, render) in frames {
+        group.bench_function(*name, |b| b.iter(|| std::hint::black_box(render())));
+    }
+    group.finish();
+}
 
 fn board_view(c: &mut Criterion) {
     let laser = LaserModel::seed_paper();
     let options = SessionOptions { n_views: 1, seed: 1, ..SessionOptions::default() };
-    let session = match simulate_session(&Camera::blackfly_s_5mp(), &laser, &options) {
-        Ok(session) => session,
-        Err(e) => panic!("simulating a session: {e}"),
-    };
-    let mut group = c.benchmark_group("render");
-    // A frame takes a few hundred milliseconds: 10 samples are plenty.
-    group.sample_size(10);
-    group.bench_function("board_view_5mp", |b| {
-        b.iter(|| std::hint::black_box(session.render_view(0)))
-    });
-    group.bench_function("board_view_5mp_laser_off", |b| {
-        b.iter(|| std::hint::black_box(session.render_laser_off(0)))
-    });
-    group.finish();
+    let session =
+        simulated("a session", simulate_session(&Camera::blackfly_s_5mp(), &laser, &options));
+    bench_frames(
+        c,
+        &[
+            ("board_view_5mp", &|| session.render_view(0)),
+            ("board_view_5mp_laser_off", &|| session.render_laser_off(0)),
+        ],
+    );
 }
 
 /// A full-size sunny scan frame with 30 % of the fruit behind leaves,
@@ -36,16 +51,8 @@ fn scan_frame(c: &mut Criterion) {
     let laser = LaserModel::seed_paper();
     let orchard = OrchardOptions { occlusion: 0.3, ..OrchardOptions::default() };
     let options = ScanOptions { orchard, sun: true, seed: 2, ..ScanOptions::default() };
-    let scan = match simulate_scan(&Camera::blackfly_s_5mp(), &laser, &options) {
-        Ok(scan) => scan,
-        Err(e) => panic!("simulating a scan: {e}"),
-    };
-    let mut group = c.benchmark_group("render");
-    group.sample_size(10);
-    group.bench_function("scan_frame_5mp", |b| {
-        b.iter(|| std::hint::black_box(scan.render_frame(0, true)))
-    });
-    group.finish();
+    let scan = simulated("a scan", simulate_scan(&Camera::blackfly_s_5mp(), &laser, &options));
+    bench_frames(c, &[("scan_frame_5mp", &|| scan.render_frame(0, true))]);
 }
 
 criterion_group!(benches, board_view, scan_frame);

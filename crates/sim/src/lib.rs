@@ -42,6 +42,7 @@
 mod board;
 mod error;
 mod orchard;
+mod progress;
 mod render;
 mod samples;
 mod scan;

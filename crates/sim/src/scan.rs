@@ -24,8 +24,9 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use serde_json::json;
 
-use crate::error::{check_scale, save_image, save_json};
+use crate::error::{check_scale, save_json};
 use crate::orchard::{CameraRayGrid, Hit, OrchardOptions, OrchardScene, orchard_scene};
+use crate::progress::ImageWriter;
 use crate::render::{
     LaserLight, LaserStripe, Lighting, RayMap, RenderOptions, Scene, Sensor, SurfaceHit, mix_seed,
 };
@@ -457,18 +458,13 @@ impl SimulatedScan {
     pub fn write_into(
         &self,
         out: &mut OutputDir,
-        mut progress: impl FnMut(usize, usize),
+        progress: impl FnMut(usize, usize),
     ) -> Result<()> {
-        let total = self.image_count();
-        let mut done = 0;
+        let mut images = ImageWriter::new(out, self.image_count(), self.jpeg_quality, progress);
         for (index, frame) in self.frames.iter().enumerate() {
-            save_image(out, &frame.image, &self.render_frame(index, true)?, self.jpeg_quality)?;
-            done += 1;
-            progress(done, total);
+            images.save(&frame.image, &self.render_frame(index, true)?)?;
             if let Some(off) = &frame.image_laser_off {
-                save_image(out, off, &self.render_frame(index, false)?, self.jpeg_quality)?;
-                done += 1;
-                progress(done, total);
+                images.save(off, &self.render_frame(index, false)?)?;
             }
         }
         out.write(SCAN_FILE, self.scan_yaml())?;

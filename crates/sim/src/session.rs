@@ -15,9 +15,8 @@ use rand_chacha::ChaCha8Rng;
 use serde_json::{Value, json};
 
 use crate::board::{BoardScene, Checkerboard};
-use crate::error::{
-    MAX_SESSION_VIEWS, check_positive_range, check_scale, check_slides, save_image, save_json,
-};
+use crate::error::{MAX_SESSION_VIEWS, check_positive_range, check_scale, check_slides, save_json};
+use crate::progress::ImageWriter;
 use crate::render::{LaserStripe, RayMap, RenderOptions, mix_seed};
 use crate::samples::random_tilt;
 use crate::{Error, Result, camera_to_json, laser_to_json};
@@ -497,22 +496,17 @@ impl SimulatedSession {
     pub fn write_into(
         &self,
         out: &mut OutputDir,
-        mut progress: impl FnMut(usize, usize),
+        progress: impl FnMut(usize, usize),
     ) -> Result<()> {
-        let total = self.image_count();
-        let mut done = 0;
+        let mut images = ImageWriter::new(out, self.image_count(), None, progress);
         let mut last_off_pose = None;
         for (index, view) in self.views.iter().enumerate() {
-            save_image(out, &view.image, &self.render_view(index)?, None)?;
-            done += 1;
-            progress(done, total);
+            images.save(&view.image, &self.render_view(index)?)?;
             if let Some(off) = &view.image_laser_off
                 && last_off_pose != Some(view.pose)
             {
-                save_image(out, off, &self.render_laser_off(index)?, None)?;
+                images.save(off, &self.render_laser_off(index)?)?;
                 last_off_pose = Some(view.pose);
-                done += 1;
-                progress(done, total);
             }
         }
         out.write(SESSION_FILE, self.session_yaml())?;

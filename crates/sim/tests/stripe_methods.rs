@@ -194,6 +194,34 @@ fn print_row(method: PeakMethod, all: &Summary, more: &[Summary]) {
     eprintln!("{line}");
 }
 
+/// Prints every method's errors (`errors[m]`: (error, flagged) for
+/// `METHODS[m]`): all rows, and the flagged ones under the heading
+/// `flagged`; returns those two summaries of every method, and the index of
+/// the `default` method.
+fn method_table(
+    errors: &[Vec<(f64, bool)>],
+    flagged: &str,
+    default: PeakMethod,
+) -> (Vec<(Summary, Summary)>, usize) {
+    eprintln!(
+        "{:<16} {:>6} {:>7} {:>7} {:>7} {:>7} | {:>6} {:>7} {:>7}",
+        "method", "rows", "mean", "median", "RMS", "p95", flagged, "RMS", "p95"
+    );
+    let summaries: Vec<(Summary, Summary)> = errors
+        .iter()
+        .map(|e| {
+            let all: Vec<f64> = e.iter().map(|&(error, _)| error).collect();
+            let some: Vec<f64> = e.iter().filter(|(_, f)| *f).map(|&(error, _)| error).collect();
+            (summary(&all), summary(&some))
+        })
+        .collect();
+    for (method, (all, some)) in METHODS.iter().zip(&summaries) {
+        print_row(*method, all, &[*some]);
+    }
+    let m = METHODS.iter().position(|&method| method == default).unwrap();
+    (summaries, m)
+}
+
 #[test]
 fn orchard_stripe_centre_methods_against_the_truth() {
     let sets: u64 =
@@ -238,24 +266,7 @@ fn orchard_stripe_centre_methods_against_the_truth() {
         "stripe centre error (px), {} orchard scans x 5 frames, StripeOptions::orchard():",
         CASES.len() as u64 * sets
     );
-    eprintln!(
-        "{:<16} {:>6} {:>7} {:>7} {:>7} {:>7} | {:>6} {:>7} {:>7}",
-        "method", "rows", "mean", "median", "RMS", "p95", "sun", "RMS", "p95"
-    );
-    let summaries: Vec<(Summary, Summary)> = errors
-        .iter()
-        .map(|e| {
-            let all: Vec<f64> = e.iter().map(|&(error, _)| error).collect();
-            let sun: Vec<f64> = e.iter().filter(|(_, sun)| *sun).map(|&(error, _)| error).collect();
-            (summary(&all), summary(&sun))
-        })
-        .collect();
-    for (method, (all, sun)) in METHODS.iter().zip(&summaries) {
-        print_row(*method, all, &[*sun]);
-    }
-
-    let default = StripeOptions::orchard().method;
-    let m = METHODS.iter().position(|&method| method == default).unwrap();
+    let (summaries, m) = method_table(&errors, "sun", StripeOptions::orchard().method);
     let (chosen, _) = summaries[m];
     // Rows with a truth: 1702 on the six scans' 30 frames.
     assert!(chosen.count as u64 > 1000 * sets, "{chosen:?}");
@@ -315,24 +326,8 @@ fn board_stripe_centre_methods_against_the_truth() {
         "stripe centre error (px), {} board views x 2 scores, StripeOptions::default():",
         session.views.len()
     );
-    eprintln!(
-        "{:<16} {:>6} {:>7} {:>7} {:>7} {:>7} | {:>6} {:>7} {:>7}",
-        "method", "rows", "mean", "median", "RMS", "p95", "unif.", "RMS", "p95"
-    );
-    let summaries: Vec<(Summary, Summary)> = errors
-        .iter()
-        .map(|e| {
-            let all: Vec<f64> = e.iter().map(|&(error, _)| error).collect();
-            let uniform: Vec<f64> = e.iter().filter(|(_, u)| *u).map(|&(error, _)| error).collect();
-            (summary(&all), summary(&uniform))
-        })
-        .collect();
-    for (method, (all, uniform)) in METHODS.iter().zip(&summaries) {
-        print_row(*method, all, &[*uniform]);
-    }
-
     let default = StripeOptions::default().method;
-    let m = METHODS.iter().position(|&method| method == default).unwrap();
+    let (summaries, m) = method_table(&errors, "unif.", default);
     let (_, chosen) = summaries[m];
     assert!(chosen.count > 1000, "{chosen:?}");
     // Where the stripe lies on one square (no edge across it), measured:
