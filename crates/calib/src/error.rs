@@ -1,7 +1,5 @@
 //! The one error type of `alacs-calib`.
 
-use std::path::PathBuf;
-
 use alacs_model::ErrorClass;
 
 /// Result with this crate's [`Error`].
@@ -11,15 +9,8 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum Error {
-    /// A file could not be read or written.
-    #[error("{path}: {error}")]
-    Io {
-        /// The file.
-        path: PathBuf,
-        /// What the operating system said.
-        error: std::io::Error,
-    },
-    /// Samples, a camera or a laser file that cannot be read or used.
+    /// Samples, a camera or a laser file that cannot be read or used, or a
+    /// file that cannot be read or written (files go through `alacs_model::io`).
     #[error(transparent)]
     Model(#[from] alacs_model::Error),
     /// No board found in an image.
@@ -79,7 +70,6 @@ impl Error {
     /// Bad input (exit 2) or a calibration that failed on readable data (1).
     pub fn class(&self) -> ErrorClass {
         match self {
-            Error::Io { .. } => ErrorClass::BadInput,
             Error::Model(e) => e.class(),
             Error::Board(e) => e.class(),
             Error::Vision(e) => e.class(),

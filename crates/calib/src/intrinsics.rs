@@ -19,10 +19,11 @@
 use alacs_model::{Camera, Distortion};
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{
-    DMatrix, DVector, Dyn, Isometry3, Matrix3, Owned, Point2, Point3, Translation3, UnitQuaternion,
+    DMatrix, DVector, Dyn, Isometry3, Matrix3, Point2, Point3, Translation3, UnitQuaternion,
     Vector3,
 };
 
+use crate::refine::dynamic_problem_params;
 use crate::{Error, Result};
 
 /// The corners of one view: board points (z = 0) and where they were seen.
@@ -477,17 +478,7 @@ impl Reprojection<'_> {
 }
 
 impl LeastSquaresProblem<f64, Dyn, Dyn> for Reprojection<'_> {
-    type ResidualStorage = Owned<f64, Dyn>;
-    type JacobianStorage = Owned<f64, Dyn, Dyn>;
-    type ParameterStorage = Owned<f64, Dyn>;
-
-    fn set_params(&mut self, params: &DVector<f64>) {
-        self.params.copy_from(params);
-    }
-
-    fn params(&self) -> DVector<f64> {
-        self.params.clone()
-    }
+    dynamic_problem_params!();
 
     fn residuals(&self) -> Option<DVector<f64>> {
         let camera = self.camera();

@@ -62,5 +62,6 @@ pub use output::{CalibrationOutput, StdDevOutput};
 pub use refine::Residual;
 pub use session::{
     LaserSessionCalibration, LaserSessionOptions, ViewBoard, ViewSamples, calibrate_camera_session,
-    calibrate_laser_session, detect_session_boards, view_samples,
+    calibrate_laser_session, detect_session_boards, rejection_note, session_view_samples,
+    view_samples,
 };

@@ -3,7 +3,7 @@
 
 use alacs_model::{Fidelity, LaserModel};
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
-use nalgebra::{DMatrix, DVector, Dyn, Owned};
+use nalgebra::{DMatrix, DVector, Dyn};
 
 use crate::{Error, LaserSample, Result};
 
@@ -45,6 +45,26 @@ pub(crate) struct Refined {
 /// residual (so the step is rejected) instead of a division by ~0.
 const MIN_DENOMINATOR: f64 = 1e-6;
 
+/// The part of a [`LeastSquaresProblem`] over dynamic vectors that every
+/// problem of this crate shares: the storage types, and the parameters kept
+/// in the problem's field `params` (a `DVector<f64>`).
+macro_rules! dynamic_problem_params {
+    () => {
+        type ResidualStorage = nalgebra::Owned<f64, nalgebra::Dyn>;
+        type JacobianStorage = nalgebra::Owned<f64, nalgebra::Dyn, nalgebra::Dyn>;
+        type ParameterStorage = nalgebra::Owned<f64, nalgebra::Dyn>;
+
+        fn set_params(&mut self, params: &nalgebra::DVector<f64>) {
+            self.params.copy_from(params);
+        }
+
+        fn params(&self) -> nalgebra::DVector<f64> {
+            self.params.clone()
+        }
+    };
+}
+pub(crate) use dynamic_problem_params;
+
 struct Problem<'a> {
     samples: Vec<&'a LaserSample>,
     fidelity: Fidelity,
@@ -60,17 +80,7 @@ impl Problem<'_> {
 }
 
 impl LeastSquaresProblem<f64, Dyn, Dyn> for Problem<'_> {
-    type ResidualStorage = Owned<f64, Dyn>;
-    type JacobianStorage = Owned<f64, Dyn, Dyn>;
-    type ParameterStorage = Owned<f64, Dyn>;
-
-    fn set_params(&mut self, params: &DVector<f64>) {
-        self.params.copy_from(params);
-    }
-
-    fn params(&self) -> DVector<f64> {
-        self.params.clone()
-    }
+    dynamic_problem_params!();
 
     fn residuals(&self) -> Option<DVector<f64>> {
         let laser = self.laser().prepare();

@@ -205,6 +205,37 @@ pub struct LaserSessionCalibration {
     pub warnings: Vec<String>,
 }
 
+/// Why views were rejected, for an error message: ` (view01.png: reason;
+/// ...)`, or nothing when none was.
+pub fn rejection_note(views: &[ViewSamples]) -> String {
+    let reasons: Vec<String> = views
+        .iter()
+        .filter_map(|v| v.rejected.as_ref().map(|r| format!("{}: {r}", v.image)))
+        .collect();
+    if reasons.is_empty() { String::new() } else { format!(" ({})", reasons.join("; ")) }
+}
+
+/// [`view_samples`] of every view of `session`, in parallel, in session
+/// order; `progress` is called once per view. The first view (in session
+/// order) that fails gives the error.
+pub fn session_view_samples(
+    session: &Session,
+    camera: &Camera,
+    stripe: &StripeOptions,
+    progress: &(dyn Fn() + Sync),
+) -> Result<Vec<(Vec<LaserSample>, ViewSamples)>> {
+    let per_view: Vec<Result<(Vec<LaserSample>, ViewSamples)>> = session
+        .views
+        .par_iter()
+        .map(|view| {
+            let result = view_samples(session, view, camera, stripe);
+            progress();
+            result
+        })
+        .collect();
+    per_view.into_iter().collect()
+}
+
 /// The laser samples of one view with a calibrated camera (see the module
 /// docs).
 pub fn view_samples(
@@ -339,32 +370,19 @@ pub fn calibrate_laser_session(
     options: &LaserSessionOptions,
     progress: &(dyn Fn() + Sync),
 ) -> Result<LaserSessionCalibration> {
-    let per_view: Vec<Result<(Vec<LaserSample>, ViewSamples)>> = session
-        .views
-        .par_iter()
-        .map(|view| {
-            let result = view_samples(session, view, camera, &options.stripe);
-            progress();
-            result
-        })
-        .collect();
+    let per_view = session_view_samples(session, camera, &options.stripe, progress)?;
     let mut samples = Vec::new();
     let mut views = Vec::with_capacity(per_view.len());
-    for result in per_view {
-        let (view_samples, report) = result?;
+    for (view_samples, report) in per_view {
         samples.extend(view_samples);
         views.push(report);
     }
     let contributing = views.iter().filter(|v| v.n_samples > 0).count();
     if contributing < MIN_LASER_VIEWS {
-        let reasons: Vec<String> = views
-            .iter()
-            .filter_map(|v| v.rejected.as_ref().map(|r| format!("{}: {r}", v.image)))
-            .collect();
         return Err(Error::Degenerate(format!(
             "laser calibration needs laser samples from at least {MIN_LASER_VIEWS} board views, got {contributing} of {}{}",
             views.len(),
-            if reasons.is_empty() { String::new() } else { format!(" ({})", reasons.join("; ")) }
+            rejection_note(&views)
         )));
     }
     let method = options.method.unwrap_or(Method::HighFidelityRansac);

@@ -272,27 +272,22 @@ fn collinear_laser_pixels_are_degenerate_for_the_high_fidelity_model() {
 
 #[test]
 fn non_finite_or_non_positive_samples_are_bad_input() {
+    let refused = |samples: &[LaserSample]| {
+        calibrate(samples, Method::HighFidelityRansac, &CalibrationOptions::default()).unwrap_err()
+    };
+    let invalid_sample = |err: &Error, i: usize| matches!(err, Error::Model(alacs_model::Error::InvalidSample { index, .. }) if *index == i);
     let mut samples = paper_like(0.0, 2).samples;
     samples[4].z_mm = f64::NAN;
-    let err = calibrate(&samples, Method::HighFidelityRansac, &CalibrationOptions::default())
-        .unwrap_err();
-    assert!(
-        matches!(err, Error::Model(alacs_model::Error::InvalidSample { index: 4, .. })),
-        "{err}"
-    );
+    let err = refused(&samples);
+    assert!(invalid_sample(&err, 4), "{err}");
     assert!(err.is_bad_input());
     samples[4].z_mm = -1.0;
-    let err = calibrate(&samples, Method::HighFidelityRansac, &CalibrationOptions::default())
-        .unwrap_err();
+    let err = refused(&samples);
     assert!(err.to_string().contains("positive"), "{err}");
     samples[4].z_mm = 900.0;
     samples[5].u_n = f64::INFINITY;
-    let err = calibrate(&samples, Method::HighFidelityRansac, &CalibrationOptions::default())
-        .unwrap_err();
-    assert!(
-        matches!(err, Error::Model(alacs_model::Error::InvalidSample { index: 5, .. })),
-        "{err}"
-    );
+    let err = refused(&samples);
+    assert!(invalid_sample(&err, 5), "{err}");
 }
 
 #[test]

@@ -5,7 +5,7 @@
 use std::path::PathBuf;
 
 use alacs_calib::{
-    Error, IntrinsicsOptions, LaserSessionOptions, calibrate_camera_session,
+    Error, IntrinsicsFit, IntrinsicsOptions, LaserSessionOptions, calibrate_camera_session,
     calibrate_laser_session,
 };
 use alacs_model::{Camera, LaserModel, Session};
@@ -19,6 +19,11 @@ fn temp_dir(name: &str) -> PathBuf {
 
 fn truth_laser() -> LaserModel {
     LaserModel::seed_paper()
+}
+
+/// The camera of `session`, default options, no progress.
+fn calibrate_camera(session: &Session) -> alacs_calib::Result<IntrinsicsFit> {
+    calibrate_camera_session(session, &IntrinsicsOptions::default(), &|| {})
 }
 
 /// A half-scale (1224 x 1024 px) session of `views` poses at slides 0, 100, 200 mm.
@@ -43,8 +48,7 @@ fn simulated_session_calibrates_camera_and_laser_to_the_truth() {
     for (seed, laser_off) in [(1, false), (2, true)] {
         let (dir, true_camera) = write_session(&format!("truth{seed}"), 10, laser_off, seed);
         let session = Session::read(&dir).unwrap();
-        let fit =
-            calibrate_camera_session(&session, &IntrinsicsOptions::default(), &|| {}).unwrap();
+        let fit = calibrate_camera(&session).unwrap();
         let c = &fit.camera;
         let relative = |a: f64, b: f64| (a - b).abs() / b;
         eprintln!(
@@ -93,14 +97,26 @@ fn simulated_session_calibrates_camera_and_laser_to_the_truth() {
     }
 }
 
+/// A session of `views` poses without laser-off images ([`write_session`]),
+/// read back, and the image of its view `index`, to be spoiled.
+fn session_with_victim(
+    name: &str,
+    views: usize,
+    seed: u64,
+    index: usize,
+) -> (PathBuf, Session, PathBuf) {
+    let (dir, _) = write_session(name, views, false, seed);
+    let session = Session::read(&dir).unwrap();
+    let victim = session.path_of(&session.views[index].image);
+    (dir, session, victim)
+}
+
 #[test]
 fn a_view_without_a_board_is_rejected_with_its_reason() {
-    let (dir, _) = write_session("noboard", 4, false, 3);
+    let (dir, session, victim) = session_with_victim("noboard", 4, 3, 1);
     // Replace one view by a plain grey image of the same size.
-    let session = Session::read(&dir).unwrap();
-    let victim = session.path_of(&session.views[1].image);
     image::RgbImage::from_pixel(1224, 1024, image::Rgb([90, 90, 90])).save(&victim).unwrap();
-    let fit = calibrate_camera_session(&session, &IntrinsicsOptions::default(), &|| {}).unwrap();
+    let fit = calibrate_camera(&session).unwrap();
     let rejected: Vec<_> = fit.views.iter().filter(|v| v.rejected.is_some()).collect();
     assert_eq!(rejected.len(), 1);
     assert_eq!(rejected[0].name, session.views[1].image.display().to_string());
@@ -115,17 +131,13 @@ fn a_view_without_a_board_is_rejected_with_its_reason() {
 
 #[test]
 fn unreadable_images_are_bad_input_naming_the_file() {
-    let (dir, _) = write_session("corrupt", 3, false, 4);
-    let session = Session::read(&dir).unwrap();
-    let victim = session.path_of(&session.views[0].image);
+    let (dir, session, victim) = session_with_victim("corrupt", 3, 4, 0);
     std::fs::write(&victim, b"\x89PNG\r\n\x1a\n truncated").unwrap();
-    let error =
-        calibrate_camera_session(&session, &IntrinsicsOptions::default(), &|| {}).unwrap_err();
+    let error = calibrate_camera(&session).unwrap_err();
     assert!(error.is_bad_input(), "{error}");
     assert!(error.to_string().contains(&victim.display().to_string()), "{error}");
     std::fs::remove_file(&victim).unwrap();
-    let error =
-        calibrate_camera_session(&session, &IntrinsicsOptions::default(), &|| {}).unwrap_err();
+    let error = calibrate_camera(&session).unwrap_err();
     assert!(matches!(error, Error::Vision(_)) && error.is_bad_input(), "{error}");
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -134,8 +146,7 @@ fn unreadable_images_are_bad_input_naming_the_file() {
 fn one_board_pose_is_too_degenerate_for_the_laser() {
     let (dir, _) = write_session("onepose", 3, false, 5);
     let session = Session::read(&dir).unwrap();
-    let camera =
-        calibrate_camera_session(&session, &IntrinsicsOptions::default(), &|| {}).unwrap().camera;
+    let camera = calibrate_camera(&session).unwrap().camera;
     let mut single = session.clone();
     single.views.truncate(1);
     let error = calibrate_laser_session(&single, &camera, &LaserSessionOptions::default(), &|| {})

@@ -29,11 +29,10 @@
 //! (`within_view_sigma_z_mm`) is what the prediction is to be compared with;
 //! the box plots' quartiles also hold the board poses' errors.
 
-use alacs_calib::{LaserSample, ViewSamples, view_samples};
+use alacs_calib::{LaserSample, ViewSamples, rejection_note, session_view_samples};
 use alacs_model::{Camera, LaserModel, Session};
 use alacs_vision::StripeOptions;
 use nalgebra::{Point3, Vector3};
-use rayon::prelude::*;
 use serde_json::{Value, json};
 
 use crate::stats::median;
@@ -186,20 +185,12 @@ pub fn evaluate_accuracy(
             "the stripe-centre noise must be a finite number of px >= 0, got {sigma_px}"
         )));
     }
-    let per_view: Vec<(Vec<LaserSample>, ViewSamples)> = session
-        .views
-        .par_iter()
-        .map(|view| {
-            let result = view_samples(session, view, camera, &options.stripe);
-            progress();
-            result
-        })
-        .collect::<std::result::Result<_, _>>()?;
+    let per_view = session_view_samples(session, camera, &options.stripe, progress)?;
     accuracy_from_views(per_view, camera, laser, options)
 }
 
 /// [`evaluate_accuracy`] on views whose samples are already taken (in
-/// session order, as [`view_samples`] gives them).
+/// session order, as [`alacs_calib::view_samples`] gives them).
 pub(crate) fn accuracy_from_views(
     per_view: Vec<(Vec<LaserSample>, ViewSamples)>,
     camera: &Camera,
@@ -240,13 +231,9 @@ pub(crate) fn accuracy_from_views(
         views.push(report);
     }
     if points.is_empty() {
-        let reasons: Vec<String> = views
-            .iter()
-            .filter_map(|v| v.rejected.as_ref().map(|r| format!("{}: {r}", v.image)))
-            .collect();
         return Err(Error::NoData(format!(
             "no view of the session gave a laser point on the board{}",
-            if reasons.is_empty() { String::new() } else { format!(" ({})", reasons.join("; ")) }
+            rejection_note(&views)
         )));
     }
     let residuals = within_view_residuals(&all_points, laser, camera.fx_px);

@@ -12,17 +12,10 @@ pub enum Error {
     /// Calibration (or reading its samples or a session's images) failed.
     #[error(transparent)]
     Calib(#[from] alacs_calib::Error),
-    /// A camera, laser or session file could not be used.
+    /// A camera, laser or session file could not be used, or a report file
+    /// could not be written (files go through `alacs_model::io`).
     #[error(transparent)]
     Model(#[from] alacs_model::Error),
-    /// A report file could not be written.
-    #[error("{path}: {error}")]
-    Io {
-        /// The file or folder.
-        path: PathBuf,
-        /// What the operating system said.
-        error: std::io::Error,
-    },
     /// A plot could not be drawn or encoded.
     #[error("{path}: cannot draw the plot: {message}")]
     Plot {
@@ -56,7 +49,7 @@ impl Error {
         match self {
             Error::Calib(e) => e.class(),
             Error::Model(e) => e.class(),
-            Error::InvalidOptions(_) | Error::Io { .. } | Error::Image { .. } => BadInput,
+            Error::InvalidOptions(_) | Error::Image { .. } => BadInput,
             Error::Plot { .. } | Error::NoData(_) => JobFailed,
         }
     }

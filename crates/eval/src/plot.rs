@@ -73,6 +73,26 @@ trait Figure {
         DB::ErrorType: 'static;
 }
 
+/// Draws the legend of `chart`'s series at `position`, in a translucent
+/// white box, its labels `font_size` px.
+fn draw_legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    position: SeriesLabelPosition,
+    font_size: u32,
+) -> Drawn
+where
+    DB::ErrorType: 'static,
+{
+    chart
+        .configure_series_labels()
+        .position(position)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK.mix(0.4))
+        .label_font((FAMILY, font_size))
+        .draw()?;
+    Ok(())
+}
+
 /// Draws `figure` into `stem`.png and `stem`.svg in `out` (each encoded in
 /// memory, then written atomically); returns both paths.
 fn write_png_and_svg(
@@ -258,13 +278,7 @@ impl BoxPlots<'_> {
             if !zoom {
                 return Ok(());
             }
-            chart
-                .configure_series_labels()
-                .position(SeriesLabelPosition::LowerRight)
-                .background_style(WHITE.mix(0.85))
-                .border_style(BLACK.mix(0.4))
-                .label_font((FAMILY, 13))
-                .draw()?;
+            draw_legend(&mut chart, SeriesLabelPosition::LowerRight, 13)?;
         }
         Ok(())
     }
@@ -411,13 +425,7 @@ impl Figure for Residuals<'_> {
                 .label(format!("rejected (outlier), {}", drawn(n_out, outliers.len())))
                 .legend(|(x, y)| Cross::new((x + 10, y), 4, RED.stroke_width(2)));
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK.mix(0.4))
-            .label_font((FAMILY, 14))
-            .draw()?;
+        draw_legend(&mut chart, SeriesLabelPosition::UpperRight, 14)?;
         Ok(())
     }
 }

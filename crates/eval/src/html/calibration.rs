@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use alacs_calib::{
     CalibrationOptions, LaserSample, ViewSamples, depth_error_mm, detect_session_boards,
-    view_samples,
+    session_view_samples,
 };
 use alacs_model::io::OutputDir;
 use alacs_model::{Camera, LaserModel, Session};
@@ -99,7 +99,7 @@ impl CalibrationReport {
 
 /// Measures `camera` and `laser` on `session`: per view the board corners
 /// (searched once per distinct board image), the board pose and the laser
-/// samples ([`view_samples`]) with their residuals under `laser`; Table 1
+/// samples ([`alacs_calib::view_samples`]) with their residuals under `laser`; Table 1
 /// on all samples; the accuracy experiment on the same views. `progress` is
 /// called once per board image searched and once per view.
 pub fn calibration_report(
@@ -110,22 +110,13 @@ pub fn calibration_report(
 ) -> Result<CalibrationReport> {
     camera.validate()?;
     laser.validate()?;
-    let stripe = StripeOptions::default();
-    let per_view: Vec<(Vec<LaserSample>, ViewSamples)> = session
-        .views
-        .par_iter()
-        .map(|view| {
-            let result = view_samples(session, view, camera, &stripe);
-            progress();
-            result
-        })
-        .collect::<std::result::Result<_, _>>()?;
+    let per_view = session_view_samples(session, camera, &StripeOptions::default(), progress)?;
     calibration_report_from_views(session, camera, laser, per_view, progress)
 }
 
 /// [`calibration_report`] on the views' samples as a laser calibration of
 /// the same session with the same camera already took them (in session
-/// order, as [`view_samples`] gives them; [`alacs_calib::calibrate_laser_session`]'s
+/// order, as [`alacs_calib::view_samples`] gives them; [`alacs_calib::calibrate_laser_session`]'s
 /// `samples` split by its `views`' `n_samples`), which saves finding every
 /// stripe again. `progress` is called once per board image searched.
 pub fn calibration_report_from_views(
