@@ -146,7 +146,8 @@ fn fuse(results: &[FrameResult], context: &FrameContext) -> std::result::Result<
             expected_rows
         ));
     }
-    check_sphere(&sphere, &on_sphere, rms, search, options)?;
+    check_sphere_fit(&sphere, &on_sphere, rms, search, options)?;
+    check_not_flat(&on_sphere, rms)?;
     // The ellipsoid replaces the sphere only where it fits clearly better:
     // on a round fruit its extra freedom only follows the noise.
     let ellipsoid =
@@ -247,7 +248,8 @@ fn fit_prior_radius(
         return Err(format!("{} points on the sphere, fewer than {min_points}", inliers.len()));
     }
     let on_sphere: Vec<Point3<f64>> = inliers.iter().map(|&i| points[i]).collect();
-    check_sphere(&sphere, &on_sphere, rms, search, options)?;
+    check_sphere_fit(&sphere, &on_sphere, rms, search, options)?;
+    check_not_flat(&on_sphere, rms)?;
     Ok(FusedFit {
         sphere,
         ellipsoid: None,
@@ -360,16 +362,9 @@ fn fit_with_outline(
 /// millimetres from any sphere.
 const MAX_OUTLINE_RMS_MM: f64 = 3.0;
 
-/// The checks every fused sphere must pass, free or of the prior radius:
-/// those of [`check_sphere_fit`], and a surface curved beyond its noise.
-fn check_sphere(
-    sphere: &Sphere,
-    on_sphere: &[Point3<f64>],
-    rms: f64,
-    search: &SearchBall,
-    options: &LocateOptions,
-) -> std::result::Result<(), String> {
-    check_sphere_fit(sphere, on_sphere, rms, search, options)?;
+/// The check every fused sphere must pass after [`check_sphere_fit`], free
+/// or of the prior radius: a surface curved beyond its noise (`rms`).
+fn check_not_flat(on_sphere: &[Point3<f64>], rms: f64) -> std::result::Result<(), String> {
     let flatness = plane_rms_mm(on_sphere);
     if flatness < CURVATURE_SIGNIFICANCE * rms.max(MIN_NOISE_MM) {
         return Err(format!(
