@@ -119,51 +119,49 @@ fn point2(x: &DVector<f64>) -> Point2<f64> {
 // The camera's maps as harness `Differentiable`s
 // ---------------------------------------------------------------------------
 
-/// Point in the camera frame (mm) -> pixel.
-struct Project(Camera);
-
-impl Differentiable for Project {
-    fn name(&self) -> String {
-        format!("{}: project", self.0.name)
-    }
-    fn eval(&self, x: &DVector<f64>) -> Option<DVector<f64>> {
-        self.0.project(&Point3::new(x[0], x[1], x[2])).ok().map(|p| vector2(&p))
-    }
-    fn jacobian(&self, x: &DVector<f64>) -> Option<DMatrix<f64>> {
-        let jac = self.0.project_jacobian(&Point3::new(x[0], x[1], x[2])).ok()?;
-        Some(DMatrix::from_column_slice(2, 3, jac.as_slice()))
-    }
+/// The camera's maps with analytic Jacobians.
+#[derive(Debug, Clone, Copy)]
+enum Map {
+    /// Point in the camera frame (mm) -> pixel.
+    Project,
+    /// Undistorted normalized -> distorted normalized.
+    Distort,
+    /// Pixel -> undistorted normalized.
+    Undistort,
 }
 
-/// Undistorted normalized -> distorted normalized.
-struct Distort(Camera);
+/// One of the camera's maps as a harness `Differentiable`.
+struct CameraMap(Camera, Map);
 
-impl Differentiable for Distort {
+impl Differentiable for CameraMap {
     fn name(&self) -> String {
-        format!("{}: distort", self.0.name)
+        format!("{}: {}", self.0.name, format!("{:?}", self.1).to_lowercase())
     }
     fn eval(&self, x: &DVector<f64>) -> Option<DVector<f64>> {
-        Some(vector2(&self.0.distort(&point2(x))))
+        let camera = &self.0;
+        match self.1 {
+            Map::Project => {
+                camera.project(&Point3::new(x[0], x[1], x[2])).ok().map(|p| vector2(&p))
+            }
+            Map::Distort => Some(vector2(&camera.distort(&point2(x)))),
+            Map::Undistort => camera.undistort_pixel(&point2(x)).ok().map(|p| vector2(&p)),
+        }
     }
     fn jacobian(&self, x: &DVector<f64>) -> Option<DMatrix<f64>> {
-        let jac = self.0.distort_jacobian(&point2(x));
-        Some(DMatrix::from_column_slice(2, 2, jac.as_slice()))
-    }
-}
-
-/// Pixel -> undistorted normalized.
-struct Undistort(Camera);
-
-impl Differentiable for Undistort {
-    fn name(&self) -> String {
-        format!("{}: undistort", self.0.name)
-    }
-    fn eval(&self, x: &DVector<f64>) -> Option<DVector<f64>> {
-        self.0.undistort_pixel(&point2(x)).ok().map(|p| vector2(&p))
-    }
-    fn jacobian(&self, x: &DVector<f64>) -> Option<DMatrix<f64>> {
-        let jac = self.0.undistort_jacobian(&point2(x)).ok()?;
-        Some(DMatrix::from_column_slice(2, 2, jac.as_slice()))
+        let camera = &self.0;
+        Some(match self.1 {
+            Map::Project => {
+                let jac = camera.project_jacobian(&Point3::new(x[0], x[1], x[2])).ok()?;
+                DMatrix::from_column_slice(2, 3, jac.as_slice())
+            }
+            Map::Distort => {
+                DMatrix::from_column_slice(2, 2, camera.distort_jacobian(&point2(x)).as_slice())
+            }
+            Map::Undistort => {
+                let jac = camera.undistort_jacobian(&point2(x)).ok()?;
+                DMatrix::from_column_slice(2, 2, jac.as_slice())
+            }
+        })
     }
 }
 
@@ -180,7 +178,7 @@ fn normalized_samples(camera: &Camera, step_px: u32) -> Vec<Point2<f64>> {
 #[test]
 fn project_jacobian_matches_finite_differences() {
     for camera in all_cameras() {
-        let map = Project(camera.clone());
+        let map = CameraMap(camera.clone(), Map::Project);
         for normalized in normalized_samples(&camera, 97) {
             for z_mm in [150.0, 600.0, 2500.0] {
                 let x =
@@ -194,7 +192,7 @@ fn project_jacobian_matches_finite_differences() {
 #[test]
 fn distort_jacobian_matches_finite_differences() {
     for camera in all_cameras() {
-        let map = Distort(camera.clone());
+        let map = CameraMap(camera.clone(), Map::Distort);
         for normalized in normalized_samples(&camera, 61) {
             assert_jacobian(&map, &vector2(&normalized), 1e-7);
         }
@@ -204,7 +202,7 @@ fn distort_jacobian_matches_finite_differences() {
 #[test]
 fn undistort_jacobian_matches_finite_differences() {
     for camera in all_cameras() {
-        let map = Undistort(camera.clone());
+        let map = CameraMap(camera.clone(), Map::Undistort);
         // The outermost corners are left out: central differences need the
         // pixel +- h to be undistortable too (it is, but h steps outside).
         for pixel in image_grid(&camera, 61).iter().filter(|p| p.x >= 0.0 && p.y >= 0.0) {
@@ -217,12 +215,12 @@ fn undistort_jacobian_matches_finite_differences() {
 fn outputs_are_finite_across_the_image() {
     for camera in all_cameras() {
         for pixel in image_grid(&camera, 32) {
-            assert_finite(&Undistort(camera.clone()), &vector2(&pixel));
+            assert_finite(&CameraMap(camera.clone(), Map::Undistort), &vector2(&pixel));
             let normalized = camera.undistort_pixel(&pixel).unwrap();
-            assert_finite(&Distort(camera.clone()), &vector2(&normalized));
+            assert_finite(&CameraMap(camera.clone(), Map::Distort), &vector2(&normalized));
             let point =
                 DVector::from_column_slice(&[normalized.x * 500.0, normalized.y * 500.0, 500.0]);
-            assert_finite(&Project(camera.clone()), &point);
+            assert_finite(&CameraMap(camera.clone(), Map::Project), &point);
         }
     }
 }
@@ -926,4 +924,17 @@ fn json_has_the_camera_yaml_keys() {
     assert_eq!(json["projection_matrix"]["cols"], 4);
     let back: Camera = serde_json::from_value(json).unwrap();
     assert_eq!(back, camera);
+}
+
+#[test]
+fn absurd_distortion_coefficients_in_camera_yaml_are_refused_naming_the_key() {
+    // Regression: `data: [1e308, ...]` was read, and triangulate then
+    // printed "undistortion did not converge" per pixel with exit 0.
+    for data in ["[1e308, 0, 0, 0, 0]", "[0, 0, 0, 0, -2e4]"] {
+        let text = minimal_yaml(&format!("distortion_coefficients: {{data: {data}}}"));
+        let message = Camera::from_yaml_str(&text).unwrap_err().to_string();
+        assert!(message.contains("distortion_coefficients") && message.contains("beyond"), "{message}");
+    }
+    let text = minimal_yaml("distortion_coefficients: {data: [0.1, 0, 0, 0, 9000]}");
+    assert!(Camera::from_yaml_str(&text).is_ok(), "large but possible coefficients are read");
 }
