@@ -249,19 +249,11 @@ impl ScanController {
                     tolerance_mm,
                 });
             }
-            rig.laser.set(true).map_err(|e| e.at(Step::Laser { frame, on: true }))?;
-            let image = rig
-                .camera
-                .capture(self.config.capture_timeout)
-                .map_err(|e| e.at(Step::Capture { frame, laser_on: true }))?;
+            let image = self.capture(rig, frame, true)?;
             done += 1;
             progress(done, total);
             let image_laser_off = if self.config.capture_laser_off {
-                rig.laser.set(false).map_err(|e| e.at(Step::Laser { frame, on: false }))?;
-                let off = rig
-                    .camera
-                    .capture(self.config.capture_timeout)
-                    .map_err(|e| e.at(Step::Capture { frame, laser_on: false }))?;
+                let off = self.capture(rig, frame, false)?;
                 done += 1;
                 progress(done, total);
                 Some(off)
@@ -276,6 +268,14 @@ impl ScanController {
             });
         }
         Ok(frames)
+    }
+
+    /// Switches the laser on (`laser_on`) or off and captures frame `frame`.
+    fn capture(&self, rig: &mut Rig<'_>, frame: usize, laser_on: bool) -> Result<RgbImage> {
+        rig.laser.set(laser_on).map_err(|e| e.at(Step::Laser { frame, on: laser_on }))?;
+        rig.camera
+            .capture(self.config.capture_timeout)
+            .map_err(|e| e.at(Step::Capture { frame, laser_on }))
     }
 }
 
@@ -459,14 +459,7 @@ mod tests {
             let mut state = self.state.borrow_mut();
             state.calls.push(Call::Move(target_mm));
             self.moves += 1;
-            if self.timeout_at == Some(self.moves - 1) {
-                return Err(Error::Timeout {
-                    device: Device::Slide,
-                    step: None,
-                    timeout,
-                    detail: "stalled".into(),
-                });
-            }
+            timeout_at(self.timeout_at, self.moves, Device::Slide, timeout, "stalled")?;
             state.slide_mm = target_mm + self.settle_error_mm;
             Ok(state.slide_mm)
         }
@@ -475,20 +468,28 @@ mod tests {
         }
     }
 
+    /// A fake device's timeout on its `count`-th call when `at` is that
+    /// call's index.
+    fn timeout_at(
+        at: Option<usize>,
+        count: usize,
+        device: Device,
+        timeout: Duration,
+        detail: &str,
+    ) -> Result<()> {
+        if at == Some(count - 1) {
+            return Err(Error::Timeout { device, step: None, timeout, detail: detail.into() });
+        }
+        Ok(())
+    }
+
     impl FrameCamera for FakeCamera {
         fn capture(&mut self, timeout: Duration) -> Result<RgbImage> {
             let mut state = self.state.borrow_mut();
             let call = Call::Capture { laser_on: state.laser_on, slide_mm: state.slide_mm };
             state.calls.push(call);
             self.captures += 1;
-            if self.timeout_at == Some(self.captures - 1) {
-                return Err(Error::Timeout {
-                    device: Device::Camera,
-                    step: None,
-                    timeout,
-                    detail: String::new(),
-                });
-            }
+            timeout_at(self.timeout_at, self.captures, Device::Camera, timeout, "")?;
             // The laser state in the red channel, to check the pairing of images.
             Ok(RgbImage::from_pixel(4, 3, image::Rgb([u8::from(state.laser_on) * 200, 0, 0])))
         }

@@ -6,10 +6,11 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use alacs_locate::{LocateOptions, Status};
+use alacs_locate::{Localization, LocateOptions, Status};
 use alacs_model::{Camera, LaserModel};
 use alacs_scanner::{
-    ControllerConfig, Device, Error, ScanController, SimulatedRig, SimulatedRigOptions, Slide, Step,
+    CapturedScan, ControllerConfig, Device, Error, ScanController, SimulatedRig,
+    SimulatedRigOptions, Slide, Step,
 };
 use alacs_sim::{ScanOptions, SimulatedScan, simulate_scan};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
@@ -32,6 +33,29 @@ fn alacs_from_rgbd() -> Isometry3<f64> {
     )
 }
 
+/// The scene on the simulated rig, scanned by the default controller from
+/// its true rough position.
+fn run_on_rig(scene: &Arc<SimulatedScan>) -> (SimulatedRig, CapturedScan) {
+    let mut rig = SimulatedRig::new(scene.clone(), SimulatedRigOptions::default()).unwrap();
+    let controller = ScanController::new(laser(), ControllerConfig::default()).unwrap();
+    let scan = controller.run(&mut rig.rig(), &scene.rough_position_mm).unwrap();
+    (rig, scan)
+}
+
+/// Localizes the captured scan with the scene's true camera and laser.
+fn localize(scan: &CapturedScan, scene: &SimulatedScan) -> Localization {
+    scan.localize(&scene.camera, &scene.laser, &LocateOptions::default()).unwrap()
+}
+
+/// Asserts that the scan finds the scene's apple within
+/// [`HALF_SCALE_TOLERANCE_MM`].
+fn assert_localized(scan: &CapturedScan, scene: &SimulatedScan) {
+    let answer = localize(scan, scene);
+    assert_eq!(answer.status, Status::Ok, "{}", answer.reason);
+    let error = (answer.position_mm.unwrap() - scene.scene.fruit_centre).norm();
+    assert!(error < HALF_SCALE_TOLERANCE_MM, "3-D error {error:.2} mm");
+}
+
 /// Localization tolerance at half the 5 MP camera's resolution, 3-D, mm.
 /// Measured with `measure_localization_error_at_half_scale` (seeds 0-11,
 /// unoccluded, shade): median 2.0 mm, 10 of 12 under 3.2 mm, worst 6.5 mm
@@ -42,9 +66,7 @@ const HALF_SCALE_TOLERANCE_MM: f64 = 4.0;
 #[test]
 fn the_rig_captures_the_simulators_frames_and_localizes_the_apple() {
     let scene = scene(3, 0.5);
-    let mut rig = SimulatedRig::new(scene.clone(), SimulatedRigOptions::default()).unwrap();
-    let controller = ScanController::new(laser(), ControllerConfig::default()).unwrap();
-    let scan = controller.run(&mut rig.rig(), &scene.rough_position_mm).unwrap();
+    let (rig, scan) = run_on_rig(&scene);
     // The same strategy from the same rough position: the simulator's plan,
     // and at its positions the rig's camera renders the simulator's frames.
     assert_eq!(scan.slides_mm(), scene.plan.slides_mm);
@@ -58,10 +80,7 @@ fn the_rig_captures_the_simulators_frames_and_localizes_the_apple() {
     let expected = last_mm / 50.0 + 5.0 * (0.05 + 0.03) + 2.0 * 0.002;
     assert!((rig.elapsed().as_secs_f64() - expected).abs() < 1e-6, "{:?}", rig.elapsed());
 
-    let answer = scan.localize(&scene.camera, &scene.laser, &LocateOptions::default()).unwrap();
-    assert_eq!(answer.status, Status::Ok, "{}", answer.reason);
-    let error = (answer.position_mm.unwrap() - scene.scene.fruit_centre).norm();
-    assert!(error < HALF_SCALE_TOLERANCE_MM, "3-D error {error:.2} mm");
+    assert_localized(&scan, &scene);
 }
 
 #[test]
@@ -83,10 +102,7 @@ fn a_rough_position_from_the_rgbd_frame_and_laser_off_frames_localize_too() {
         assert!((planned - captured).abs() < 1e-9);
     }
     assert!(scan.frames.iter().all(|f| f.image_laser_off.is_some()));
-    let answer = scan.localize(&scene.camera, &scene.laser, &LocateOptions::default()).unwrap();
-    assert_eq!(answer.status, Status::Ok, "{}", answer.reason);
-    let error = (answer.position_mm.unwrap() - scene.scene.fruit_centre).norm();
-    assert!(error < HALF_SCALE_TOLERANCE_MM, "3-D error {error:.2} mm");
+    assert_localized(&scan, &scene);
 }
 
 #[test]
@@ -132,10 +148,8 @@ fn the_simulated_devices_time_out_and_refuse_targets_beyond_the_stroke() {
 fn measure_localization_error_at_half_scale() {
     for seed in 0..12 {
         let scene = scene(seed, 0.5);
-        let mut rig = SimulatedRig::new(scene.clone(), SimulatedRigOptions::default()).unwrap();
-        let controller = ScanController::new(laser(), ControllerConfig::default()).unwrap();
-        let scan = controller.run(&mut rig.rig(), &scene.rough_position_mm).unwrap();
-        let answer = scan.localize(&scene.camera, &scene.laser, &LocateOptions::default()).unwrap();
+        let (_, scan) = run_on_rig(&scene);
+        let answer = localize(&scan, &scene);
         match answer.position_mm {
             Some(p) => {
                 let e = p - scene.scene.fruit_centre;
