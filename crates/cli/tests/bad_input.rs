@@ -18,7 +18,10 @@ use std::process::{Command, Output, Stdio};
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
+use common::{arg, cmdline, evaluate_calibration, localize, report_scan, triangulate, write};
 use serde_json::Value;
+
+mod common;
 
 const ALACS: &str = env!("CARGO_BIN_EXE_alacs");
 
@@ -78,10 +81,6 @@ fn run(args: &[String]) -> Result<Output, String> {
 
 fn strings(args: &[&str]) -> Vec<String> {
     args.iter().map(|a| (*a).to_owned()).collect()
-}
-
-fn path_str(path: &Path) -> String {
-    path.to_str().unwrap().to_owned()
 }
 
 /// What the contract says a case must do.
@@ -171,28 +170,7 @@ fn judge(output: &Output, json: bool, needles: &[String], expect: Expect) -> Res
 /// Cases that show a bug not fixed yet: every listed substring in the case
 /// name, and the reason. They run with the rest, their failures are printed
 /// but fail only `known_bugs_fail_strictly` (ignored).
-const KNOWN_BUGS: &[(&[&str], &str)] = &[
-    (&["stripe greyscale laser-off"], "a greyscale --laser-off image is accepted"),
-    (&["localize: greyscale frame"], "a greyscale scan frame is accepted (exit 0)"),
-    (&["localize: frame of another size"], "names the scan folder and frame index, not the file"),
-    (&["localize: camera of another size"], "names the scan folder, not camera.yaml"),
-    (&["distortion_coefficients.data", "`1e308`"], "absurd distortion coefficients accepted"),
-    (&["slide_mm", "`1e308`"], "an absurd slide_mm in samples.csv / session.yaml is not refused"),
-    (
-        &["evaluate calibration into a foreign folder"],
-        "--out writes into a folder of foreign files",
-    ),
-    (&["report scan into a foreign folder"], "--out writes into a folder of foreign files"),
-    (&["simulate "], "option errors name the quantity, not the flag; 1e308 noise/sigma accepted"),
-    (&["scan --sim --depth-mm"], "the error names the quantity, not --depth-mm"),
-    (&["scan --sim --alacs-from-rgbd 1e308"], "an absurd RGB-D pose is accepted (exit 0)"),
-    (&["session init --slide-mm 1e308"], "an absurd --slide-mm is written into session.yaml"),
-    (&["triangulate --slide-mm 1e308"], "an absurd --slide-mm is accepted (null points)"),
-    (
-        &["calibrate laser --threshold-mm 1e308"],
-        "an absurd threshold is a failed job (1), not bad usage",
-    ),
-];
+const KNOWN_BUGS: &[(&[&str], &str)] = &[];
 
 /// Whether strict mode (known bugs fail too) is on.
 static STRICT: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
@@ -201,10 +179,6 @@ static STRICT: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::ne
 /// clap takes for a flag ("unexpected argument '-1' found", naming no flag)
 /// is one for every option.
 fn known_bug(name: &str) -> Option<&'static str> {
-    let value = name.rsplit(' ').next().unwrap_or("");
-    if name.contains(" --") && value.trim_start_matches('"').starts_with('-') {
-        return Some("a negative option value is `unexpected argument '-1' found`, naming no flag");
-    }
     KNOWN_BUGS.iter().find(|(parts, _)| parts.iter().all(|p| name.contains(p))).map(|(_, why)| *why)
 }
 
@@ -249,6 +223,22 @@ impl Suite {
                 args.join(" ")
             ));
         }
+    }
+
+    /// Writes each of `cases` to `input`'s file and runs its command on it,
+    /// then writes `original` back.
+    fn mutations(&mut self, input: &Input, original: &str, cases: Vec<(String, Vec<u8>, Expect)>) {
+        for (name, bytes, expect) in cases {
+            std::fs::write(input.path, &bytes).unwrap();
+            let name = format!("{}: {name}", input.what);
+            self.case(&name, input.command, input.needles, expect, input.guard);
+        }
+        std::fs::write(input.path, original).unwrap();
+    }
+
+    /// A case of invalid input (exit 2) with no output to guard.
+    fn refused(&mut self, name: &str, args: &[String], needles: &[&str]) {
+        self.case(name, args, needles, Expect::Refused, None);
     }
 
     fn one(
@@ -323,10 +313,7 @@ const OLD_OUTPUT: &str = "# an old output that must stay whole\nmodel: low-fidel
 // Scratch folders and the simulated inputs every test starts from.
 
 fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("bad_input").join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    common::scratch(Path::new("bad_input").join(name))
 }
 
 /// Tiny simulated inputs, made once.
@@ -337,6 +324,8 @@ struct Fixture {
     session: PathBuf,
     /// A scan folder (5 frames, 0.1 scale) with its camera.yaml and laser.yaml.
     scan: PathBuf,
+    /// The scan's first frame.
+    frame: PathBuf,
 }
 
 fn fixture() -> &'static Fixture {
@@ -347,40 +336,51 @@ fn fixture() -> &'static Fixture {
         let session = dir.join("session");
         let scan = dir.join("scan");
         for args in [
-            vec!["simulate", "samples", "--views", "5", "--out", samples.to_str().unwrap()],
-            vec![
-                "simulate",
-                "session",
-                "--scale",
-                "0.3",
-                "--views",
-                "3",
-                "--out",
-                session.to_str().unwrap(),
-            ],
-            vec!["simulate", "scan", "--scale", "0.1", "--out", scan.to_str().unwrap()],
+            cmdline("simulate samples --views 5 --out {}", &[&samples]),
+            cmdline("simulate session --scale 0.3 --views 3 --out {}", &[&session]),
+            cmdline("simulate scan --scale 0.1 --out {}", &[&scan]),
         ] {
-            let output = run(&strings(&args)).unwrap();
+            let output = run(&args).unwrap();
             assert!(
                 output.status.success(),
                 "{args:?}: {}",
                 String::from_utf8_lossy(&output.stderr)
             );
         }
-        Fixture { samples: samples.join("samples.csv"), session, scan }
+        Fixture {
+            samples: samples.join("samples.csv"),
+            session,
+            frame: scan.join("frame0.png"),
+            scan,
+        }
     })
 }
 
-/// Copies the folder `from` (files only) to `to`.
-fn copy_dir(from: &Path, to: &Path) {
-    let _ = std::fs::remove_dir_all(to);
-    std::fs::create_dir_all(to).unwrap();
+/// The simulated inputs and a fresh scratch folder `name` for one test.
+fn setup(name: &str) -> (&'static Fixture, PathBuf) {
+    (fixture(), scratch(name))
+}
+
+/// Copies the folder `from` (files only) to `to`, returning `to`.
+fn copy_dir(from: &Path, to: PathBuf) -> PathBuf {
+    let _ = std::fs::remove_dir_all(&to);
+    std::fs::create_dir_all(&to).unwrap();
     for entry in std::fs::read_dir(from).unwrap() {
         let entry = entry.unwrap();
         if entry.file_type().unwrap().is_file() {
             std::fs::copy(entry.path(), to.join(entry.file_name())).unwrap();
         }
     }
+    to
+}
+
+/// A copy (at `to`) of the fixture folder `from`, its YAML file `file` and
+/// that file's text.
+fn copy_with_yaml(from: &Path, to: PathBuf, file: &str) -> (PathBuf, PathBuf, String) {
+    let yaml = to.join(file);
+    let folder = copy_dir(from, to);
+    let text = std::fs::read_to_string(&yaml).unwrap();
+    (folder, yaml, text)
 }
 
 // ---------------------------------------------------------------------------
@@ -578,21 +578,39 @@ fn wrong_documents() -> Vec<(String, Vec<u8>, Expect)> {
         .collect()
 }
 
-/// Writes every mutation of the YAML `original` to `path` and runs `command`
-/// (which names `path`) for each. `number_expect(top, key, replacement)`,
-/// `key_expect(top, key, replacement_or_none)`.
-#[allow(clippy::too_many_arguments)]
+/// A file under test and the command that reads it: each case writes a
+/// mutation to `path` and runs `command` (which names `path`), whose error
+/// must name one of `needles`; `guard` is an output that must stay whole.
+struct Input<'a> {
+    what: String,
+    path: &'a Path,
+    command: &'a [String],
+    needles: &'a [&'a str],
+    guard: Option<&'a Path>,
+}
+
+impl<'a> Input<'a> {
+    fn new(
+        what: impl Into<String>,
+        path: &'a Path,
+        command: &'a [String],
+        needles: &'a [&'a str],
+    ) -> Self {
+        Self { what: what.into(), path, command, needles, guard: None }
+    }
+
+    fn guarded(self, guard: Option<&'a Path>) -> Self {
+        Self { guard, ..self }
+    }
+}
+
+/// Every mutation of the YAML `original`. `number_expect(top, key,
+/// replacement)`, `key_expect(top, key, replacement_or_none)`.
 fn yaml_mutations(
-    suite: &mut Suite,
-    what: &str,
     original: &str,
-    path: &Path,
-    command: &[String],
-    needles: &[&str],
-    guard: Option<&Path>,
     number_expect: &dyn Fn(&str, &str, &str) -> Expect,
     key_expect: &dyn Fn(&str, &str, Option<&str>) -> Expect,
-) {
+) -> Vec<(String, Vec<u8>, Expect)> {
     let mut cases: Vec<(String, Vec<u8>, Expect)> = Vec::new();
     for (start, end) in number_spans(original) {
         let (top, key) = yaml_context(original, start);
@@ -625,29 +643,18 @@ fn yaml_mutations(
     }
     cases.extend(whole_file_mutations(original, 1));
     cases.extend(wrong_documents());
-    for (name, bytes, expect) in cases {
-        std::fs::write(path, &bytes).unwrap();
-        suite.case(&format!("{what}: {name}"), command, needles, expect, guard);
-    }
-    std::fs::write(path, original).unwrap();
+    cases
 }
 
 /// CSV mutations: each column deleted and duplicated, each cell of the first
 /// and last rows replaced. `cell_expect(column, replacement)`, `required`
 /// columns refused when deleted.
-#[allow(clippy::too_many_arguments)]
 fn csv_mutations(
-    suite: &mut Suite,
-    what: &str,
     original: &str,
-    path: &Path,
-    command: &[String],
-    needles: &[&str],
-    guard: Option<&Path>,
     required: &[&str],
     cell_expect: &dyn Fn(&str, &str) -> Expect,
     empty_is_an_answer: bool,
-) {
+) -> Vec<(String, Vec<u8>, Expect)> {
     let rows: Vec<Vec<String>> =
         original.lines().map(|l| l.split(',').map(str::to_owned).collect()).collect();
     let header = rows[0].clone();
@@ -711,11 +718,7 @@ fn csv_mutations(
     ));
     let header_len = original.lines().next().unwrap().len();
     cases.extend(whole_file_mutations(original, header_len));
-    for (name, bytes, expect) in cases {
-        std::fs::write(path, &bytes).unwrap();
-        suite.case(&format!("{what}: {name}"), command, needles, expect, guard);
-    }
-    std::fs::write(path, original).unwrap();
+    cases
 }
 
 /// Asserts that `args` (with `--json`) succeeds: the baseline a mutation breaks.
@@ -791,50 +794,24 @@ fn laser_key_expect(_top: &str, key: &str, value: Option<&str>) -> Expect {
 
 #[test]
 fn camera_yaml_mutations_are_refused_by_triangulate() {
-    let f = fixture();
-    let dir = scratch("camera_yaml");
+    let (f, dir) = setup("camera_yaml");
     let camera = dir.join("mutated_camera.yaml");
     let original = std::fs::read_to_string(f.scan.join("camera.yaml")).unwrap();
     std::fs::write(&camera, &original).unwrap();
-    let pixels = dir.join("pixels.csv");
-    std::fs::write(&pixels, "u_px,v_px\n100,100\n120.5,80\n").unwrap();
-    let command = a(&[
-        "triangulate",
-        "--camera",
-        camera.to_str().unwrap(),
-        "--laser",
-        f.scan.join("laser.yaml").to_str().unwrap(),
-        "--slide-mm",
-        "0",
-        "--pixels",
-        pixels.to_str().unwrap(),
-    ]);
+    let pixels = write(&dir, "pixels.csv", "u_px,v_px\n100,100\n120.5,80\n");
+    let command = triangulate(&camera, &f.scan.join("laser.yaml"), "0", &pixels);
     assert_baseline(&command);
     let mut suite = Suite::default();
-    yaml_mutations(
-        &mut suite,
-        "camera.yaml",
-        &original,
-        &camera,
-        &command,
-        &["mutated_camera.yaml"],
-        None,
-        &camera_number_expect,
-        &camera_key_expect,
-    );
+    let input = Input::new("camera.yaml", &camera, &command, &["mutated_camera.yaml"]);
+    let cases = yaml_mutations(&original, &camera_number_expect, &camera_key_expect);
+    suite.mutations(&input, &original, cases);
     // OpenCV FileStorage camera with a bad value.
     std::fs::write(
         &camera,
         "%YAML:1.0\n---\nimage_width: 245\nimage_height: 205\ncamera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ 232., 0., nan, 0., 232., 101.9, 0., 0., 1. ]\ndistortion_coefficients: !!opencv-matrix\n   rows: 5\n   cols: 1\n   dt: d\n   data: [ 0., 0., 0., 0., 0. ]\n",
     )
     .unwrap();
-    suite.case(
-        "opencv camera.yaml with nan",
-        &command,
-        &["mutated_camera.yaml"],
-        Expect::Refused,
-        None,
-    );
+    suite.refused("opencv camera.yaml with nan", &command, &["mutated_camera.yaml"]);
     for model in ["equidistant", "fisheye", ""] {
         let text = original.replace("plumb_bob", model);
         std::fs::write(&camera, text).unwrap();
@@ -852,37 +829,17 @@ fn camera_yaml_mutations_are_refused_by_triangulate() {
 
 #[test]
 fn laser_yaml_mutations_are_refused_by_triangulate() {
-    let f = fixture();
-    let dir = scratch("laser_yaml");
+    let (f, dir) = setup("laser_yaml");
     let laser = dir.join("mutated_laser.yaml");
     let original = std::fs::read_to_string(f.scan.join("laser.yaml")).unwrap();
-    let pixels = dir.join("pixels.csv");
-    std::fs::write(&pixels, "u_px,v_px\n100,100\n").unwrap();
-    let command = a(&[
-        "triangulate",
-        "--camera",
-        f.scan.join("camera.yaml").to_str().unwrap(),
-        "--laser",
-        laser.to_str().unwrap(),
-        "--slide-mm",
-        "0",
-        "--pixels",
-        pixels.to_str().unwrap(),
-    ]);
+    let pixels = write(&dir, "pixels.csv", "u_px,v_px\n100,100\n");
+    let command = triangulate(&f.scan.join("camera.yaml"), &laser, "0", &pixels);
     std::fs::write(&laser, &original).unwrap();
     assert_baseline(&command);
     let mut suite = Suite::default();
-    yaml_mutations(
-        &mut suite,
-        "laser.yaml",
-        &original,
-        &laser,
-        &command,
-        &["mutated_laser.yaml"],
-        None,
-        &laser_number_expect,
-        &laser_key_expect,
-    );
+    let input = Input::new("laser.yaml", &laser, &command, &["mutated_laser.yaml"]);
+    let cases = yaml_mutations(&original, &laser_number_expect, &laser_key_expect);
+    suite.mutations(&input, &original, cases);
     for (model, expect) in [
         ("low", Expect::Any),
         ("low-fidelity", Expect::Any),
@@ -914,47 +871,23 @@ fn samples_cell_expect(column: &str, value: &str) -> Expect {
 
 #[test]
 fn samples_csv_mutations_are_refused_and_old_outputs_stay_whole() {
-    let f = fixture();
-    let dir = scratch("samples_csv");
+    let (f, dir) = setup("samples_csv");
     let samples = dir.join("mutated_samples.csv");
     let original = std::fs::read_to_string(&f.samples).unwrap();
     std::fs::write(&samples, &original).unwrap();
-    let old = dir.join("old_laser.yaml");
-    std::fs::write(&old, OLD_OUTPUT).unwrap();
-    let command = a(&[
-        "calibrate",
-        "laser",
-        "--samples",
-        samples.to_str().unwrap(),
-        "-o",
-        old.to_str().unwrap(),
-    ]);
+    let old = write(&dir, "old_laser.yaml", OLD_OUTPUT);
+    let command = cmdline("calibrate laser --samples {} -o {}", &[&samples, &old]);
     assert_baseline(&command);
     std::fs::write(&old, OLD_OUTPUT).unwrap();
     let mut suite = Suite::default();
-    csv_mutations(
-        &mut suite,
-        "samples.csv (calibrate laser)",
-        &original,
-        &samples,
-        &command,
-        &["mutated_samples.csv"],
-        Some(&old),
-        &["u_n", "v_n", "z_mm"],
-        &samples_cell_expect,
-        false,
-    );
+    let input =
+        Input::new("samples.csv (calibrate laser)", &samples, &command, &["mutated_samples.csv"]);
+    let cases = csv_mutations(&original, &["u_n", "v_n", "z_mm"], &samples_cell_expect, false);
+    suite.mutations(&input.guarded(Some(&old)), &original, cases);
     // The same reader behind evaluate calibration and calibrate --compare:
     // a few mutations each.
     let out = dir.join("evaluation");
-    let evaluate = a(&[
-        "evaluate",
-        "calibration",
-        "--samples",
-        samples.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let evaluate = evaluate_calibration(&samples, &out);
     let compare = a(&["calibrate", "laser", "--compare", "--samples", samples.to_str().unwrap()]);
     let z = original.lines().nth(1).unwrap().split(',').nth(2).unwrap().to_owned();
     for (name, text) in [
@@ -965,57 +898,34 @@ fn samples_csv_mutations_are_refused_and_old_outputs_stay_whole() {
         ("u_n twice", original.replacen("v_n", "u_n", 1)),
     ] {
         std::fs::write(&samples, text).unwrap();
-        suite.case(
+        suite.refused(
             &format!("evaluate calibration: {name}"),
             &evaluate,
             &["mutated_samples.csv"],
-            Expect::Refused,
-            None,
         );
-        suite.case(
-            &format!("calibrate --compare: {name}"),
-            &compare,
-            &["mutated_samples.csv"],
-            Expect::Refused,
-            None,
-        );
+        suite.refused(&format!("calibrate --compare: {name}"), &compare, &["mutated_samples.csv"]);
     }
     suite.finish("samples.csv");
 }
 
 #[test]
 fn pixels_csv_mutations_are_refused_by_triangulate() {
-    let f = fixture();
-    let dir = scratch("pixels_csv");
+    let (f, dir) = setup("pixels_csv");
     let pixels = dir.join("mutated_pixels.csv");
     let original = "u_px,v_px\n100,100\n120.5,80.25\n3,4\n";
     std::fs::write(&pixels, original).unwrap();
-    let command = a(&[
-        "triangulate",
-        "--camera",
-        f.scan.join("camera.yaml").to_str().unwrap(),
-        "--laser",
-        f.scan.join("laser.yaml").to_str().unwrap(),
-        "--slide-mm",
-        "10",
-        "--pixels",
-        pixels.to_str().unwrap(),
-    ]);
+    let command =
+        triangulate(&f.scan.join("camera.yaml"), &f.scan.join("laser.yaml"), "10", &pixels);
     assert_baseline(&command);
     let mut suite = Suite::default();
-    csv_mutations(
-        &mut suite,
-        "pixels.csv",
+    let cell_expect = |_: &str, value: &str| {
+        if matches!(value, "-1" | "0" | "1e308") { Expect::Any } else { Expect::Refused }
+    };
+    let input = Input::new("pixels.csv", &pixels, &command, &["mutated_pixels.csv"]);
+    suite.mutations(
+        &input,
         original,
-        &pixels,
-        &command,
-        &["mutated_pixels.csv"],
-        None,
-        &["u_px", "v_px"],
-        &|_, value| {
-            if matches!(value, "-1" | "0" | "1e308") { Expect::Any } else { Expect::Refused }
-        },
-        true,
+        csv_mutations(original, &["u_px", "v_px"], &cell_expect, true),
     );
     suite.finish("pixels.csv");
 }
@@ -1045,49 +955,26 @@ fn session_key_expect(_top: &str, key: &str, value: Option<&str>) -> Expect {
 
 #[test]
 fn session_yaml_mutations_are_refused_by_calibrate_camera_and_laser() {
-    let f = fixture();
-    let dir = scratch("session_yaml");
-    let session = dir.join("session");
-    copy_dir(&f.session, &session);
-    let yaml = session.join("session.yaml");
-    let original = std::fs::read_to_string(&yaml).unwrap();
-    let old = dir.join("old_camera.yaml");
-    std::fs::write(&old, OLD_OUTPUT).unwrap();
-    let camera_cmd = a(&[
-        "calibrate",
-        "camera",
-        "--session",
-        session.to_str().unwrap(),
-        "-o",
-        old.to_str().unwrap(),
-    ]);
+    let (f, dir) = setup("session_yaml");
+    let (session, yaml, original) = copy_with_yaml(&f.session, dir.join("session"), "session.yaml");
+    let old = write(&dir, "old_camera.yaml", OLD_OUTPUT);
+    let camera_cmd = cmdline("calibrate camera --session {} -o {}", &[&session, &old]);
     assert_baseline(&camera_cmd);
     std::fs::write(&old, OLD_OUTPUT).unwrap();
-    let laser_cmd = a(&[
-        "calibrate",
-        "laser",
-        "--session",
-        session.to_str().unwrap(),
-        "--camera",
-        session.join("camera.yaml").to_str().unwrap(),
-    ]);
+    let laser_cmd = cmdline(
+        "calibrate laser --session {} --camera {}",
+        &[&session, &session.join("camera.yaml")],
+    );
     assert_baseline(&laser_cmd);
     let mut suite = Suite::default();
     for (what, command, guard) in [
         ("calibrate camera", &camera_cmd, Some(old.as_path())),
         ("calibrate laser", &laser_cmd, None),
     ] {
-        yaml_mutations(
-            &mut suite,
-            &format!("session.yaml ({what})"),
-            &original,
-            &yaml,
-            command,
-            &["session.yaml", "session/", "session:"],
-            guard,
-            &session_number_expect,
-            &session_key_expect,
-        );
+        let needles = ["session.yaml", "session/", "session:"];
+        let input = Input::new(format!("session.yaml ({what})"), &yaml, command, &needles);
+        let cases = yaml_mutations(&original, &session_number_expect, &session_key_expect);
+        suite.mutations(&input.guarded(guard), &original, cases);
         for (name, text, needle) in [
             (
                 "empty views",
@@ -1192,42 +1079,19 @@ fn slide_1e308(original: &str) -> String {
 
 #[test]
 fn scan_yaml_mutations_are_refused_by_localize_and_report_scan() {
-    let f = fixture();
-    let dir = scratch("scan_yaml");
-    let scan = dir.join("scan");
-    copy_dir(&f.scan, &scan);
-    let yaml = scan.join("scan.yaml");
-    let original = std::fs::read_to_string(&yaml).unwrap();
-    let camera = path_str(&scan.join("camera.yaml"));
-    let laser = path_str(&scan.join("laser.yaml"));
-    let localize =
-        a(&["localize", "--scan", scan.to_str().unwrap(), "--camera", &camera, "--laser", &laser]);
-    assert_baseline(&localize);
+    let (f, dir) = setup("scan_yaml");
+    let (scan, yaml, original) = copy_with_yaml(&f.scan, dir.join("scan"), "scan.yaml");
+    let camera = arg(&scan.join("camera.yaml"));
+    let laser = arg(&scan.join("laser.yaml"));
+    let localize_cmd = localize(&scan, &camera, &laser);
+    assert_baseline(&localize_cmd);
     let mut suite = Suite::default();
-    yaml_mutations(
-        &mut suite,
-        "scan.yaml (localize)",
-        &original,
-        &yaml,
-        &localize,
-        &["scan.yaml", "scan/", "scan:"],
-        None,
-        &scan_number_expect,
-        &scan_key_expect,
-    );
+    let needles = ["scan.yaml", "scan/", "scan:"];
+    let input = Input::new("scan.yaml (localize)", &yaml, &localize_cmd, &needles);
+    let cases = yaml_mutations(&original, &scan_number_expect, &scan_key_expect);
+    suite.mutations(&input, &original, cases);
     let report_out = dir.join("report");
-    let report = a(&[
-        "report",
-        "scan",
-        "--scan",
-        scan.to_str().unwrap(),
-        "--camera",
-        &camera,
-        "--laser",
-        &laser,
-        "--out",
-        report_out.to_str().unwrap(),
-    ]);
+    let report = report_scan(&scan, &camera, &laser, &report_out);
     for (name, text, needle) in [
         ("empty frames", "rough_position_mm: [0, 0, 800]\nframes: []\n".to_owned(), "scan.yaml"),
         ("rough z 0", original.replacen("816.2", "-816.2", 1), "scan.yaml"),
@@ -1256,20 +1120,8 @@ fn scan_yaml_mutations_are_refused_by_localize_and_report_scan() {
         ("slide 1e308", slide_1e308(&original), "slide_mm"),
     ] {
         std::fs::write(&yaml, &text).unwrap();
-        suite.case(
-            &format!("scan.yaml (localize): {name}"),
-            &localize,
-            &[needle],
-            Expect::Refused,
-            None,
-        );
-        suite.case(
-            &format!("scan.yaml (report scan): {name}"),
-            &report,
-            &[needle],
-            Expect::Refused,
-            None,
-        );
+        suite.refused(&format!("scan.yaml (localize): {name}"), &localize_cmd, &[needle]);
+        suite.refused(&format!("scan.yaml (report scan): {name}"), &report, &[needle]);
     }
     std::fs::write(&yaml, &original).unwrap();
     // camera.yaml and laser.yaml through localize: a few.
@@ -1284,22 +1136,8 @@ fn scan_yaml_mutations_are_refused_by_localize_and_report_scan() {
         ("camera truncated", camera_text[..camera_text.len() / 2].to_owned()),
     ] {
         std::fs::write(&bad_camera, text).unwrap();
-        let command = a(&[
-            "localize",
-            "--scan",
-            scan.to_str().unwrap(),
-            "--camera",
-            bad_camera.to_str().unwrap(),
-            "--laser",
-            &laser,
-        ]);
-        suite.case(
-            &format!("localize: {name}"),
-            &command,
-            &["bad_camera.yaml"],
-            Expect::Refused,
-            None,
-        );
+        let command = localize(&scan, &bad_camera, &laser);
+        suite.refused(&format!("localize: {name}"), &command, &["bad_camera.yaml"]);
     }
     for (name, text) in [
         ("laser l0 0", laser_text.replacen("381.98", "0", 1)),
@@ -1307,22 +1145,8 @@ fn scan_yaml_mutations_are_refused_by_localize_and_report_scan() {
         ("laser empty", String::new()),
     ] {
         std::fs::write(&bad_laser, text).unwrap();
-        let command = a(&[
-            "localize",
-            "--scan",
-            scan.to_str().unwrap(),
-            "--camera",
-            &camera,
-            "--laser",
-            bad_laser.to_str().unwrap(),
-        ]);
-        suite.case(
-            &format!("localize: {name}"),
-            &command,
-            &["bad_laser.yaml"],
-            Expect::Refused,
-            None,
-        );
+        let command = localize(&scan, &camera, &bad_laser);
+        suite.refused(&format!("localize: {name}"), &command, &["bad_laser.yaml"]);
     }
     suite.finish("scan.yaml");
 }
@@ -1374,58 +1198,32 @@ fn encode(image: image::DynamicImage, format: image::ImageFormat) -> Vec<u8> {
 
 #[test]
 fn broken_images_are_refused_by_stripe_localize_and_calibrate() {
-    let f = fixture();
-    let dir = scratch("images");
-    let png = std::fs::read(f.scan.join("frame0.png")).unwrap();
+    let (f, dir) = setup("images");
+    let png = std::fs::read(&f.frame).unwrap();
     let mut suite = Suite::default();
-    let scan = dir.join("scan");
-    copy_dir(&f.scan, &scan);
-    let session = dir.join("session");
-    copy_dir(&f.session, &session);
+    let scan = copy_dir(&f.scan, dir.join("scan"));
+    let session = copy_dir(&f.session, dir.join("session"));
     let session_yaml = std::fs::read_to_string(session.join("session.yaml")).unwrap();
     let scan_yaml = std::fs::read_to_string(scan.join("scan.yaml")).unwrap();
-    let old = dir.join("old_camera.yaml");
-    std::fs::write(&old, OLD_OUTPUT).unwrap();
+    let old = write(&dir, "old_camera.yaml", OLD_OUTPUT);
     for (i, (name, bytes, ext)) in broken_images(&png).into_iter().enumerate() {
         let file = format!("broken{i}.{ext}");
         // stripe --image and --laser-off.
-        let image = dir.join(&file);
-        std::fs::write(&image, &bytes).unwrap();
+        let image = write(&dir, &file, &bytes);
         let stripe = a(&["stripe", "--image", image.to_str().unwrap()]);
-        suite.case(&format!("stripe --image: {name}"), &stripe, &[&file], Expect::Refused, None);
-        let off = a(&[
-            "stripe",
-            "--image",
-            f.scan.join("frame0.png").to_str().unwrap(),
-            "--laser-off",
-            image.to_str().unwrap(),
-        ]);
-        suite.case(&format!("stripe --laser-off: {name}"), &off, &[&file], Expect::Refused, None);
+        suite.refused(&format!("stripe --image: {name}"), &stripe, &[&file]);
+        let off = cmdline("stripe --image {} --laser-off {}", &[&f.frame, &image]);
+        suite.refused(&format!("stripe --laser-off: {name}"), &off, &[&file]);
         // A scan frame.
         std::fs::write(scan.join(&file), &bytes).unwrap();
         std::fs::write(scan.join("scan.yaml"), scan_yaml.replacen("frame3.png", &file, 1)).unwrap();
-        let localize = a(&[
-            "localize",
-            "--scan",
-            scan.to_str().unwrap(),
-            "--camera",
-            scan.join("camera.yaml").to_str().unwrap(),
-            "--laser",
-            scan.join("laser.yaml").to_str().unwrap(),
-        ]);
-        suite.case(&format!("localize frame: {name}"), &localize, &[&file], Expect::Refused, None);
+        let localize = localize(&scan, &scan.join("camera.yaml"), &scan.join("laser.yaml"));
+        suite.refused(&format!("localize frame: {name}"), &localize, &[&file]);
         // A session view.
         std::fs::write(session.join(&file), &bytes).unwrap();
         std::fs::write(session.join("session.yaml"), session_yaml.replacen("view02.png", &file, 1))
             .unwrap();
-        let camera = a(&[
-            "calibrate",
-            "camera",
-            "--session",
-            session.to_str().unwrap(),
-            "-o",
-            old.to_str().unwrap(),
-        ]);
+        let camera = cmdline("calibrate camera --session {} -o {}", &[&session, &old]);
         suite.case(
             &format!("calibrate camera view: {name}"),
             &camera,
@@ -1442,44 +1240,29 @@ fn broken_images_are_refused_by_stripe_localize_and_calibrate() {
         encode(image::DynamicImage::ImageLuma8(colour.to_luma8()), image::ImageFormat::Png),
     )
     .unwrap();
-    let small = dir.join("small.png");
-    std::fs::write(&small, encode(colour.crop_imm(0, 0, 100, 80), image::ImageFormat::Png))
-        .unwrap();
-    let frame0 = path_str(&f.scan.join("frame0.png"));
-    suite.case(
+    let small =
+        write(&dir, "small.png", encode(colour.crop_imm(0, 0, 100, 80), image::ImageFormat::Png));
+    let frame0 = arg(&f.frame);
+    suite.refused(
         "stripe greyscale",
         &a(&["stripe", "--image", grey.to_str().unwrap()]),
         &["grey.png"],
-        Expect::Refused,
-        None,
     );
-    suite.case(
+    suite.refused(
         "stripe greyscale laser-off",
         &a(&["stripe", "--image", &frame0, "--laser-off", grey.to_str().unwrap()]),
         &["grey.png"],
-        Expect::Refused,
-        None,
     );
-    suite.case(
+    suite.refused(
         "stripe laser-off of another size",
         &a(&["stripe", "--image", &frame0, "--laser-off", small.to_str().unwrap()]),
         &["small.png"],
-        Expect::Refused,
-        None,
     );
     for (name, file) in [("greyscale frame", "grey.png"), ("frame of another size", "small.png")] {
         std::fs::copy(dir.join(file), scan.join(file)).unwrap();
         std::fs::write(scan.join("scan.yaml"), scan_yaml.replacen("frame3.png", file, 1)).unwrap();
-        let localize = a(&[
-            "localize",
-            "--scan",
-            scan.to_str().unwrap(),
-            "--camera",
-            scan.join("camera.yaml").to_str().unwrap(),
-            "--laser",
-            scan.join("laser.yaml").to_str().unwrap(),
-        ]);
-        suite.case(&format!("localize: {name}"), &localize, &[file], Expect::Refused, None);
+        let localize = localize(&scan, &scan.join("camera.yaml"), &scan.join("laser.yaml"));
+        suite.refused(&format!("localize: {name}"), &localize, &[file]);
     }
     suite.finish("images");
 }
@@ -1489,45 +1272,25 @@ fn broken_images_are_refused_by_stripe_localize_and_calibrate() {
 
 #[test]
 fn bad_command_lines_are_refused_naming_the_flag() {
-    let f = fixture();
-    let dir = scratch("command_lines");
-    let samples = path_str(&f.samples);
-    let camera = path_str(&f.scan.join("camera.yaml"));
-    let laser = path_str(&f.scan.join("laser.yaml"));
-    let frame = path_str(&f.scan.join("frame0.png"));
-    let scan = path_str(&f.scan);
-    let session = path_str(&f.session);
-    let pixels = dir.join("pixels.csv");
-    std::fs::write(&pixels, "u_px,v_px\n100,100\n").unwrap();
-    let pixels = path_str(&pixels);
-    let out = path_str(&dir.join("out"));
-    let missing = path_str(&dir.join("missing.yaml"));
-    let folder = path_str(&dir);
+    let (f, dir) = setup("command_lines");
+    let samples = arg(&f.samples);
+    let camera = arg(&f.scan.join("camera.yaml"));
+    let laser = arg(&f.scan.join("laser.yaml"));
+    let frame = arg(&f.frame);
+    let scan = arg(&f.scan);
+    let session = arg(&f.session);
+    let pixels = write(&dir, "pixels.csv", "u_px,v_px\n100,100\n");
+    let pixels = arg(&pixels);
+    let out = arg(&dir.join("out"));
+    let missing = arg(&dir.join("missing.yaml"));
+    let folder = arg(&dir);
     let mut suite = Suite::default();
 
     // (flag, command before the value, values, expect)
     let bad_numbers = ["nan", "inf", "-inf", "1e308", "-1", "abc", "", "0x10"];
-    let triangulate = |slide: &str| {
-        a(&[
-            "triangulate",
-            "--camera",
-            &camera,
-            "--laser",
-            &laser,
-            "--pixels",
-            &pixels,
-            "--slide-mm",
-            slide,
-        ])
-    };
+    let triangulate = |slide: &str| triangulate(&camera, &laser, slide, &pixels);
     for value in ["nan", "inf", "1e308", "abc", "", "-1e308"] {
-        suite.case(
-            &format!("triangulate --slide-mm {value}"),
-            &triangulate(value),
-            &["slide"],
-            Expect::Refused,
-            None,
-        );
+        suite.refused(&format!("triangulate --slide-mm {value}"), &triangulate(value), &["slide"]);
     }
     for value in bad_numbers {
         let expect = if value == "1e308" { Expect::Any } else { Expect::Refused };
@@ -1552,12 +1315,10 @@ fn bad_command_lines_are_refused_naming_the_flag() {
         ("--residual", "both"),
     ] {
         let command = a(&["calibrate", "laser", "--samples", &samples, flag, value]);
-        suite.case(
+        suite.refused(
             &format!("calibrate laser {flag} {value}"),
             &command,
             &[flag.trim_start_matches('-')],
-            Expect::Refused,
-            None,
         );
     }
     for (flag, value) in [
@@ -1617,12 +1378,10 @@ fn bad_command_lines_are_refused_naming_the_flag() {
             let target = format!("{out}_{}_{}", sub, suite.cases);
             let command = a(&["simulate", sub, "--out", &target, flag, value]);
             let name = flag.trim_start_matches('-');
-            suite.case(
+            suite.refused(
                 &format!("simulate {sub} {flag} {value}"),
                 &command,
                 &[name, &name.replace('-', "_")],
-                Expect::Refused,
-                None,
             );
             if Path::new(&target).exists() {
                 suite.failures.push(format!(
@@ -1650,21 +1409,9 @@ fn bad_command_lines_are_refused_naming_the_flag() {
         let command = a(&["scan", "--sim", "--scale", "0.1", flag, value]);
         let name = flag.trim_start_matches('-');
         let needles = [name, "alacs-from-rgbd", "alacs_from_rgbd"];
-        suite.case(
-            &format!("scan --sim {flag} {value}"),
-            &command,
-            &needles,
-            Expect::Refused,
-            None,
-        );
+        suite.refused(&format!("scan --sim {flag} {value}"), &command, &needles);
     }
-    suite.case(
-        "scan without --sim",
-        &a(&["scan", "--scale", "0.1"]),
-        &["--sim"],
-        Expect::Refused,
-        None,
-    );
+    suite.refused("scan without --sim", &a(&["scan", "--scale", "0.1"]), &["--sim"]);
     for (flag, value) in [
         ("--camera", &missing),
         ("--laser", &missing),
@@ -1673,19 +1420,13 @@ fn bad_command_lines_are_refused_naming_the_flag() {
     ] {
         let command = a(&["scan", "--sim", "--scale", "0.1", flag, value]);
         let needles = [Path::new(value).file_name().unwrap().to_str().unwrap()];
-        suite.case(
-            &format!("scan --sim {flag} {value}"),
-            &command,
-            &needles,
-            Expect::Refused,
-            None,
-        );
+        suite.refused(&format!("scan --sim {flag} {value}"), &command, &needles);
     }
     // session init.
     let images = dir.join("images");
     std::fs::create_dir_all(&images).unwrap();
     std::fs::copy(f.session.join("view01.png"), images.join("a.png")).unwrap();
-    let images = path_str(&images);
+    let images = arg(&images);
     for board in [
         "9",
         "9x",
@@ -1702,13 +1443,7 @@ fn bad_command_lines_are_refused_naming_the_flag() {
         "99999999999999999999x6",
     ] {
         let command = a(&["session", "init", &images, "--board", board, "--square-mm", "25"]);
-        suite.case(
-            &format!("session init --board {board:?}"),
-            &command,
-            &["board"],
-            Expect::Refused,
-            None,
-        );
+        suite.refused(&format!("session init --board {board:?}"), &command, &["board"]);
     }
     for square in ["0", "-1", "nan", "inf", "abc", "", "1,2,3", "1,", "25,nan", "1e308"] {
         let command = a(&["session", "init", &images, "--board", "9x6", "--square-mm", square]);
@@ -1723,35 +1458,20 @@ fn bad_command_lines_are_refused_naming_the_flag() {
         let _ = std::fs::remove_file(Path::new(&images).join("session.yaml"));
     }
     for slide in ["nan", "inf", "1e308", "abc"] {
-        let command = a(&[
-            "session",
-            "init",
-            &images,
-            "--board",
-            "9x6",
-            "--square-mm",
-            "25",
-            "--slide-mm",
-            slide,
-        ]);
-        suite.case(
-            &format!("session init --slide-mm {slide}"),
-            &command,
-            &["slide"],
-            Expect::Refused,
-            None,
-        );
+        let command =
+            cmdline("session init {} --board 9x6 --square-mm 25 --slide-mm {}", &[&images, &slide]);
+        suite.refused(&format!("session init --slide-mm {slide}"), &command, &["slide"]);
     }
     let empty = dir.join("empty");
     std::fs::create_dir_all(&empty).unwrap();
     std::fs::write(empty.join("notes.txt"), "no images").unwrap();
     for (name, target, needle) in [
-        ("a folder without images", path_str(&empty), "empty"),
-        ("a missing folder", path_str(&dir.join("nowhere")), "nowhere"),
+        ("a folder without images", arg(&empty), "empty"),
+        ("a missing folder", arg(&dir.join("nowhere")), "nowhere"),
         ("a file as folder", samples.clone(), "samples.csv"),
     ] {
         let command = a(&["session", "init", &target, "--board", "9x6", "--square-mm", "25"]);
-        suite.case(&format!("session init: {name}"), &command, &[needle], Expect::Refused, None);
+        suite.refused(&format!("session init: {name}"), &command, &[needle]);
     }
     // An existing session.yaml is refused and stays whole.
     std::fs::write(Path::new(&images).join("session.yaml"), OLD_OUTPUT).unwrap();
@@ -1773,42 +1493,18 @@ fn bad_command_lines_are_refused_naming_the_flag() {
         ),
         (
             "--pixels".into(),
-            a(&[
-                "triangulate",
-                "--camera",
-                &camera,
-                "--laser",
-                &laser,
-                "--slide-mm",
-                "0",
-                "--pixels",
-            ]),
+            cmdline("triangulate --camera {} --laser {} --slide-mm 0 --pixels", &[&camera, &laser]),
         ),
         (
             "--camera".into(),
-            a(&[
-                "triangulate",
-                "--laser",
-                &laser,
-                "--slide-mm",
-                "0",
-                "--pixels",
-                &pixels,
-                "--camera",
-            ]),
+            cmdline("triangulate --laser {} --slide-mm 0 --pixels {} --camera", &[&laser, &pixels]),
         ),
         (
             "--laser".into(),
-            a(&[
-                "triangulate",
-                "--camera",
-                &camera,
-                "--slide-mm",
-                "0",
-                "--pixels",
-                &pixels,
-                "--laser",
-            ]),
+            cmdline(
+                "triangulate --camera {} --slide-mm 0 --pixels {} --laser",
+                &[&camera, &pixels],
+            ),
         ),
         ("--image".into(), a(&["stripe", "--image"])),
         ("--laser-off".into(), a(&["stripe", "--image", &frame, "--laser-off"])),
@@ -1821,19 +1517,10 @@ fn bad_command_lines_are_refused_naming_the_flag() {
         ),
         (
             "--laser".into(),
-            a(&[
-                "simulate",
-                "scan",
-                "--scale",
-                "0.1",
-                "--out",
-                &format!("{out}_simlaser"),
-                "--laser",
-            ]),
+            cmdline("simulate scan --scale 0.1 --out {} --laser", &[&format!("{out}_simlaser")]),
         ),
     ];
-    let a_file = dir.join("a_file.txt");
-    std::fs::write(&a_file, "u_px\n").unwrap();
+    let a_file = write(&dir, "a_file.txt", "u_px\n");
     for (flag, command) in &file_flags {
         for (what, value, needle) in [
             ("missing", missing.clone(), "missing.yaml"),
@@ -1841,30 +1528,17 @@ fn bad_command_lines_are_refused_naming_the_flag() {
         ] {
             let mut command = command.clone();
             command.push(value);
-            suite.case(
-                &format!("{} {flag}: {what}", command[0]),
-                &command,
-                &[needle],
-                Expect::Refused,
-                None,
-            );
+            suite.refused(&format!("{} {flag}: {what}", command[0]), &command, &[needle]);
         }
     }
     let folder_flags: Vec<(String, Vec<String>)> = vec![
         ("--scan".into(), a(&["localize", "--camera", &camera, "--laser", &laser, "--scan"])),
         (
             "--scan".into(),
-            a(&[
-                "report",
-                "scan",
-                "--camera",
-                &camera,
-                "--laser",
-                &laser,
-                "--out",
-                &format!("{out}_rep"),
-                "--scan",
-            ]),
+            cmdline(
+                "report scan --camera {} --laser {} --out {} --scan",
+                &[&camera, &laser, &format!("{out}_rep")],
+            ),
         ),
         ("--session".into(), a(&["calibrate", "camera", "--session"])),
         ("--session".into(), a(&["calibrate", "laser", "--camera", &camera, "--session"])),
@@ -1875,19 +1549,13 @@ fn bad_command_lines_are_refused_naming_the_flag() {
     ];
     for (flag, command) in &folder_flags {
         for (what, value, needle) in [
-            ("missing", path_str(&dir.join("nofolder")), "nofolder"),
-            ("a file", path_str(&a_file), "a_file.txt"),
-            ("a folder without its yaml", path_str(&empty), "empty"),
+            ("missing", arg(&dir.join("nofolder")), "nofolder"),
+            ("a file", arg(&a_file), "a_file.txt"),
+            ("a folder without its yaml", arg(&empty), "empty"),
         ] {
             let mut command = command.clone();
             command.push(value);
-            suite.case(
-                &format!("{} {flag}: {what}", command[0]),
-                &command,
-                &[needle],
-                Expect::Refused,
-                None,
-            );
+            suite.refused(&format!("{} {flag}: {what}", command[0]), &command, &[needle]);
         }
     }
     suite.finish("command lines");
@@ -1898,51 +1566,37 @@ fn bad_command_lines_are_refused_naming_the_flag() {
 
 #[test]
 fn unwritable_outputs_are_exit_2_naming_the_output() {
-    let f = fixture();
-    let dir = scratch("outputs");
-    let samples = path_str(&f.samples);
-    let session = path_str(&f.session);
-    let scan = path_str(&f.scan);
-    let camera = path_str(&f.scan.join("camera.yaml"));
-    let laser = path_str(&f.scan.join("laser.yaml"));
-    let session_camera = path_str(&f.session.join("camera.yaml"));
+    let (f, dir) = setup("outputs");
+    let samples = arg(&f.samples);
+    let session = arg(&f.session);
+    let scan = arg(&f.scan);
+    let camera = arg(&f.scan.join("camera.yaml"));
+    let laser = arg(&f.scan.join("laser.yaml"));
+    let session_camera = arg(&f.session.join("camera.yaml"));
     let mut suite = Suite::default();
-    let a_folder = path_str(&dir);
+    let a_folder = arg(&dir);
     // Under a regular file: no folder there even for root (who may create /nonexistent).
-    let plain = dir.join("plain_file");
-    std::fs::write(&plain, "a file").unwrap();
-    let under_file = path_str(&plain.join("dir").join("out.yaml"));
+    let plain = write(&dir, "plain_file", "a file");
+    let under_file = arg(&plain.join("dir").join("out.yaml"));
     for target in [under_file.as_str(), "/proc/x", a_folder.as_str()] {
         let needle = if target == a_folder { "outputs" } else { target };
         for command in [
             a(&["calibrate", "laser", "--samples", &samples, "-o", target]),
             a(&["calibrate", "laser", "--samples", &samples, "--compare", "-o", target]),
-            a(&[
-                "calibrate",
-                "laser",
-                "--session",
-                &session,
-                "--camera",
-                &session_camera,
-                "-o",
-                target,
-            ]),
-            a(&[
-                "calibrate",
-                "laser",
-                "--session",
-                &session,
-                "--camera",
-                &session_camera,
-                "--export-samples",
-                target,
-            ]),
+            cmdline(
+                "calibrate laser --session {} --camera {} -o {}",
+                &[&session, &session_camera, &target],
+            ),
+            cmdline(
+                "calibrate laser --session {} --camera {} --export-samples {}",
+                &[&session, &session_camera, &target],
+            ),
             a(&["calibrate", "camera", "--session", &session, "-o", target]),
         ] {
-            suite.case(&format!("-o {target}"), &command, &[needle], Expect::Refused, None);
+            suite.refused(&format!("-o {target}"), &command, &[needle]);
         }
     }
-    let under_file = path_str(&plain.join("out"));
+    let under_file = arg(&plain.join("out"));
     for target in ["/proc/x", under_file.as_str(), "/dev/null"] {
         for command in [
             a(&["simulate", "samples", "--out", target]),
@@ -1950,35 +1604,27 @@ fn unwritable_outputs_are_exit_2_naming_the_output() {
             a(&["simulate", "scan", "--scale", "0.1", "--out", target]),
             a(&["scan", "--sim", "--scale", "0.1", "--out", target]),
             a(&["evaluate", "calibration", "--samples", &samples, "--out", target]),
-            a(&[
-                "report", "scan", "--scan", &scan, "--camera", &camera, "--laser", &laser, "--out",
-                target,
-            ]),
+            report_scan(&scan, &camera, &laser, &target),
         ] {
-            suite.case(&format!("--out {target}"), &command, &[target], Expect::Refused, None);
+            suite.refused(&format!("--out {target}"), &command, &[target]);
         }
     }
     // An output folder holding a file the command did not write.
     let foreign = dir.join("foreign");
     std::fs::create_dir_all(&foreign).unwrap();
     std::fs::write(foreign.join("mine.txt"), "keep me").unwrap();
-    let foreign_s = path_str(&foreign);
+    let foreign_s = arg(&foreign);
     for command in [
         a(&["simulate", "samples", "--out", &foreign_s]),
         a(&["simulate", "scan", "--scale", "0.1", "--out", &foreign_s]),
         a(&["scan", "--sim", "--scale", "0.1", "--out", &foreign_s]),
         a(&["evaluate", "calibration", "--samples", &samples, "--out", &foreign_s]),
-        a(&[
-            "report", "scan", "--scan", &scan, "--camera", &camera, "--laser", &laser, "--out",
-            &foreign_s,
-        ]),
+        report_scan(&scan, &camera, &laser, &foreign_s),
     ] {
-        suite.case(
+        suite.refused(
             &format!("{} into a foreign folder", command[..2].join(" ")),
             &command,
             &["foreign", "mine.txt"],
-            Expect::Refused,
-            None,
         );
         let left: Vec<_> =
             std::fs::read_dir(&foreign).unwrap().map(|e| e.unwrap().file_name()).collect();
@@ -2000,34 +1646,17 @@ fn unwritable_outputs_are_exit_2_naming_the_output() {
 /// fails on its input.
 #[test]
 fn a_failed_run_leaves_an_earlier_output_folder_whole() {
-    let f = fixture();
-    let dir = scratch("old_folder");
+    let (f, dir) = setup("old_folder");
     let out = dir.join("evaluation");
-    let samples = path_str(&f.samples);
-    let ok = run(&a(&[
-        "evaluate",
-        "calibration",
-        "--samples",
-        &samples,
-        "--out",
-        out.to_str().unwrap(),
-    ]))
-    .unwrap();
+    let samples = arg(&f.samples);
+    let ok = run(&evaluate_calibration(&samples, &out)).unwrap();
     assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
     let before = std::fs::read(out.join("calibration.json")).unwrap();
-    let bad = dir.join("bad.csv");
-    std::fs::write(&bad, "u_n,v_n,z_mm\n0.1,0.1,nan\n").unwrap();
+    let bad = write(&dir, "bad.csv", "u_n,v_n,z_mm\n0.1,0.1,nan\n");
     let mut suite = Suite::default();
     suite.case(
         "evaluate over an earlier folder",
-        &a(&[
-            "evaluate",
-            "calibration",
-            "--samples",
-            bad.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ]),
+        &evaluate_calibration(&bad, &out),
         &["bad.csv"],
         Expect::Refused,
         None,
@@ -2039,54 +1668,44 @@ fn a_failed_run_leaves_an_earlier_output_folder_whole() {
 // ---------------------------------------------------------------------------
 // Standard output: closed pipes and a full disk.
 
+/// Commands that print to standard output, in text and JSON mode.
+fn printing_commands(f: &Fixture) -> [Vec<String>; 3] {
+    [
+        cmdline("calibrate laser --samples {}", &[&f.samples]),
+        cmdline("calibrate laser --samples {} --json", &[&f.samples]),
+        cmdline("stripe --image {}", &[&f.frame]),
+    ]
+}
+
 #[test]
 fn a_closed_stdout_pipe_is_a_quiet_exit_0() {
     let f = fixture();
-    let samples = path_str(&f.samples);
-    let frame = path_str(&f.scan.join("frame0.png"));
-    for args in [
-        a(&["calibrate", "laser", "--samples", &samples]),
-        a(&["calibrate", "laser", "--samples", &samples, "--json"]),
-        a(&["calibrate", "laser", "--samples", &samples, "--compare"]),
-        a(&["stripe", "--image", &frame]),
-        a(&["--help"]),
-    ] {
+    let more = [cmdline("calibrate laser --samples {} --compare", &[&f.samples]), a(&["--help"])];
+    for args in printing_commands(f).into_iter().chain(more) {
         // Closed before alacs writes anything.
-        let mut child = Command::new(ALACS)
-            .args(&args)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap();
-        drop(child.stdout.take());
-        let output = child.wait_with_output().unwrap();
-        assert_eq!(
-            output.status.code(),
-            Some(0),
-            "{args:?}: {}",
-            String::from_utf8_lossy(&output.stderr)
-        );
-        assert!(output.stderr.is_empty(), "{args:?}: {}", String::from_utf8_lossy(&output.stderr));
+        assert_quiet_exit_0(&args, drop);
         // `| head -1`: one line read, then the pipe closed.
-        let mut child = Command::new(ALACS)
-            .args(&args)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap();
-        let mut stdout = child.stdout.take().unwrap();
-        let mut byte = [0u8; 1];
-        while stdout.read(&mut byte).unwrap_or(0) == 1 && byte[0] != b'\n' {}
-        drop(stdout);
-        let output = child.wait_with_output().unwrap();
-        assert_eq!(
-            output.status.code(),
-            Some(0),
-            "{args:?}: {}",
-            String::from_utf8_lossy(&output.stderr)
-        );
-        assert!(output.stderr.is_empty(), "{args:?}: {}", String::from_utf8_lossy(&output.stderr));
+        assert_quiet_exit_0(&args, |mut stdout| {
+            let mut byte = [0u8; 1];
+            while stdout.read(&mut byte).unwrap_or(0) == 1 && byte[0] != b'\n' {}
+        });
     }
+}
+
+/// Runs alacs with `args`, hands its standard output to `reader` (which
+/// closes it when done), and asserts a quiet exit 0.
+fn assert_quiet_exit_0(args: &[String], reader: impl FnOnce(std::process::ChildStdout)) {
+    let mut child = Command::new(ALACS)
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    reader(child.stdout.take().unwrap());
+    let output = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(0), "{args:?}: {stderr}");
+    assert!(output.stderr.is_empty(), "{args:?}: {stderr}");
 }
 
 #[test]
@@ -2095,15 +1714,11 @@ fn a_full_stdout_is_exit_2_in_text_and_json_mode() {
         return;
     }
     let f = fixture();
-    let samples = path_str(&f.samples);
-    let frame = path_str(&f.scan.join("frame0.png"));
-    for args in [
-        a(&["calibrate", "laser", "--samples", &samples]),
-        a(&["calibrate", "laser", "--samples", &samples, "--json"]),
-        a(&["stripe", "--image", &frame]),
-        a(&["stripe", "--image", &frame, "--json"]),
+    let more = [
+        cmdline("stripe --image {} --json", &[&f.frame]),
         a(&["calibrate", "laser", "--samples", "/nonexistent.csv", "--json"]),
-    ] {
+    ];
+    for args in printing_commands(f).into_iter().chain(more) {
         let full = std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
         let output = run_with(&args, Stdio::from(full)).unwrap();
         let stderr = String::from_utf8_lossy(&output.stderr);
@@ -2141,15 +1756,17 @@ fn known_bugs_fail_strictly() {
 /// Regression: the size mismatch of `stripe --laser-off` named neither file.
 #[test]
 fn a_laser_off_image_of_another_size_is_refused_naming_it() {
-    let f = fixture();
-    let dir = scratch("laser_off_size");
-    let frame = f.scan.join("frame0.png");
-    let colour = image::open(&frame).unwrap();
-    let off = dir.join("off_small.png");
-    std::fs::write(&off, encode(colour.crop_imm(0, 0, 60, 40), image::ImageFormat::Png)).unwrap();
+    let (f, dir) = setup("laser_off_size");
+    let frame = &f.frame;
+    let colour = image::open(frame).unwrap();
+    let off = write(
+        &dir,
+        "off_small.png",
+        encode(colour.crop_imm(0, 0, 60, 40), image::ImageFormat::Png),
+    );
     let mut suite = Suite::default();
     let command =
         a(&["stripe", "--image", frame.to_str().unwrap(), "--laser-off", off.to_str().unwrap()]);
-    suite.case("stripe --laser-off 60 x 40", &command, &["off_small.png"], Expect::Refused, None);
+    suite.refused("stripe --laser-off 60 x 40", &command, &["off_small.png"]);
     suite.finish("laser-off size");
 }

@@ -3,21 +3,19 @@
 // Test helpers outside #[test] functions may fail loudly too.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
-use std::path::{Path, PathBuf};
+mod common;
+
+use std::ffi::OsStr;
+use std::path::Path;
 use std::process::{Command, Output};
 
+use common::{
+    arg, cmdline, evaluate_calibration, localize, report_scan, scratch, triangulate, with, write,
+};
 use serde_json::Value;
 
-fn alacs(args: &[&str]) -> Output {
+fn alacs(args: &[impl AsRef<OsStr>]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_alacs")).args(args).output().expect("alacs runs")
-}
-
-/// A fresh folder for one test.
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
 }
 
 fn stdout_json(output: &Output) -> Value {
@@ -54,15 +52,8 @@ fn calibrate_laser_json_has_the_formats_md_keys() {
     let dir = scratch("calibrate_json");
     let samples = simulated_samples(&dir, "5");
     let laser_yaml = dir.join("laser.yaml");
-    let output = alacs(&[
-        "calibrate",
-        "laser",
-        "--samples",
-        &samples,
-        "--json",
-        "-o",
-        laser_yaml.to_str().unwrap(),
-    ]);
+    let output =
+        alacs(&cmdline("calibrate laser --samples {} --json -o {}", &[&samples, &laser_yaml]));
     let json = stdout_json(&output);
     for key in [
         "model",
@@ -151,23 +142,13 @@ fn evaluate_bad_input_exits_2_naming_the_file() {
     let out = dir.join("evaluation");
     let out = out.to_str().unwrap();
     let missing = dir.join("missing.csv");
-    let output =
-        alacs(&["evaluate", "calibration", "--samples", missing.to_str().unwrap(), "--out", out]);
+    let output = alacs(&evaluate_calibration(&missing, &out));
     assert_eq!(output.status.code(), Some(2));
     assert!(stderr(&output).contains("missing.csv"), "{}", stderr(&output));
     // A session folder without session.yaml.
-    let output = alacs(&[
-        "evaluate",
-        "accuracy",
-        "--session",
-        dir.to_str().unwrap(),
-        "--camera",
-        "camera.yaml",
-        "--laser",
-        "laser.yaml",
-        "--out",
-        out,
-    ]);
+    let template =
+        "evaluate accuracy --session {} --camera camera.yaml --laser laser.yaml --out {}";
+    let output = alacs(&cmdline(template, &[&dir, &out]));
     assert_eq!(output.status.code(), Some(2));
     assert!(stderr(&output).contains("session.yaml"), "{}", stderr(&output));
     // Neither --samples nor --session: usage.
@@ -181,8 +162,7 @@ fn evaluate_calibration_writes_table_1_and_residual_plots() {
     let dir = scratch("evaluate_calibration");
     let samples = simulated_samples(&dir, "5");
     let out = dir.join("evaluation");
-    let output =
-        alacs(&["evaluate", "calibration", "--samples", &samples, "--out", out.to_str().unwrap()]);
+    let output = alacs(&evaluate_calibration(&samples, &out));
     assert!(output.status.success(), "{}", stderr(&output));
     let text = String::from_utf8(output.stdout).unwrap();
     assert!(text.contains("Method 4 (High-fidelity model + RANSAC)"), "{text}");
@@ -213,12 +193,7 @@ fn evaluate_refuses_a_foreign_or_unwritable_folder_with_exit_2() {
     let out = dir.join("mine");
     std::fs::create_dir_all(&out).unwrap();
     std::fs::write(out.join("notes.txt"), "keep").unwrap();
-    let run = |extra: &[&str]| {
-        let mut args = vec!["evaluate", "calibration", "--samples", &samples];
-        args.extend_from_slice(&["--out", out.to_str().unwrap()]);
-        args.extend_from_slice(extra);
-        alacs(&args)
-    };
+    let run = |extra: &[&str]| alacs(&with(evaluate_calibration(&samples, &out), extra));
     let output = run(&[]);
     assert_eq!(output.status.code(), Some(2), "{}", stderr(&output));
     assert!(stderr(&output).contains("--force"), "{}", stderr(&output));
@@ -231,8 +206,7 @@ fn evaluate_refuses_a_foreign_or_unwritable_folder_with_exit_2() {
     // An output path that is a file: exit 2.
     let file = dir.join("a_file");
     std::fs::write(&file, "x").unwrap();
-    let output =
-        alacs(&["evaluate", "calibration", "--samples", &samples, "--out", file.to_str().unwrap()]);
+    let output = alacs(&evaluate_calibration(&samples, &file));
     assert_eq!(output.status.code(), Some(2), "{}", stderr(&output));
 }
 
@@ -250,14 +224,11 @@ fn degenerate_samples_exit_1_with_a_reason() {
 }
 
 /// Runs `alacs triangulate` on camera.yaml, laser.yaml and pixels.csv in `dir`.
-fn triangulate(dir: &Path, slide_mm: &str, extra: &[&str]) -> Output {
-    let file = |name: &str| dir.join(name).to_str().unwrap().to_owned();
-    let (camera, laser, pixels) = (file("camera.yaml"), file("laser.yaml"), file("pixels.csv"));
-    let mut args =
-        vec!["triangulate", "--camera", &camera, "--laser", &laser, "--slide-mm", slide_mm];
-    args.extend(["--pixels", &pixels]);
-    args.extend(extra);
-    alacs(&args)
+fn triangulate_in(dir: &Path, slide_mm: &str, extra: &[&str]) -> Output {
+    let file = |name: &str| dir.join(name);
+    let args =
+        triangulate(&file("camera.yaml"), &file("laser.yaml"), slide_mm, &file("pixels.csv"));
+    alacs(&with(args, extra))
 }
 
 #[test]
@@ -272,7 +243,7 @@ fn triangulate_maps_pixels_to_points_on_the_laser_plane() {
     let pixels = dir.join("pixels.csv");
     // The last row is far right: its ray misses the laser plane in front of the camera.
     std::fs::write(&pixels, "u_px,v_px\n1000,100\n1100.5,1024\n1200,2000\n2447,1000\n").unwrap();
-    let output = triangulate(&dir, "50", &["--json"]);
+    let output = triangulate_in(&dir, "50", &["--json"]);
     let json = stdout_json(&output);
     let points = json["points_mm"].as_array().unwrap();
     assert_eq!(points.len(), 4);
@@ -298,14 +269,10 @@ fn triangulate_maps_pixels_to_points_on_the_laser_plane() {
 #[test]
 fn triangulate_rejects_a_malformed_camera_file() {
     let dir = scratch("triangulate_bad");
-    let camera_yaml = dir.join("camera.yaml");
-    std::fs::write(&camera_yaml, "image_width: 640\nimage_height: [480\n").unwrap();
-    let laser_yaml = dir.join("laser.yaml");
-    std::fs::write(&laser_yaml, "model: high-fidelity\nalpha_deg: 19\nbeta_deg: 0.5\nl0_mm: 380\n")
-        .unwrap();
-    let pixels = dir.join("pixels.csv");
-    std::fs::write(&pixels, "u_px,v_px\n1,2\n").unwrap();
-    let output = triangulate(&dir, "0", &[]);
+    write(&dir, "camera.yaml", "image_width: 640\nimage_height: [480\n");
+    write(&dir, "laser.yaml", "model: high-fidelity\nalpha_deg: 19\nbeta_deg: 0.5\nl0_mm: 380\n");
+    write(&dir, "pixels.csv", "u_px,v_px\n1,2\n");
+    let output = triangulate_in(&dir, "0", &[]);
     assert_eq!(output.status.code(), Some(2));
     assert!(stderr(&output).contains("camera.yaml"), "{}", stderr(&output));
 }
@@ -392,22 +359,8 @@ fn demo_json_reports_four_methods_and_accuracy() {
 fn simulate_session_writes_a_formats_md_session() {
     let dir = scratch("sim_session");
     let out = dir.to_str().unwrap();
-    let args = [
-        "simulate",
-        "session",
-        "--out",
-        out,
-        "--seed",
-        "3",
-        "--views",
-        "2",
-        "--slides",
-        "0,100",
-        "--laser-off",
-        "--scale",
-        "0.1",
-        "--json",
-    ];
+    let template = "simulate session --out {} --seed 3 --views 2 --slides 0,100 --laser-off --scale 0.1 --json";
+    let args = cmdline(template, &[&out]);
     let json = stdout_json(&alacs(&args));
     assert_eq!(json["n_views"], 4);
     assert_eq!(json["n_images"], 6);
@@ -425,7 +378,7 @@ fn simulate_session_writes_a_formats_md_session() {
     assert_eq!(truth["camera"]["image_width"], 245);
     // Same seed, same bytes.
     let again = scratch("sim_session_again");
-    let json = stdout_json(&alacs(&[&args[..3], &[again.to_str().unwrap()], &args[4..]].concat()));
+    let json = stdout_json(&alacs(&[&args[..3], &[arg(&again)], &args[4..]].concat()));
     assert_eq!(json["n_images"], 6);
     for file in ["session.yaml", "truth.json", "view02_slide2.png", "view01_off.png"] {
         assert_eq!(
@@ -451,15 +404,8 @@ fn opencv_right() -> String {
 fn calibrate_camera_json_has_the_formats_md_keys() {
     let dir = scratch("camera_opencv");
     let yaml = dir.join("camera.yaml");
-    let output = alacs(&[
-        "calibrate",
-        "camera",
-        "--session",
-        &opencv_right(),
-        "--json",
-        "-o",
-        yaml.to_str().unwrap(),
-    ]);
+    let template = "calibrate camera --session {} --json -o {}";
+    let output = alacs(&cmdline(template, &[&opencv_right(), &yaml]));
     let json = stdout_json(&output);
     for key in ["fx_px", "fy_px", "cx_px", "cy_px", "rms_px", "views_used"] {
         assert!(json[key].is_number(), "{key}: {json}");
@@ -480,40 +426,17 @@ fn calibrate_camera_json_has_the_formats_md_keys() {
 fn calibrate_from_a_simulated_session_end_to_end() {
     let dir = scratch("session_end_to_end");
     let out = dir.to_str().unwrap();
-    let output = alacs(&[
-        "simulate",
-        "session",
-        "--out",
-        out,
-        "--seed",
-        "7",
-        "--views",
-        "6",
-        "--slides",
-        "0,100,200",
-        "--scale",
-        "0.4",
-        "--json",
-    ]);
+    let template =
+        "simulate session --out {} --seed 7 --views 6 --slides 0,100,200 --scale 0.4 --json";
+    let output = alacs(&cmdline(template, &[&out]));
     stdout_json(&output);
     let camera = dir.join("estimated_camera.yaml");
     let camera = camera.to_str().unwrap();
     stdout_json(&alacs(&["calibrate", "camera", "--session", out, "-o", camera, "--json"]));
     let samples = dir.join("samples_out.csv");
     let laser = dir.join("laser_out.yaml");
-    let json = stdout_json(&alacs(&[
-        "calibrate",
-        "laser",
-        "--session",
-        out,
-        "--camera",
-        camera,
-        "--export-samples",
-        samples.to_str().unwrap(),
-        "-o",
-        laser.to_str().unwrap(),
-        "--json",
-    ]));
+    let template = "calibrate laser --session {} --camera {} --export-samples {} -o {} --json";
+    let json = stdout_json(&alacs(&cmdline(template, &[&out, &camera, &samples, &laser])));
     assert_eq!(json["model"], "high-fidelity");
     assert!((json["alpha_deg"].as_f64().unwrap() - 19.07).abs() < 0.1, "{json}");
     assert!((json["l0_mm"].as_f64().unwrap() - 381.98).abs() < 1.0, "{json}");
@@ -524,46 +447,20 @@ fn calibrate_from_a_simulated_session_end_to_end() {
     assert_eq!(csv.lines().count() as u64, n + 1);
     assert!(std::fs::read_to_string(&laser).unwrap().contains("alpha_deg"));
     // The exported samples calibrate to the same laser.
-    let again = stdout_json(&alacs(&[
-        "calibrate",
-        "laser",
-        "--samples",
-        samples.to_str().unwrap(),
-        "--json",
-    ]));
+    let again = stdout_json(&alacs(&cmdline("calibrate laser --samples {} --json", &[&samples])));
     assert_eq!(again["alpha_deg"], json["alpha_deg"]);
     // Evaluate: Table 1 on the session's samples, then the accuracy experiment.
     let eval_dir = dir.join("evaluation");
     let eval_out = eval_dir.to_str().unwrap();
-    let table = stdout_json(&alacs(&[
-        "evaluate",
-        "calibration",
-        "--session",
-        out,
-        "--camera",
-        camera,
-        "--out",
-        eval_out,
-        "--json",
-    ]));
+    let template = "evaluate calibration --session {} --camera {} --out {} --json";
+    let table = stdout_json(&alacs(&cmdline(template, &[&out, &camera, &eval_out])));
     assert_eq!(table["methods"].as_array().unwrap().len(), 4);
     assert_eq!(table["methods"][3]["alpha_deg"], json["alpha_deg"]);
-    let accuracy = stdout_json(&alacs(&[
-        "evaluate",
-        "accuracy",
-        "--session",
-        out,
-        "--camera",
-        camera,
-        "--laser",
-        laser.to_str().unwrap(),
-        "--out",
-        // A folder of its own: an output folder belongs to one command.
-        dir.join("accuracy").to_str().unwrap(),
-        "--points",
-        "3",
-        "--json",
-    ]));
+    // A folder of its own: an output folder belongs to one command.
+    let accuracy_out = dir.join("accuracy");
+    let template =
+        "evaluate accuracy --session {} --camera {} --laser {} --out {} --points 3 --json";
+    let accuracy = stdout_json(&alacs(&cmdline(template, &[&out, &camera, &laser, &accuracy_out])));
     assert_eq!(accuracy["points_per_view"], "3");
     assert_eq!(accuracy["slides"].as_array().unwrap().len(), 3, "{accuracy}");
     // Three per view, fewer where the stripe on the board has fewer points.
@@ -581,19 +478,8 @@ fn calibrate_from_a_simulated_session_end_to_end() {
     }
     // The HTML report of that camera and laser against the session.
     let report_dir = dir.join("report");
-    let report = stdout_json(&alacs(&[
-        "report",
-        "calibration",
-        "--session",
-        out,
-        "--camera",
-        camera,
-        "--laser",
-        laser.to_str().unwrap(),
-        "--out",
-        report_dir.to_str().unwrap(),
-        "--json",
-    ]));
+    let template = "report calibration --session {} --camera {} --laser {} --out {} --json";
+    let report = stdout_json(&alacs(&cmdline(template, &[&out, &camera, &laser, &report_dir])));
     assert_eq!(report["views"], 18, "{report}");
     // A far board at d = 200 mm whose stripe crosses dark squares may be
     // flagged (its mean |z - z_hat| beyond the 2 mm threshold; seed 7: 1 of 18).
@@ -657,17 +543,8 @@ fn image_like_grey(path: &Path) {
 fn scan_sim_json_localizes_the_simulated_apple_and_writes_a_scan_folder() {
     let dir = scratch("scan_sim");
     let out = dir.join("scan");
-    let output = alacs(&[
-        "scan",
-        "--sim",
-        "--scale",
-        "0.25",
-        "--rgbd-to-alacs",
-        "-40,-60,-10,2,5,0",
-        "--out",
-        out.to_str().unwrap(),
-        "--json",
-    ]);
+    let template = "scan --sim --scale 0.25 --rgbd-to-alacs -40,-60,-10,2,5,0 --out {} --json";
+    let output = alacs(&cmdline(template, &[&out]));
     let json = stdout_json(&output);
     for key in ["position_mm", "radius_mm", "candidates", "selected", "status", "reason"] {
         assert!(json.get(key).is_some(), "missing {key} in {json}");
@@ -705,19 +582,7 @@ fn scan_sim_json_localizes_the_simulated_apple_and_writes_a_scan_folder() {
 
     // `alacs localize` on the written folder gives the same answer.
     let (camera, laser) = (out.join("camera.yaml"), out.join("laser.yaml"));
-    let localize = |extra: &[&str]| {
-        let mut args = vec![
-            "localize",
-            "--scan",
-            out.to_str().unwrap(),
-            "--camera",
-            camera.to_str().unwrap(),
-            "--laser",
-            laser.to_str().unwrap(),
-        ];
-        args.extend_from_slice(extra);
-        alacs(&args)
-    };
+    let localize = |extra: &[&str]| alacs(&with(localize(&out, &camera, &laser), extra));
     let again = stdout_json(&localize(&["--json"]));
     assert_eq!(again["status"], "ok", "{again}");
     for axis in 0..3 {
@@ -730,19 +595,8 @@ fn scan_sim_json_localizes_the_simulated_apple_and_writes_a_scan_folder() {
 
     // `alacs report scan` on the written folder: the page, its images, the same answer.
     let report_dir = dir.join("report");
-    let report = stdout_json(&alacs(&[
-        "report",
-        "scan",
-        "--scan",
-        out.to_str().unwrap(),
-        "--camera",
-        camera.to_str().unwrap(),
-        "--laser",
-        laser.to_str().unwrap(),
-        "--out",
-        report_dir.to_str().unwrap(),
-        "--json",
-    ]));
+    let report = report_scan(&out, &camera, &laser, &report_dir);
+    let report = stdout_json(&alacs(&with(report, &["--json"])));
     assert_eq!(report["html"], report_dir.join("index.html").to_str().unwrap(), "{report}");
     assert_eq!(report["files"].as_array().unwrap().len(), 7, "{report}");
     for file in report["files"].as_array().unwrap() {
@@ -764,18 +618,9 @@ fn scan_sim_json_localizes_the_simulated_apple_and_writes_a_scan_folder() {
 #[test]
 fn localize_bad_input_exits_2_naming_the_file() {
     let dir = scratch("localize_bad");
-    let camera = dir.join("camera.yaml");
-    std::fs::write(&camera, "not: [a camera").unwrap();
+    let camera = write(&dir, "camera.yaml", "not: [a camera");
     let missing = dir.join("no_such_scan");
-    let output = alacs(&[
-        "localize",
-        "--scan",
-        missing.to_str().unwrap(),
-        "--camera",
-        camera.to_str().unwrap(),
-        "--laser",
-        camera.to_str().unwrap(),
-    ]);
+    let output = alacs(&localize(&missing, &camera, &camera));
     assert_eq!(output.status.code(), Some(2));
     assert!(output.stdout.is_empty());
     assert!(stderr(&output).contains("scan.yaml"), "{}", stderr(&output));
@@ -787,35 +632,13 @@ fn report_bad_input_exits_2_naming_the_file() {
     let missing = dir.join("no_such_scan");
     let camera = dir.join("camera.yaml");
     let out = dir.join("out");
-    let output = alacs(&[
-        "report",
-        "scan",
-        "--scan",
-        missing.to_str().unwrap(),
-        "--camera",
-        camera.to_str().unwrap(),
-        "--laser",
-        camera.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--json",
-    ]);
+    let output = alacs(&with(report_scan(&missing, &camera, &camera, &out), &["--json"]));
     assert_eq!(output.status.code(), Some(2));
     assert_error_json(&output, 2);
     assert!(stderr(&output).contains("no_such_scan"), "{}", stderr(&output));
     let missing = dir.join("no_such_session");
-    let output = alacs(&[
-        "report",
-        "calibration",
-        "--session",
-        missing.to_str().unwrap(),
-        "--camera",
-        camera.to_str().unwrap(),
-        "--laser",
-        camera.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let template = "report calibration --session {} --camera {} --laser {} --out {}";
+    let output = alacs(&cmdline(template, &[&missing, &camera, &camera, &out]));
     assert_eq!(output.status.code(), Some(2));
     assert!(stderr(&output).contains("no_such_session"), "{}", stderr(&output));
     assert!(!out.exists(), "nothing written for unreadable input");
@@ -884,18 +707,8 @@ fn session_init_lists_the_folders_images_and_refuses_to_overwrite() {
         image_like_grey(&dir.join(name));
     }
     let d = dir.to_str().unwrap();
-    let output = alacs(&[
-        "session",
-        "init",
-        d,
-        "--board",
-        "9x6",
-        "--square-mm",
-        "25",
-        "--slide-mm",
-        "50",
-        "--json",
-    ]);
+    let template = "session init {} --board 9x6 --square-mm 25 --slide-mm 50 --json";
+    let output = alacs(&cmdline(template, &[&d]));
     let json = stdout_json(&output);
     assert_eq!(json["n_views"], 2, "{json}");
     let session = alacs::Session::read(&dir).unwrap();
