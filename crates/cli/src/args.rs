@@ -94,7 +94,7 @@ pub struct SessionInitArgs {
     pub square_mm: String,
     /// Slide travel d of every view, mm (edit session.yaml for views taken
     /// at different slide positions).
-    #[arg(long, value_name = "D", default_value_t = 0.0, allow_hyphen_values = true)]
+    #[arg(long, value_name = "D", default_value_t = 0.0, value_parser = slide_mm)]
     pub slide_mm: f64,
     /// Replace an existing session.yaml.
     #[arg(long)]
@@ -153,7 +153,12 @@ pub struct EvaluateCalibrationArgs {
     #[arg(long)]
     pub force: bool,
     /// RANSAC inlier threshold epsilon on |z - z_hat|, in mm.
-    #[arg(long, value_name = "E", default_value_t = alacs::calib::DEFAULT_THRESHOLD_MM)]
+    #[arg(
+        long,
+        value_name = "E",
+        default_value_t = alacs::calib::DEFAULT_THRESHOLD_MM,
+        value_parser = positive_up_to(MAX_THRESHOLD_MM)
+    )]
     pub threshold_mm: f64,
     /// RANSAC seed (same seed, same result).
     #[arg(long, default_value_t = 0)]
@@ -323,7 +328,12 @@ pub struct CalibrateLaserArgs {
     #[arg(long)]
     pub compare: bool,
     /// RANSAC inlier threshold epsilon on |z - z_hat|, in mm.
-    #[arg(long, value_name = "E", default_value_t = alacs::calib::DEFAULT_THRESHOLD_MM)]
+    #[arg(
+        long,
+        value_name = "E",
+        default_value_t = alacs::calib::DEFAULT_THRESHOLD_MM,
+        value_parser = positive_up_to(MAX_THRESHOLD_MM)
+    )]
     pub threshold_mm: f64,
     /// RANSAC seed (same seed, same result).
     #[arg(long, default_value_t = 0)]
@@ -377,7 +387,7 @@ pub struct TriangulateArgs {
     #[arg(long, value_name = "FILE")]
     pub laser: PathBuf,
     /// Slide travel d in mm (L = L0 - d).
-    #[arg(long, value_name = "D", allow_negative_numbers = true)]
+    #[arg(long, value_name = "D", value_parser = slide_mm)]
     pub slide_mm: f64,
     /// Pixels CSV with header u_px,v_px.
     #[arg(long, value_name = "FILE")]
@@ -413,19 +423,19 @@ pub struct SimulateSamplesArgs {
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Board poses.
-    #[arg(long, default_value_t = 10)]
-    pub views: usize,
-    /// Laser points per view.
-    #[arg(long, default_value_t = 3)]
-    pub points_per_view: usize,
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..=alacs::sim::MAX_SAMPLES as i64))]
+    pub views: u32,
+    /// Laser points per view (views x points at most 10,000,000).
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=alacs::sim::MAX_SAMPLES as i64))]
+    pub points_per_view: u32,
     /// Board distance range MIN,MAX in mm.
     #[arg(long, value_name = "MIN,MAX", default_value = "600,1200")]
     pub depth_mm: String,
     /// Standard deviation of the depth noise, mm.
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = 0.5, value_parser = number_in(0.0, 1000.0))]
     pub noise_mm: f64,
     /// Fraction of samples made outliers (0 to 1).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, value_parser = number_in(0.0, 1.0))]
     pub outliers: f64,
     /// Slide positions in mm, cycled over the views, e.g. 0,50,100.
     #[arg(long, value_name = "D,D,...", default_value = "0")]
@@ -451,8 +461,8 @@ pub struct SimulateSessionArgs {
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Board poses.
-    #[arg(long, default_value_t = 10)]
-    pub views: usize,
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..=alacs::sim::MAX_SESSION_VIEWS as i64))]
+    pub views: u32,
     /// Slide positions in mm; every pose is rendered at each, e.g. 0,50,100,150,200.
     #[arg(long, value_name = "D,D,...", default_value = "0")]
     pub slides: String,
@@ -460,13 +470,13 @@ pub struct SimulateSessionArgs {
     #[arg(long)]
     pub laser_off: bool,
     /// Render the camera resized by this factor (camera.yaml holds the resized camera).
-    #[arg(long, value_name = "F", default_value_t = 1.0)]
+    #[arg(long, value_name = "F", default_value_t = 1.0, value_parser = positive_up_to(alacs::sim::MAX_SCALE))]
     pub scale: f64,
     /// Board centre distance range MIN,MAX in mm.
     #[arg(long, value_name = "MIN,MAX", default_value = "600,1200")]
     pub depth_mm: String,
     /// Largest board tilt away from facing the camera, degrees.
-    #[arg(long, default_value_t = 40.0)]
+    #[arg(long, default_value_t = 40.0, value_parser = number_in(0.0, 89.0))]
     pub max_tilt_deg: f64,
     /// How images are rendered.
     #[command(flatten)]
@@ -486,7 +496,7 @@ pub struct SceneArgs {
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Fraction of the fruit hidden behind leaves (0 to 1).
-    #[arg(long, value_name = "F", default_value_t = 0.0)]
+    #[arg(long, value_name = "F", default_value_t = 0.0, value_parser = number_in(0.0, 1.0))]
     pub occlusion: f64,
     /// Direct sunlight instead of shade.
     #[arg(long)]
@@ -495,7 +505,7 @@ pub struct SceneArgs {
     #[arg(long, value_name = "MIN,MAX", default_value = "600,1200")]
     pub depth_mm: String,
     /// Render the camera resized by this factor (camera.yaml holds the resized camera).
-    #[arg(long, value_name = "F", default_value_t = 1.0)]
+    #[arg(long, value_name = "F", default_value_t = 1.0, value_parser = positive_up_to(alacs::sim::MAX_SCALE))]
     pub scale: f64,
 }
 
@@ -509,13 +519,13 @@ pub struct TruthArgs {
     #[arg(long, value_name = "FILE")]
     pub laser: Option<PathBuf>,
     /// True alpha, degrees.
-    #[arg(long, default_value_t = 19.07)]
+    #[arg(long, default_value_t = 19.07, value_parser = number_in(-89.0, 89.0))]
     pub alpha_deg: f64,
     /// True beta, degrees.
-    #[arg(long, default_value_t = 0.69, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.69, value_parser = number_in(-45.0, 45.0))]
     pub beta_deg: f64,
     /// True L0, mm.
-    #[arg(long, default_value_t = 381.98)]
+    #[arg(long, default_value_t = 381.98, value_parser = positive_up_to(alacs::model::MAX_ABS_SLIDE_MM))]
     pub l0_mm: f64,
 }
 
@@ -523,7 +533,7 @@ pub struct TruthArgs {
 #[derive(Debug, Args)]
 pub struct RenderArgs {
     /// Width (sigma) of the laser stripe's Gaussian cross-section, pixels.
-    #[arg(long, default_value_t = 1.5)]
+    #[arg(long, default_value_t = 1.5, value_parser = positive_up_to(100.0))]
     pub stripe_sigma_px: f64,
     /// Rays per pixel along each axis (s x s per pixel).
     #[arg(long, value_name = "S", default_value_t = 3)]
@@ -553,7 +563,7 @@ pub struct SimulateScanArgs {
     #[arg(long)]
     pub anywhere: bool,
     /// Write JPEG frames of this quality (1-100) instead of PNG.
-    #[arg(long, value_name = "Q")]
+    #[arg(long, value_name = "Q", value_parser = clap::value_parser!(u8).range(1..=100))]
     pub jpeg: Option<u8>,
     /// How images are rendered.
     #[command(flatten)]
@@ -668,3 +678,35 @@ pub struct ScanArgs {
     #[arg(long)]
     pub json: bool,
 }
+
+/// A value parser for a finite number in `[low, high]`: clap's error then
+/// names the option and the value (`invalid value '1e308' for '--noise-mm
+/// <NOISE_MM>': ...`), exit 2. Ranges are sanity bounds that refuse unit or
+/// typing errors, not tuning limits.
+fn number_in(low: f64, high: f64) -> impl Fn(&str) -> Result<f64, String> + Clone + Send + Sync {
+    move |text: &str| {
+        let value: f64 = text.trim().parse().map_err(|_| format!("`{text}` is not a number"))?;
+        if value.is_finite() && (low..=high).contains(&value) {
+            Ok(value)
+        } else {
+            Err(format!("must be a finite number from {low} to {high}"))
+        }
+    }
+}
+
+/// [`number_in`] for a positive number up to `high` (0 excluded).
+fn positive_up_to(high: f64) -> impl Fn(&str) -> Result<f64, String> + Clone + Send + Sync {
+    move |text: &str| {
+        let value = number_in(0.0, high)(text)?;
+        if value > 0.0 { Ok(value) } else { Err(format!("must be positive, at most {high}")) }
+    }
+}
+
+/// A slide travel in mm: finite and within +-[`alacs::model::MAX_ABS_SLIDE_MM`].
+fn slide_mm(text: &str) -> Result<f64, String> {
+    number_in(-alacs::model::MAX_ABS_SLIDE_MM, alacs::model::MAX_ABS_SLIDE_MM)(text)
+}
+
+/// The largest RANSAC threshold accepted, mm: a metre is no inlier band.
+pub const MAX_THRESHOLD_MM: f64 = 1000.0;
+

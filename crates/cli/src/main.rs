@@ -42,7 +42,16 @@ const CONTRACT: &str = "Files, JSON outputs and exit codes: docs/FORMATS.md \
 fn parse() -> Result<args::Cli, clap::Error> {
     use clap::{CommandFactory as _, FromArgMatches as _};
     fn with_contract(command: clap::Command) -> clap::Command {
-        command.after_help(CONTRACT).mut_subcommands(with_contract)
+        command
+            .after_help(CONTRACT)
+            // A value that starts with a hyphen (`--slide-mm -5`, `--roi
+            // -5,0,9,9`, `--threshold-mm -inf`) is the option's value, which
+            // the option's own check takes or refuses naming the option,
+            // never clap's "unexpected argument '-5'" that names none.
+            .mut_args(|arg| {
+                if arg.get_action().takes_values() { arg.allow_hyphen_values(true) } else { arg }
+            })
+            .mut_subcommands(with_contract)
     }
     let matches = with_contract(args::Cli::command()).try_get_matches()?;
     args::Cli::from_arg_matches(&matches)

@@ -10,7 +10,7 @@
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use alacs_model::{Camera, LaserModel, SCAN_FILE, Scan, ScanFrameSpec};
-use alacs_vision::{read_colour_image, read_image};
+use alacs_vision::{read_colour_image, read_laser_off_image};
 use image::RgbImage;
 use rayon::prelude::*;
 
@@ -48,9 +48,10 @@ fn check_frame_count(scan: &Scan) -> Result<()> {
 /// Decodes one frame's images.
 fn read_frame(scan: &Scan, frame: &ScanFrameSpec) -> Result<(RgbImage, Option<RgbImage>)> {
     // The colour score needs colour; with a laser-off image the difference does not.
-    let on = read_colour_image(&scan.path_of(&frame.image), frame.image_laser_off.is_some())?;
+    let on_path = scan.path_of(&frame.image);
+    let on = read_colour_image(&on_path, frame.image_laser_off.is_some())?;
     let off = match &frame.image_laser_off {
-        Some(path) => Some(read_image(&scan.path_of(path))?.to_rgb8()),
+        Some(path) => Some(read_laser_off_image(&scan.path_of(path), &on, &on_path)?),
         None => None,
     };
     Ok((on, off))
@@ -77,6 +78,35 @@ pub fn read_scan_images(scan: &Scan, progress: impl Fn(usize, usize) + Sync) -> 
 /// The prior of a scan's scan.yaml.
 fn prior_of(scan: &Scan) -> Prior {
     Prior { rough_position_mm: scan.rough_position_mm, fruit_radius_mm: scan.fruit_radius_mm }
+}
+
+/// Names `path` (a frame's image) in an input error.
+fn in_file(path: &std::path::Path, error: Error) -> Error {
+    match error {
+        Error::InvalidInput(message) => Error::InvalidInput(format!("{}: {message}", path.display())),
+        other => other,
+    }
+}
+
+/// Refuses a camera whose image size is not the scan's: the first frame's
+/// size, read from its header (nothing decoded). The message names the
+/// frame's file; the caller names the camera's.
+pub fn check_camera_fits(scan: &Scan, camera: &Camera) -> Result<()> {
+    let Some(first) = scan.frames.first() else { return Ok(()) };
+    let path = scan.path_of(&first.image);
+    let Ok((width, height)) = image::image_dimensions(&path) else {
+        // Unreadable: reading the frame itself says why, naming it.
+        return Ok(());
+    };
+    if (width, height) != (camera.width_px, camera.height_px) {
+        return Err(Error::InvalidInput(format!(
+            "the camera is for {} x {} px images, but the scan's frame {} is {width} x {height} px",
+            camera.width_px,
+            camera.height_px,
+            path.display()
+        )));
+    }
+    Ok(())
 }
 
 /// Names the scan folder in an input error.
@@ -128,7 +158,7 @@ pub fn locate_scan(
                     image_laser_off: off.as_ref(),
                     slide_mm: spec.slide_mm,
                 };
-                check_frame(camera, index, &frame).map_err(|e| in_folder(scan, e))?;
+                check_frame(camera, index, &frame).map_err(|e| in_file(&scan.path_of(&spec.image), e))?;
                 let result = context.frame(index, &frame)?;
                 Ok((result, (on, off)))
             })

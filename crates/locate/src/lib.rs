@@ -31,8 +31,8 @@ mod types;
 
 pub use error::{Error, Result};
 pub use folder::{
-    MAX_FRAMES_IN_FLIGHT, MAX_SCAN_FRAMES, ScanImages, locate_scan, locate_scan_images,
-    read_scan_images,
+    MAX_FRAMES_IN_FLIGHT, MAX_SCAN_FRAMES, ScanImages, check_camera_fits, locate_scan,
+    locate_scan_images, read_scan_images,
 };
 pub use locate::locate;
 pub use output::{CandidateOutput, FrameOutput, FusedOutput, LocalizeOutput, OutlineOutput};

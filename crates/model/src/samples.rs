@@ -59,6 +59,13 @@ impl LaserSample {
                 self.u_n, self.v_n
             ));
         }
+        if self.slide_mm.abs() > crate::MAX_ABS_SLIDE_MM {
+            return Some(format!(
+                "slide_mm is {:e} mm, beyond +-{} mm: no slide travels that far",
+                self.slide_mm,
+                crate::MAX_ABS_SLIDE_MM
+            ));
+        }
         (self.z_mm > MAX_DEPTH_MM).then(|| {
             format!("z_mm is {:e} mm, beyond {MAX_DEPTH_MM} mm: not a laser point", self.z_mm)
         })

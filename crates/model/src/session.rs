@@ -181,10 +181,12 @@ impl Session {
             if view.image.trim().is_empty() {
                 return Err(parse_error(format!("views[{i}]: `image` is empty")));
             }
-            if !view.slide_mm.is_finite() {
+            if !(view.slide_mm.is_finite() && view.slide_mm.abs() <= crate::MAX_ABS_SLIDE_MM) {
                 return Err(parse_error(format!(
-                    "views[{i}] ({}): `slide_mm` is {}; it must be finite",
-                    view.image, view.slide_mm
+                    "views[{i}] ({}): `slide_mm` is {:e}; it must be finite and within +-{} mm",
+                    view.image,
+                    view.slide_mm,
+                    crate::MAX_ABS_SLIDE_MM
                 )));
             }
             views.push(SessionView {

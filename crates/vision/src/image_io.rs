@@ -69,6 +69,35 @@ pub fn read_colour_image(path: &Path, differencing: bool) -> Result<RgbImage> {
     Ok(rgb)
 }
 
+/// The laser-off image of a frame whose laser image `on` was read from
+/// `on_path`: the same size, and in colour when `on` is (the difference of
+/// the red channels means nothing between a colour and a grey image).
+/// Errors name both files.
+pub fn read_laser_off_image(path: &Path, on: &RgbImage, on_path: &Path) -> Result<RgbImage> {
+    let image = read_image(path)?;
+    let grey = !image.color().has_color();
+    let off = image.into_rgb8();
+    let error = |message: String| Err(Error::Image { path: path.to_path_buf(), message });
+    if off.dimensions() != on.dimensions() {
+        return error(format!(
+            "the laser-off image is {} x {} px, the laser image {} is {} x {} px",
+            off.width(),
+            off.height(),
+            on_path.display(),
+            on.width(),
+            on.height()
+        ));
+    }
+    if (grey || looks_grey(&off)) && !looks_grey(on) {
+        return error(format!(
+            "a greyscale laser-off image for the colour laser image {}: the stripe is the \
+             difference of the red channels, so both must be colour (or both grey)",
+            on_path.display()
+        ));
+    }
+    Ok(off)
+}
+
 /// Whether every sampled pixel (about 10,000 over the image) has R = G = B.
 fn looks_grey(image: &RgbImage) -> bool {
     let n = image.as_raw().len() / 3;
@@ -115,5 +144,28 @@ mod tests {
         let as_rgb = dir.path().join("grey_rgb.png");
         DynamicImage::ImageLuma8(grey).into_rgb8().save(&as_rgb).unwrap();
         assert!(read_colour_image(&as_rgb, false).is_err());
+    }
+
+    #[test]
+    fn a_greyscale_laser_off_image_for_a_colour_frame_is_refused_naming_both() {
+        // Regression: `alacs stripe --laser-off grey.png` on a colour frame
+        // subtracted a grey level from the red channel and exited 0.
+        let dir = tempfile::tempdir().unwrap();
+        let on = RgbImage::from_fn(32, 32, |u, _| image::Rgb([200, u as u8, 10]));
+        let on_path = dir.path().join("frame0.png");
+        let grey = dir.path().join("grey_off.png");
+        image::GrayImage::from_pixel(32, 32, image::Luma([40])).save(&grey).unwrap();
+        let message = read_laser_off_image(&grey, &on, &on_path).unwrap_err().to_string();
+        assert!(message.contains("grey_off.png") && message.contains("frame0.png"), "{message}");
+        let small = dir.path().join("small_off.png");
+        RgbImage::from_pixel(16, 32, image::Rgb([9, 8, 7])).save(&small).unwrap();
+        let message = read_laser_off_image(&small, &on, &on_path).unwrap_err().to_string();
+        assert!(message.contains("small_off.png") && message.contains("16 x 32"), "{message}");
+        let colour = dir.path().join("off.png");
+        RgbImage::from_pixel(32, 32, image::Rgb([30, 20, 10])).save(&colour).unwrap();
+        assert!(read_laser_off_image(&colour, &on, &on_path).is_ok());
+        // Both grey: the difference of the channels still works.
+        let grey_on = RgbImage::from_pixel(32, 32, image::Rgb([90, 90, 90]));
+        assert!(read_laser_off_image(&grey, &grey_on, &on_path).is_ok());
     }
 }

@@ -4,7 +4,7 @@ use alacs::locate::{LocateOptions, locate_scan};
 use alacs::{Camera, LaserModel, Scan};
 
 use crate::args::LocalizeArgs;
-use crate::failure::CmdResult;
+use crate::failure::{CmdResult, Failure};
 use crate::output;
 
 /// Runs `alacs localize`. `not_found` is an answer (exit 0), per FORMATS.md.
@@ -12,6 +12,8 @@ pub fn run(args: &LocalizeArgs) -> CmdResult {
     let scan = Scan::read(&args.scan)?;
     let camera = Camera::from_yaml_file(&args.camera)?;
     let laser = LaserModel::from_yaml_file(&args.laser)?;
+    alacs::locate::check_camera_fits(&scan, &camera)
+        .map_err(|e| Failure::from(e).with_context(&args.camera))?;
     let options = LocateOptions { method: args.method.method(), ..LocateOptions::default() };
     let bar = output::progress_bar(args.json, "frames");
     output::start_progress(&bar, scan.frames.len(), "frames read");

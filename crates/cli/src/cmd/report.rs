@@ -82,6 +82,8 @@ pub fn calibration(args: &ReportCalibrationArgs) -> CmdResult {
 pub fn scan(args: &ReportScanArgs) -> CmdResult {
     let scan = Scan::read(&args.scan)?;
     let camera = Camera::from_yaml_file(&args.camera)?;
+    alacs::locate::check_camera_fits(&scan, &camera)
+        .map_err(|e| Failure::from(e).with_context(&args.camera))?;
     let laser = LaserModel::from_yaml_file(&args.laser)?;
     let mut out = open_output(&args.out, OutputKind::ReportScan, args.force)?;
     let bar = output::progress_bar(args.json, "frames");

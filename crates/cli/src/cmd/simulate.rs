@@ -27,10 +27,36 @@ pub fn parse_list(text: &str, name: &str) -> CmdResult<Vec<f64>> {
         .collect()
 }
 
-/// Parses `MIN,MAX` for option `name`.
+/// Parses `--slides`: 1 to [`alacs::sim::MAX_SLIDE_POSITIONS`] slide
+/// travels d in mm, each with the laser in front of the camera's baseline
+/// (0 <= d < L0, so that L = L0 - d > 0).
+fn parse_slides(text: &str, laser: &LaserModel) -> CmdResult<Vec<f64>> {
+    let slides = parse_list(text, "--slides")?;
+    let max = alacs::sim::MAX_SLIDE_POSITIONS;
+    if slides.len() > max {
+        return Err(Failure::bad_input(anyhow!(
+            "--slides: {} positions, more than {max}",
+            slides.len()
+        )));
+    }
+    let l0_mm = laser.l0_mm;
+    match slides.iter().find(|&&d| !(0.0..l0_mm).contains(&d)) {
+        Some(d) => Err(Failure::bad_input(anyhow!(
+            "--slides: {d} mm is outside 0 <= d < L0 = {l0_mm} mm (L = L0 - d must stay positive)"
+        ))),
+        None => Ok(slides),
+    }
+}
+
+/// Parses a distance range `MIN,MAX` in mm for option `name`: positive,
+/// ordered and within [`alacs::model::MAX_ROUGH_DISTANCE_MM`].
 pub fn parse_range(text: &str, name: &str) -> CmdResult<(f64, f64)> {
+    let limit = alacs::model::MAX_ROUGH_DISTANCE_MM;
     match parse_list(text, name)?.as_slice() {
-        [min, max] => Ok((*min, *max)),
+        &[min, max] if 0.0 < min && min <= max && max <= limit => Ok((min, max)),
+        &[_, _] => Err(Failure::bad_input(anyhow!(
+            "{name} `{text}`: MIN,MAX must satisfy 0 < MIN <= MAX <= {limit} mm"
+        ))),
         _ => Err(Failure::bad_input(anyhow!("{name} takes MIN,MAX, got `{text}`"))),
     }
 }
@@ -86,13 +112,22 @@ impl SceneArgs {
 /// Runs `alacs simulate samples`.
 pub fn samples(args: &SimulateSamplesArgs) -> CmdResult {
     let (camera, laser) = args.truth.camera_and_laser()?;
+    let n_samples = u64::from(args.views) * u64::from(args.points_per_view);
+    if n_samples > alacs::sim::MAX_SAMPLES as u64 {
+        return Err(Failure::bad_input(anyhow!(
+            "--views {} x --points-per-view {} is {n_samples} samples, more than {}",
+            args.views,
+            args.points_per_view,
+            alacs::sim::MAX_SAMPLES
+        )));
+    }
     let options = SampleOptions {
-        n_views: args.views,
-        points_per_view: args.points_per_view,
+        n_views: args.views as usize,
+        points_per_view: args.points_per_view as usize,
         depth_mm: parse_range(&args.depth_mm, "--depth-mm")?,
         depth_noise_mm: args.noise_mm,
         outlier_fraction: args.outliers,
-        slides_mm: parse_list(&args.slides, "--slides")?,
+        slides_mm: parse_slides(&args.slides, &laser)?,
         seed: args.seed,
         ..SampleOptions::default()
     };
@@ -120,8 +155,8 @@ pub fn session(args: &SimulateSessionArgs) -> CmdResult {
     let (camera, laser) = args.truth.camera_and_laser()?;
     let render = args.render.options(RenderOptions::default());
     let options = SessionOptions {
-        n_views: args.views,
-        slides_mm: parse_list(&args.slides, "--slides")?,
+        n_views: args.views as usize,
+        slides_mm: parse_slides(&args.slides, &laser)?,
         depth_mm: parse_range(&args.depth_mm, "--depth-mm")?,
         max_tilt_deg: args.max_tilt_deg,
         laser_off: args.laser_off,

@@ -1,6 +1,8 @@
 //! `alacs stripe`: the laser stripe of one frame.
 
-use alacs::vision::{Region, StripeOptions, extract_stripe_rgb, read_colour_image, read_image};
+use alacs::vision::{
+    Region, StripeOptions, extract_stripe_rgb, read_colour_image, read_laser_off_image,
+};
 use anyhow::anyhow;
 use serde_json::json;
 
@@ -39,21 +41,7 @@ pub fn run(args: &StripeArgs) -> CmdResult {
     let roi = args.roi.as_deref().map(parse_roi).transpose()?;
     let on = read_colour_image(&args.image, args.laser_off.is_some())?;
     let off = match &args.laser_off {
-        Some(path) => {
-            let off = read_image(path)?.to_rgb8();
-            if off.dimensions() != on.dimensions() {
-                return Err(Failure::bad_input(anyhow!(
-                    "{}: the laser-off image is {} x {} px, the laser image {} is {} x {} px",
-                    path.display(),
-                    off.width(),
-                    off.height(),
-                    args.image.display(),
-                    on.width(),
-                    on.height()
-                )));
-            }
-            Some(off)
-        }
+        Some(path) => Some(read_laser_off_image(path, &on, &args.image)?),
         None => None,
     };
     let (width, height) = on.dimensions();

@@ -166,7 +166,7 @@ impl CameraFile {
         }
 
         let distortion = self.distortion()?;
-        Ok(Camera {
+        let camera = Camera {
             name: self.camera_name.unwrap_or_else(|| DEFAULT_CAMERA_NAME.to_string()),
             width_px,
             height_px,
@@ -176,7 +176,11 @@ impl CameraFile {
             cy_px,
             skew_px,
             distortion,
-        })
+        };
+        // What the keys' own checks above leave (an absurd image size, a
+        // non-finite intrinsic) is refused by the one camera check.
+        camera.validate().map_err(|e| e.to_string())?;
+        Ok(camera)
     }
 
     fn distortion(&self) -> std::result::Result<Distortion, String> {
@@ -186,6 +190,14 @@ impl CameraFile {
         let data = matrix.values(KEY)?;
         if let Some((i, value)) = data.iter().enumerate().find(|(_, v)| !v.is_finite()) {
             return Err(format!("`{KEY}`: data[{i}] is {value}; coefficients must be finite"));
+        }
+        if let Some((i, value)) =
+            data.iter().enumerate().find(|(_, v)| v.abs() > super::MAX_ABS_DISTORTION)
+        {
+            return Err(format!(
+                "`{KEY}`: data[{i}] is {value:e}, beyond +-{:e}: no lens has it (a unit or typing error)",
+                super::MAX_ABS_DISTORTION
+            ));
         }
         let model = match self.distortion_model.as_deref().map(str::trim) {
             Some(name) => name.to_ascii_lowercase(),

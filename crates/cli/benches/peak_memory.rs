@@ -1,0 +1,165 @@
+//! Peak memory of the `alacs` program on the worst inputs the contract
+//! allows (docs/FORMATS.md, "Limits"): each case runs the real binary and
+//! reads the child's peak resident set size from the kernel (VmHWM in
+//! /proc), so the number is the whole process's, allocator included.
+//!
+//!     cargo bench -p alacs-cli --bench peak_memory
+//!
+//! The inputs are made with `alacs simulate` into a temporary folder first
+//! (a few minutes on 2 cores: one full-resolution scan, 2 million samples).
+//! The numbers go into README.md's "Memory" table.
+
+// A benchmark program: failing loudly is its error handling.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::Instant;
+
+use alacs::Scan;
+
+const ALACS: &str = env!("CARGO_BIN_EXE_alacs");
+
+/// The peak resident set size of process `pid` so far (VmHWM), MiB.
+fn peak_rss_mib(pid: u32) -> Option<f64> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib / 1024.0)
+}
+
+/// Runs `alacs args...` to its end; returns its exit code, wall time (s)
+/// and peak RSS (MiB): the kernel's high-water mark (VmHWM), read every
+/// 2 ms until the process exits (it only grows, so the last reading is
+/// the peak but for the last 2 ms of the run).
+fn measure(args: &[&str]) -> (i32, f64, f64) {
+    let start = Instant::now();
+    let mut child = Command::new(ALACS)
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("spawn alacs");
+    let mut peak = 0.0_f64;
+    let status = loop {
+        if let Some(mib) = peak_rss_mib(child.id()) {
+            peak = peak.max(mib);
+        }
+        if let Some(status) = child.try_wait().expect("wait") {
+            break status;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    };
+    (status.code().unwrap_or(-1), start.elapsed().as_secs_f64(), peak)
+}
+
+/// Runs a setup command, which must succeed.
+fn setup(args: &[&str]) {
+    let (code, seconds, _) = measure(args);
+    assert_eq!(code, 0, "setup `alacs {}` failed", args.join(" "));
+    eprintln!("  setup ({seconds:.1} s): alacs {}", args.join(" "));
+}
+
+fn arg(path: &Path) -> String {
+    path.display().to_string()
+}
+
+/// A scan folder of `n` frames at full resolution: the 5 frames of `scan`
+/// repeated (the memory of a scan does not depend on what its frames show).
+fn long_scan(scan: &Path, n: usize, out: &Path) -> PathBuf {
+    let mut long = Scan::read(scan).unwrap();
+    let frames = long.frames.clone();
+    long.frames = (0..n).map(|i| frames[i % frames.len()].clone()).collect();
+    for frame in &mut long.frames {
+        frame.image = scan.join(&frame.image);
+        frame.image_laser_off = frame.image_laser_off.as_ref().map(|off| scan.join(off));
+    }
+    std::fs::create_dir_all(out).unwrap();
+    long.dir = out.to_path_buf();
+    long.write_yaml("# peak_memory bench: frames repeated").unwrap();
+    out.to_path_buf()
+}
+
+fn main() {
+    // `cargo bench` passes `--bench`; nothing to filter here.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let scan = d.join("scan");
+    let samples = d.join("samples");
+    eprintln!("making the inputs in {}", d.display());
+    setup(&["simulate", "scan", "--out", &arg(&scan), "--laser-off", "--seed", "1"]);
+    setup(&[
+        "simulate",
+        "samples",
+        "--out",
+        &arg(&samples),
+        "--views",
+        "200000",
+        "--points-per-view",
+        "10",
+        "--outliers",
+        "0.3",
+    ]);
+    let scan64 = long_scan(&scan, alacs::locate::MAX_SCAN_FRAMES, &d.join("scan64"));
+    let scan5 = arg(&scan);
+    let scan64 = arg(&scan64);
+    let camera = arg(&scan.join("camera.yaml"));
+    let laser = arg(&scan.join("laser.yaml"));
+    let csv = arg(&samples.join("samples.csv"));
+    let zero = "/dev/zero".to_string();
+    let big = d.join("big.yaml");
+    // A 300 MB scan.yaml: refused by size before it is parsed.
+    std::fs::write(&big, vec![b'#'; 300 << 20]).unwrap();
+    let big_scan = d.join("big_scan");
+    std::fs::create_dir_all(&big_scan).unwrap();
+    std::fs::rename(&big, big_scan.join("scan.yaml")).unwrap();
+    let big_scan = arg(&big_scan);
+    let out = |name: &str| arg(&d.join(name));
+
+    let cases: Vec<(&str, Vec<String>)> = vec![
+        ("localize, 5 frames at 5 MP with laser-off images", {
+            let a = ["localize", "--scan", &scan5, "--camera", &camera, "--laser", &laser];
+            a.iter().map(|s| s.to_string()).collect()
+        }),
+        ("localize, 64 frames at 5 MP with laser-off images (MAX_SCAN_FRAMES)", {
+            let a = ["localize", "--scan", &scan64, "--camera", &camera, "--laser", &laser];
+            a.iter().map(|s| s.to_string()).collect()
+        }),
+        ("report scan, 64 frames at 5 MP (holds every frame)", {
+            let o = out("report64");
+            let a =
+                ["report", "scan", "--scan", &scan64, "--camera", &camera, "--laser", &laser, "--out", &o];
+            a.iter().map(|s| s.to_string()).collect()
+        }),
+        ("calibrate laser, 2,000,000 samples (30 % outliers), Method 4", {
+            let a = ["calibrate", "laser", "--samples", &csv];
+            a.iter().map(|s| s.to_string()).collect()
+        }),
+        ("evaluate calibration, 2,000,000 samples (plots decimated)", {
+            let o = out("eval2m");
+            let a = ["evaluate", "calibration", "--samples", &csv, "--out", &o];
+            a.iter().map(|s| s.to_string()).collect()
+        }),
+        ("calibrate laser --samples /dev/zero (refused at the size limit)", {
+            let a = ["calibrate", "laser", "--samples", &zero];
+            a.iter().map(|s| s.to_string()).collect()
+        }),
+        ("localize, a 300 MB scan.yaml (refused at the size limit)", {
+            let a = ["localize", "--scan", &big_scan, "--camera", &camera, "--laser", &laser];
+            a.iter().map(|s| s.to_string()).collect()
+        }),
+        ("simulate session --scale 2 (MAX_SCALE: 20 MP), 1 view", {
+            let o = out("session_x2");
+            let a = ["simulate", "session", "--scale", "2", "--views", "1", "--out", &o];
+            a.iter().map(|s| s.to_string()).collect()
+        }),
+    ];
+    println!("| case | exit | time (s) | peak RSS (MiB) |");
+    println!("|---|---|---|---|");
+    for (name, args) in &cases {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let (code, seconds, mib) = measure(&args);
+        println!("| {name} | {code} | {seconds:.1} | {mib:.0} |");
+    }
+}
