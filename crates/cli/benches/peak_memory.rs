@@ -128,8 +128,10 @@ fn main() {
         }),
         ("report scan, 64 frames at 5 MP (holds every frame)", {
             let o = out("report64");
-            let a =
-                ["report", "scan", "--scan", &scan64, "--camera", &camera, "--laser", &laser, "--out", &o];
+            let a = [
+                "report", "scan", "--scan", &scan64, "--camera", &camera, "--laser", &laser,
+                "--out", &o,
+            ];
             a.iter().map(|s| s.to_string()).collect()
         }),
         ("calibrate laser, 2,000,000 samples (30 % outliers), Method 4", {

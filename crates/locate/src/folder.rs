@@ -83,7 +83,9 @@ fn prior_of(scan: &Scan) -> Prior {
 /// Names `path` (a frame's image) in an input error.
 fn in_file(path: &std::path::Path, error: Error) -> Error {
     match error {
-        Error::InvalidInput(message) => Error::InvalidInput(format!("{}: {message}", path.display())),
+        Error::InvalidInput(message) => {
+            Error::InvalidInput(format!("{}: {message}", path.display()))
+        }
         other => other,
     }
 }
@@ -158,7 +160,8 @@ pub fn locate_scan(
                     image_laser_off: off.as_ref(),
                     slide_mm: spec.slide_mm,
                 };
-                check_frame(camera, index, &frame).map_err(|e| in_file(&scan.path_of(&spec.image), e))?;
+                check_frame(camera, index, &frame)
+                    .map_err(|e| in_file(&scan.path_of(&spec.image), e))?;
                 let result = context.frame(index, &frame)?;
                 Ok((result, (on, off)))
             })

@@ -36,11 +36,9 @@ use crate::output;
 pub fn parse_pose(text: &str) -> CmdResult<Isometry3<f64>> {
     let limit_mm = alacs::model::MAX_ROUGH_DISTANCE_MM;
     match parse_list(text, "--alacs-from-rgbd")?.as_slice() {
-        &[x, y, z, ..] if [x, y, z].iter().any(|t| t.abs() > limit_mm) => {
-            Err(Failure::bad_input(anyhow!(
-                "--alacs-from-rgbd `{text}`: the translation must lie within +-{limit_mm} mm"
-            )))
-        }
+        &[x, y, z, ..] if [x, y, z].iter().any(|t| t.abs() > limit_mm) => Err(Failure::bad_input(
+            anyhow!("--alacs-from-rgbd `{text}`: the translation must lie within +-{limit_mm} mm"),
+        )),
         &[_, _, _, roll, pitch, yaw] if [roll, pitch, yaw].iter().any(|a| a.abs() > 360.0) => {
             Err(Failure::bad_input(anyhow!(
                 "--alacs-from-rgbd `{text}`: roll, pitch and yaw must lie within +-360 deg"

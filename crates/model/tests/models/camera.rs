@@ -933,7 +933,10 @@ fn absurd_distortion_coefficients_in_camera_yaml_are_refused_naming_the_key() {
     for data in ["[1e308, 0, 0, 0, 0]", "[0, 0, 0, 0, -2e4]"] {
         let text = minimal_yaml(&format!("distortion_coefficients: {{data: {data}}}"));
         let message = Camera::from_yaml_str(&text).unwrap_err().to_string();
-        assert!(message.contains("distortion_coefficients") && message.contains("beyond"), "{message}");
+        assert!(
+            message.contains("distortion_coefficients") && message.contains("beyond"),
+            "{message}"
+        );
     }
     let text = minimal_yaml("distortion_coefficients: {data: [0.1, 0, 0, 0, 9000]}");
     assert!(Camera::from_yaml_str(&text).is_ok(), "large but possible coefficients are read");
