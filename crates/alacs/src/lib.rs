@@ -7,7 +7,8 @@
 //! - [`calib`]: robust laser calibration (eq. (9), Algorithm 1, the four methods of Table 1),
 //! - [`sim`]: the seeded simulator with ground truth,
 //! - [`scanner`]: the scan controller (slide, camera and laser behind small traits; a simulated rig),
-//! - [`eval`]: the seed paper's experiments as reports (Table 1, the accuracy box plots).
+//! - [`eval`]: the seed paper's experiments as reports (Table 1, the accuracy box plots),
+//! - [`ros`]: the ROS 2 node (the LocalizeFruit action and its topics, pure Rust).
 //!
 //! # Example
 //! ```
@@ -27,6 +28,7 @@ pub use alacs_calib as calib;
 pub use alacs_eval as eval;
 pub use alacs_locate as locate;
 pub use alacs_model as model;
+pub use alacs_ros as ros;
 pub use alacs_scanner as scanner;
 pub use alacs_sim as sim;
 pub use alacs_vision as vision;

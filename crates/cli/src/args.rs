@@ -46,6 +46,9 @@ pub enum Command {
     /// Scan a fruit with the rig and locate it: the seed's 5-frame active scan
     /// from the RGB-D camera's rough position. Only the simulated rig (--sim) is built in.
     Scan(ScanArgs),
+    /// Run the ROS 2 node: the action <ns>/localize_fruit (alacs_msgs/action/LocalizeFruit)
+    /// and its topics, until SIGINT or SIGTERM. See README.md, "ROS 2".
+    Ros(RosArgs),
 }
 
 impl Command {
@@ -68,6 +71,7 @@ impl Command {
             Command::Demo(a) => a.json,
             Command::Scan(a) => a.json,
             Command::Session(SessionCommand::Init(a)) => a.json,
+            Command::Ros(a) => a.json,
         }
     }
 }
@@ -710,3 +714,54 @@ fn slide_mm(text: &str) -> Result<f64, String> {
 /// The largest RANSAC threshold accepted, mm: a metre is no inlier band.
 pub const MAX_THRESHOLD_MM: f64 = 1000.0;
 
+/// `alacs ros`
+#[derive(Debug, Args)]
+pub struct RosArgs {
+    /// Serve goals with the built-in simulated rig (an orchard scene rendered
+    /// by the simulator, localized with the simulation's true camera and laser
+    /// unless --camera / --laser are given).
+    #[arg(long)]
+    pub sim: bool,
+    /// A real rig's description (rig.toml). Not built in yet: only --sim.
+    #[arg(long, value_name = "FILE")]
+    pub rig: Option<PathBuf>,
+    /// The simulated orchard scene.
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    /// The calibrated camera.yaml.
+    #[arg(long, value_name = "FILE")]
+    pub camera: Option<PathBuf>,
+    /// The calibrated laser.yaml.
+    #[arg(long, value_name = "FILE")]
+    pub laser: Option<PathBuf>,
+    /// Namespace of the node, its action and topics (two units on one robot:
+    /// /alacs_left and /alacs_right).
+    #[arg(long, value_name = "NS", default_value = "/alacs")]
+    pub namespace: String,
+    /// The node's name.
+    #[arg(long, value_name = "NAME", default_value = "alacs")]
+    pub node_name: String,
+    /// The ALACS camera's optical frame (results, clouds, images).
+    #[arg(long, value_name = "FRAME", default_value = "alacs_camera_optical_frame")]
+    pub camera_frame: String,
+    /// The RGB-D camera's optical frame (rough positions may come in it).
+    #[arg(long, value_name = "FRAME", default_value = "rgbd_camera_optical_frame")]
+    pub rgbd_frame: String,
+    /// Pose of the RGB-D camera in the ALACS camera frame: X,Y,Z in mm, then
+    /// ROLL,PITCH,YAW in degrees (as `alacs scan`); published on /tf_static.
+    #[arg(long, value_name = "X,Y,Z,ROLL,PITCH,YAW", default_value = "0,0,0,0,0,0")]
+    pub alacs_from_rgbd: String,
+    /// Also capture every frame with the laser off (for differencing).
+    #[arg(long)]
+    pub laser_off: bool,
+    /// Do not publish the captured frames on <ns>/image.
+    #[arg(long)]
+    pub no_images: bool,
+    /// Stop after this many goals (tests, soaks).
+    #[arg(long, value_name = "N")]
+    pub max_goals: Option<u64>,
+    /// Print one JSON object on standard output when the node stops:
+    /// {"goals", "found", "rejected", "errors", "cancelled"}.
+    #[arg(long)]
+    pub json: bool,
+}

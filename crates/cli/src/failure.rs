@@ -75,7 +75,8 @@ classified!(
     alacs::sim::Error,
     alacs::locate::Error,
     alacs::scanner::Error,
-    alacs::eval::Error
+    alacs::eval::Error,
+    alacs::ros::Error
 );
 
 impl<E: Classified> From<E> for Failure {

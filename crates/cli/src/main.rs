@@ -98,5 +98,6 @@ fn run(command: args::Command) -> failure::CmdResult {
         Command::Demo(a) => cmd::demo::run(&a),
         Command::Scan(a) => cmd::scan::run(&a),
         Command::Session(args::SessionCommand::Init(a)) => cmd::session::init(&a),
+        Command::Ros(a) => cmd::ros::run(&a),
     }
 }

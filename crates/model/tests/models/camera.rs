@@ -603,7 +603,7 @@ fn yaml_round_trip_is_exact() {
         fx_px: 1234.5678901234567,
         cx_px: 1e-7,
         skew_px: -3.25e-9,
-        distortion: Distortion::PlumbBob([1e20, -2.5e-17, 0.1, 1.0 / 3.0, -0.0]),
+        distortion: Distortion::PlumbBob([9.5e3, -2.5e-17, 0.1, 1.0 / 3.0, -0.0]),
         ..strong_barrel_camera()
     };
     for camera in all_cameras().into_iter().chain([awkward_name, odd_values]) {

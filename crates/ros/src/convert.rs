@@ -1,0 +1,245 @@
+//! Between the library (mm, nalgebra, `Localization`) and ROS messages
+//! (metres, REP 103 / 105 frames). Every unit conversion of the node is here.
+
+use alacs_locate::{Localization, Method, Status};
+use alacs_model::{Camera, DEFAULT_FRUIT_RADIUS_MM, FRUIT_RADIUS_RANGE_MM};
+use image::RgbImage;
+use nalgebra::{Isometry3, Point3};
+use ros2_client::builtin_interfaces::{Duration, Time};
+
+use crate::job::JobRequest;
+use crate::msgs::{
+    CameraInfo, ColorRgba, CompressedImage, Header, Image, LocalizeFruitGoal, LocalizeFruitResult,
+    Marker, MeshFile, Point, PointCloud2, PointField, PointStamped, Pose, Quaternion,
+    RegionOfInterest, TfMessage, Transform, TransformStamped,
+};
+
+/// Millimetres per metre.
+const MM_PER_M: f64 = 1000.0;
+
+/// The frames the node names (REP 105 style; configurable).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Frames {
+    /// The ALACS camera's optical frame: results, clouds, images.
+    pub camera: String,
+    /// The RGB-D camera's optical frame: where rough positions may come from.
+    pub rgbd: String,
+}
+
+impl Default for Frames {
+    fn default() -> Self {
+        Self {
+            camera: "alacs_camera_optical_frame".into(),
+            rgbd: "rgbd_camera_optical_frame".into(),
+        }
+    }
+}
+
+/// A goal as the job takes it, or why it is rejected.
+pub fn job_request(goal: &LocalizeFruitGoal, frames: &Frames) -> Result<JobRequest, String> {
+    let frame_id = goal.rough_position.header.frame_id.trim();
+    let in_rgbd = if frame_id.is_empty() || frame_id == frames.camera {
+        false
+    } else if frame_id == frames.rgbd {
+        true
+    } else {
+        return Err(format!(
+            "rough_position.header.frame_id `{frame_id}` is neither `{}` nor `{}`",
+            frames.camera, frames.rgbd
+        ));
+    };
+    let p = goal.rough_position.point;
+    if ![p.x, p.y, p.z].iter().all(|c| c.is_finite()) {
+        return Err(format!("rough_position ({}, {}, {}) m is not finite", p.x, p.y, p.z));
+    }
+    let fruit_radius_mm = if goal.fruit_radius_m == 0.0 {
+        DEFAULT_FRUIT_RADIUS_MM
+    } else {
+        let radius_mm = goal.fruit_radius_m * MM_PER_M;
+        let (low, high) = FRUIT_RADIUS_RANGE_MM;
+        if !(low..=high).contains(&radius_mm) {
+            return Err(format!(
+                "fruit_radius_m {} must be 0 (unknown) or from {} to {} m",
+                goal.fruit_radius_m,
+                low / MM_PER_M,
+                high / MM_PER_M
+            ));
+        }
+        radius_mm
+    };
+    Ok(JobRequest {
+        rough_position_mm: Point3::new(p.x, p.y, p.z) * MM_PER_M,
+        in_rgbd,
+        fruit_radius_mm,
+    })
+}
+
+/// A point in mm as a ROS point in m.
+pub fn point_m(point_mm: &Point3<f64>) -> Point {
+    Point { x: point_mm.x / MM_PER_M, y: point_mm.y / MM_PER_M, z: point_mm.z / MM_PER_M }
+}
+
+/// The result of a localization, in the camera frame, metres.
+pub fn localization_result(localization: &Localization, header: Header) -> LocalizeFruitResult {
+    let ok = localization.status == Status::Ok;
+    let selected_frame = match (localization.method, localization.selected) {
+        (Method::Holistic, Some(i)) => {
+            localization.candidates.get(i).map_or(-1, |c| i32::try_from(c.frame).unwrap_or(-1))
+        }
+        _ => -1,
+    };
+    let n_points = match (localization.method, localization.selected) {
+        (Method::Holistic, Some(i)) => localization.candidates.get(i).map_or(0, |c| c.n_points),
+        _ => localization.fused.as_ref().map_or(0, |f| f.n_points),
+    };
+    LocalizeFruitResult {
+        status: if ok { "ok" } else { "not_found" }.into(),
+        reason: if ok { String::new() } else { localization.reason.clone() },
+        position: PointStamped {
+            header,
+            point: localization.position_mm.as_ref().map(point_m).unwrap_or_default(),
+        },
+        radius_m: localization.radius_mm.unwrap_or(0.0) / MM_PER_M,
+        position_covariance: [0.0; 9],
+        selected_frame,
+        n_points: u32::try_from(n_points).unwrap_or(u32::MAX),
+    }
+}
+
+/// The result of a goal that failed (a device fault, a cancel).
+pub fn error_result(status: &str, reason: &str, header: Header) -> LocalizeFruitResult {
+    LocalizeFruitResult {
+        status: status.into(),
+        reason: reason.into(),
+        position: PointStamped { header, point: Point::default() },
+        radius_m: 0.0,
+        position_covariance: [0.0; 9],
+        selected_frame: -1,
+        n_points: 0,
+    }
+}
+
+/// Bytes per point of [`laser_cloud`]: x, y, z (float32, m), frame
+/// (uint32), fruit (uint8: 1 on the fruit), padded to 4 bytes.
+pub const CLOUD_POINT_STEP: u32 = 20;
+
+/// Every triangulated laser point of a scan as an unordered PointCloud2 in
+/// the camera frame: x y z in metres, the frame index, and whether the
+/// point is on the fruit.
+pub fn laser_cloud(localization: &Localization, header: Header) -> PointCloud2 {
+    let mut data = Vec::new();
+    for (frame, result) in localization.frames.iter().enumerate() {
+        for (stripe_index, p) in &result.points_in_camera {
+            let fruit = result.fruit.contains(stripe_index);
+            for c in [p.x, p.y, p.z] {
+                data.extend_from_slice(&((c / MM_PER_M) as f32).to_le_bytes());
+            }
+            data.extend_from_slice(&u32::try_from(frame).unwrap_or(u32::MAX).to_le_bytes());
+            data.extend_from_slice(&[u8::from(fruit), 0, 0, 0]);
+        }
+    }
+    let width = u32::try_from(data.len() / CLOUD_POINT_STEP as usize).unwrap_or(u32::MAX);
+    let field = |name: &str, offset: u32, datatype: u8| PointField {
+        name: name.into(),
+        offset,
+        datatype,
+        count: 1,
+    };
+    PointCloud2 {
+        header,
+        height: 1,
+        width,
+        fields: vec![
+            field("x", 0, PointField::FLOAT32),
+            field("y", 4, PointField::FLOAT32),
+            field("z", 8, PointField::FLOAT32),
+            field("frame", 12, PointField::UINT32),
+            field("fruit", 16, PointField::UINT8),
+        ],
+        is_bigendian: false,
+        point_step: CLOUD_POINT_STEP,
+        row_step: width * CLOUD_POINT_STEP,
+        data,
+        is_dense: true,
+    }
+}
+
+/// A red sphere of the fruit's size at its centre (RViz, Foxglove).
+pub fn fruit_marker(centre_mm: &Point3<f64>, radius_mm: f64, header: Header) -> Marker {
+    let diameter_m = 2.0 * radius_mm / MM_PER_M;
+    Marker {
+        header: header.clone(),
+        ns: "alacs_fruit".into(),
+        id: 0,
+        r#type: Marker::SPHERE,
+        action: Marker::ADD,
+        pose: Pose { position: point_m(centre_mm), orientation: Quaternion::default() },
+        scale: Point { x: diameter_m, y: diameter_m, z: diameter_m },
+        color: ColorRgba { r: 0.9, g: 0.1, b: 0.1, a: 0.6 },
+        lifetime: Duration::zero(),
+        frame_locked: false,
+        points: Vec::new(),
+        colors: Vec::new(),
+        texture_resource: String::new(),
+        texture: CompressedImage { header, format: String::new(), data: Vec::new() },
+        uv_coordinates: Vec::new(),
+        text: String::new(),
+        mesh_resource: String::new(),
+        mesh_file: MeshFile::default(),
+        mesh_use_embedded_materials: false,
+    }
+}
+
+/// A frame as sensor_msgs/Image, rgb8.
+pub fn image_message(image: &RgbImage, header: Header) -> Image {
+    Image {
+        header,
+        height: image.height(),
+        width: image.width(),
+        encoding: "rgb8".into(),
+        is_bigendian: 0,
+        step: image.width() * 3,
+        data: image.as_raw().clone(),
+    }
+}
+
+/// camera.yaml as sensor_msgs/CameraInfo (the distorted image: R = I, P = [K | 0]).
+pub fn camera_info(camera: &Camera, header: Header) -> CameraInfo {
+    let (fx, fy, cx, cy, s) =
+        (camera.fx_px, camera.fy_px, camera.cx_px, camera.cy_px, camera.skew_px);
+    let (model, d) = camera.distortion.ros_model();
+    CameraInfo {
+        header,
+        height: camera.height_px,
+        width: camera.width_px,
+        distortion_model: model.to_string(),
+        d,
+        k: [fx, s, cx, 0.0, fy, cy, 0.0, 0.0, 1.0],
+        r: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+        p: [fx, s, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0],
+        binning_x: 0,
+        binning_y: 0,
+        roi: RegionOfInterest::default(),
+    }
+}
+
+/// The static transform camera_from_rgbd (`alacs_from_rgbd`, mm) as
+/// /tf_static publishes it: the RGB-D frame's pose in the ALACS camera frame.
+pub fn static_transform(
+    alacs_from_rgbd: &Isometry3<f64>,
+    frames: &Frames,
+    stamp: Time,
+) -> TfMessage {
+    let t = alacs_from_rgbd.translation.vector / MM_PER_M;
+    let q = alacs_from_rgbd.rotation;
+    TfMessage {
+        transforms: vec![TransformStamped {
+            header: Header::new(stamp, &frames.camera),
+            child_frame_id: frames.rgbd.clone(),
+            transform: Transform {
+                translation: Point { x: t.x, y: t.y, z: t.z },
+                rotation: Quaternion { x: q.i, y: q.j, z: q.k, w: q.w },
+            },
+        }],
+    }
+}

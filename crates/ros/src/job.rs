@@ -1,0 +1,261 @@
+//! One goal's work, off the DDS event loop: the seed's scan on the rig and
+//! the localization, with feedback per frame and cancellation between
+//! device operations. Everything here is in the library's units (mm); the
+//! conversion to ROS's metres happens at the edges ([`crate::node`]).
+
+use std::cell::{Cell, RefCell};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use alacs_locate::{Localization, LocateOptions, Status};
+use alacs_model::{Camera, LaserModel};
+use alacs_scanner::{
+    ControllerConfig, Device, Error as ScanError, FrameCamera, LaserSwitch, Rig, ScanController,
+    Slide,
+};
+use alacs_vision::{Region, StripeOptions, extract_stripe_rgb};
+use image::RgbImage;
+use nalgebra::Point3;
+
+/// A rig the node can scan with: the three devices, borrowed for one scan.
+/// The simulated rig implements it; real rigs (issue "The real rig") too.
+pub trait ScanRig: Send {
+    /// The devices, borrowed for one scan.
+    fn rig(&mut self) -> Rig<'_>;
+    /// A one-line description for diagnostics ("simulated rig, seed 3").
+    fn describe(&self) -> String;
+}
+
+#[cfg(feature = "sim")]
+impl ScanRig for alacs_scanner::SimulatedRig {
+    fn rig(&mut self) -> Rig<'_> {
+        alacs_scanner::SimulatedRig::rig(self)
+    }
+
+    fn describe(&self) -> String {
+        "simulated rig".into()
+    }
+}
+
+/// What a job reports while it runs.
+#[derive(Debug)]
+pub enum Progress {
+    /// Frame `frame` (0-based) of `n_frames` was captured with the laser on
+    /// at `slide_mm`, with `stripe_points` stripe points in it.
+    Frame {
+        /// 0-based frame index.
+        frame: usize,
+        /// Frames of the scan.
+        n_frames: usize,
+        /// Where the slide stood, mm.
+        slide_mm: f64,
+        /// Stripe points found in the frame.
+        stripe_points: usize,
+        /// The frame itself (published as sensor_msgs/Image).
+        image: Arc<RgbImage>,
+    },
+}
+
+/// How a job ended.
+#[derive(Debug)]
+pub enum Outcome {
+    /// The scan ran and localization answered (found or not found).
+    Localized {
+        /// The answer.
+        localization: Box<Localization>,
+        /// The rough position the scan was planned from, ALACS frame, mm.
+        rough_position_mm: Point3<f64>,
+        /// Rig and localization time.
+        elapsed: Duration,
+    },
+    /// The goal was cancelled; the slide stopped where it was and the laser is off.
+    Cancelled,
+    /// A device or the localization failed; the laser is off.
+    Failed(String),
+}
+
+/// A goal's inputs in the library's units.
+#[derive(Debug, Clone)]
+pub struct JobRequest {
+    /// The rough fruit centre, mm, in the RGB-D frame when `in_rgbd`, else
+    /// in the ALACS camera frame.
+    pub rough_position_mm: Point3<f64>,
+    /// Whether `rough_position_mm` is in the RGB-D camera's frame.
+    pub in_rgbd: bool,
+    /// The fruit radius prior, mm.
+    pub fruit_radius_mm: f64,
+}
+
+/// What a job needs besides the rig: the calibrated camera and laser and
+/// the controller's configuration (alacs_from_rgbd among it).
+#[derive(Debug, Clone)]
+pub struct JobContext {
+    /// The calibrated camera.
+    pub camera: Camera,
+    /// The calibrated laser.
+    pub laser: LaserModel,
+    /// The scan controller's settings; `fruit_radius_mm` is the goal's.
+    pub config: ControllerConfig,
+    /// Localization settings.
+    pub locate: LocateOptions,
+}
+
+/// What the three watched devices share: the cancel flag, the laser's
+/// state, the slide's last position, the frame count and the reporter.
+struct Watch<'p> {
+    cancel: &'p AtomicBool,
+    laser_on: Cell<bool>,
+    slide_mm: Cell<f64>,
+    frame: Cell<usize>,
+    n_frames: usize,
+    report: RefCell<&'p mut dyn FnMut(Progress)>,
+}
+
+/// The message of a device error that a cancel request caused.
+pub const CANCELLED: &str = "the goal was cancelled";
+
+impl Watch<'_> {
+    /// A device error for `device` when a cancel request came.
+    fn check(&self, device: Device) -> alacs_scanner::Result<()> {
+        if self.cancel.load(Ordering::Relaxed) {
+            Err(ScanError::Device { device, step: None, message: CANCELLED.into() })
+        } else {
+            Ok(())
+        }
+    }
+}
+
+/// The slide, stopped before its next move by a cancel request.
+struct WatchedSlide<'a, 'p> {
+    inner: &'a mut dyn Slide,
+    watch: &'a Watch<'p>,
+}
+
+/// The camera, stopped before its next capture by a cancel request; every
+/// laser frame is reported with its stripe points.
+struct WatchedCamera<'a, 'p> {
+    inner: &'a mut dyn FrameCamera,
+    watch: &'a Watch<'p>,
+}
+
+/// The laser: switching on is refused after a cancel request, switching
+/// off never.
+struct WatchedLaser<'a, 'p> {
+    inner: &'a mut dyn LaserSwitch,
+    watch: &'a Watch<'p>,
+}
+
+impl Slide for WatchedSlide<'_, '_> {
+    fn stroke_mm(&self) -> f64 {
+        self.inner.stroke_mm()
+    }
+
+    fn move_to(&mut self, target_mm: f64, timeout: Duration) -> alacs_scanner::Result<f64> {
+        self.watch.check(Device::Slide)?;
+        let reached = self.inner.move_to(target_mm, timeout)?;
+        self.watch.slide_mm.set(reached);
+        Ok(reached)
+    }
+
+    fn position_mm(&mut self) -> alacs_scanner::Result<f64> {
+        self.inner.position_mm()
+    }
+}
+
+impl FrameCamera for WatchedCamera<'_, '_> {
+    fn capture(&mut self, timeout: Duration) -> alacs_scanner::Result<RgbImage> {
+        self.watch.check(Device::Camera)?;
+        let image = self.inner.capture(timeout)?;
+        if !self.watch.laser_on.get() {
+            return Ok(image);
+        }
+        let region = Region::full(image.width(), image.height());
+        let stripe_points = extract_stripe_rgb(&image, None, &region, &StripeOptions::orchard())
+            .map(|points| points.len())
+            .unwrap_or(0);
+        let image = Arc::new(image);
+        let frame = self.watch.frame.get();
+        (self.watch.report.borrow_mut())(Progress::Frame {
+            frame,
+            n_frames: self.watch.n_frames,
+            slide_mm: self.watch.slide_mm.get(),
+            stripe_points,
+            image: Arc::clone(&image),
+        });
+        self.watch.frame.set(frame + 1);
+        // The reporter keeps its copy only as long as it publishes it.
+        Ok(Arc::try_unwrap(image).unwrap_or_else(|shared| (*shared).clone()))
+    }
+}
+
+impl LaserSwitch for WatchedLaser<'_, '_> {
+    fn set(&mut self, on: bool) -> alacs_scanner::Result<()> {
+        if on {
+            self.watch.check(Device::Laser)?;
+        }
+        self.inner.set(on)?;
+        self.watch.laser_on.set(on);
+        Ok(())
+    }
+}
+
+/// Runs one goal on `rig`: plans the seed's scan from the rough position,
+/// scans (reporting each laser frame), switches the laser off and
+/// localizes. `cancel` stops it between device operations; the laser is
+/// off whenever this returns.
+pub fn run_job(
+    rig: &mut dyn ScanRig,
+    context: &JobContext,
+    request: &JobRequest,
+    cancel: &AtomicBool,
+    report: &mut dyn FnMut(Progress),
+) -> Outcome {
+    let start = Instant::now();
+    let mut config = context.config.clone();
+    config.fruit_radius_mm = request.fruit_radius_mm;
+    if !request.in_rgbd {
+        config.alacs_from_rgbd = nalgebra::Isometry3::identity();
+    }
+    let controller = match ScanController::new(context.laser, config) {
+        Ok(controller) => controller,
+        Err(e) => return Outcome::Failed(e.to_string()),
+    };
+    let captured = {
+        let watch = Watch {
+            cancel,
+            laser_on: Cell::new(false),
+            slide_mm: Cell::new(f64::NAN),
+            frame: Cell::new(0),
+            n_frames: controller.config().strategy.frames,
+            report: RefCell::new(report),
+        };
+        let devices = rig.rig();
+        let mut slide = WatchedSlide { inner: devices.slide, watch: &watch };
+        let mut camera = WatchedCamera { inner: devices.camera, watch: &watch };
+        let mut laser = WatchedLaser { inner: devices.laser, watch: &watch };
+        let mut watched = Rig { slide: &mut slide, camera: &mut camera, laser: &mut laser };
+        controller.run(&mut watched, &request.rough_position_mm)
+    };
+    // Whatever happened, the laser is off (the controller switched it off;
+    // this covers a driver that failed to).
+    let _ = rig.rig().laser.set(false);
+    let captured = match captured {
+        Ok(captured) => captured,
+        Err(_) if cancel.load(Ordering::Relaxed) => return Outcome::Cancelled,
+        Err(e) => return Outcome::Failed(e.to_string()),
+    };
+    match captured.localize(&context.camera, &context.laser, &context.locate) {
+        Ok(localization) => Outcome::Localized {
+            localization: Box::new(localization),
+            rough_position_mm: captured.rough_position_mm,
+            elapsed: start.elapsed(),
+        },
+        Err(e) => Outcome::Failed(e.to_string()),
+    }
+}
+
+/// Whether a localization found the fruit.
+pub fn found(localization: &Localization) -> bool {
+    localization.status == Status::Ok
+}

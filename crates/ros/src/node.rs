@@ -1,0 +1,547 @@
+//! The ROS 2 node: the action `<ns>/localize_fruit`, its topics, and the
+//! loop that serves one goal at a time while the rig works on a thread of
+//! its own.
+
+use std::net::{IpAddr, Ipv4Addr};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::time::{Duration, Instant};
+
+use futures::FutureExt as _;
+use ros2_client::action::{
+    ActionServerQosPolicies, AsyncActionServer, ExecutingGoalHandle, GoalEndStatus, GoalError,
+};
+use ros2_client::builtin_interfaces::Time;
+use ros2_client::dds::rustdds::DomainParticipantBuilder;
+use ros2_client::qos::{Durability, History, QosProfile};
+use ros2_client::{
+    ActionTypeName, Context, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher,
+};
+use smol::future::FutureExt as _;
+
+use crate::convert::{
+    Frames, camera_info, error_result, fruit_marker, image_message, job_request, laser_cloud,
+    localization_result, point_m, static_transform,
+};
+use crate::env::RosEnvironment;
+use crate::job::{JobContext, Outcome, Progress, ScanRig, run_job};
+use crate::msgs::{
+    CameraInfo, DiagnosticArray, DiagnosticStatus, Header, Image, KeyValue, LocalizeFruitFeedback,
+    LocalizeFruitGoal, LocalizeFruitResult, Marker, PointCloud2, PointStamped, TfMessage,
+};
+use crate::{Error, Result};
+
+/// The action server of `alacs_msgs/action/LocalizeFruit`.
+type Server = AsyncActionServer<LocalizeFruitGoal, LocalizeFruitResult, LocalizeFruitFeedback>;
+
+/// How long a finished goal's result waits for the client to ask for it.
+const RESULT_WAIT: Duration = Duration::from_secs(30);
+
+/// How often the loop looks at the stop flag and publishes diagnostics.
+const TICK: Duration = Duration::from_millis(100);
+
+/// Diagnostics are published this often when nothing happens.
+const DIAGNOSTICS_PERIOD: Duration = Duration::from_secs(1);
+
+/// The node's settings.
+#[derive(Debug, Clone)]
+pub struct NodeConfig {
+    /// The namespace of the node, its action and topics (`/alacs`; two
+    /// units on one robot: `/alacs_left`, `/alacs_right`).
+    pub namespace: String,
+    /// The node's name.
+    pub node_name: String,
+    /// The frames it names.
+    pub frames: Frames,
+    /// Publish every captured frame on `<ns>/image` (5 MP rgb8 is 15 MB).
+    pub publish_images: bool,
+    /// Stop after this many goals (tests and soaks); `None`: run until stopped.
+    pub max_goals: Option<u64>,
+}
+
+impl Default for NodeConfig {
+    fn default() -> Self {
+        Self {
+            namespace: "/alacs".into(),
+            node_name: "alacs".into(),
+            frames: Frames::default(),
+            publish_images: true,
+            max_goals: None,
+        }
+    }
+}
+
+impl NodeConfig {
+    /// Checks the namespace and node name as ROS 2 names.
+    pub fn validate(&self) -> Result<()> {
+        NodeName::new(&self.namespace, &self.node_name).map_err(|e| {
+            Error::InvalidInput(format!(
+                "namespace `{}` / node name `{}`: {e:?} (a namespace starts with `/`, e.g. /alacs_left)",
+                self.namespace, self.node_name
+            ))
+        })?;
+        Ok(())
+    }
+}
+
+/// What a node did, when it stops.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct NodeSummary {
+    /// Goals accepted.
+    pub goals: u64,
+    /// Goals that found the fruit.
+    pub found: u64,
+    /// Goals rejected (busy, bad goal).
+    pub rejected: u64,
+    /// Goals that ended in "error" (device faults).
+    pub errors: u64,
+    /// Goals cancelled.
+    pub cancelled: u64,
+}
+
+/// Messages from the job's thread.
+enum JobMessage {
+    Progress(Progress),
+    Done(Outcome),
+}
+
+/// The goal being worked on.
+struct Running {
+    handle: ExecutingGoalHandle<LocalizeFruitGoal>,
+    cancel: Arc<AtomicBool>,
+    cancelled: bool,
+    messages: smol::channel::Receiver<JobMessage>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+/// The publishers of the node.
+struct Topics {
+    fruit: Publisher<PointStamped>,
+    laser_points: Publisher<PointCloud2>,
+    marker: Publisher<Marker>,
+    image: Publisher<Image>,
+    camera_info: Publisher<CameraInfo>,
+    tf_static: Publisher<TfMessage>,
+    diagnostics: Publisher<DiagnosticArray>,
+}
+
+/// The DDS participant as ROS 2's environment asks: its domain, and on
+/// loopback only when discovery is limited to this host.
+fn context(env: &RosEnvironment) -> Result<Context> {
+    let mut builder = DomainParticipantBuilder::new(env.domain_id);
+    if env.localhost_only {
+        builder = builder.with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)]);
+    }
+    let participant = builder.build().map_err(|e| Error::dds("participant", e))?;
+    Context::from_domain_participant(participant).map_err(|e| Error::dds("context", e))
+}
+
+/// A topic's QoS: reliable, volatile, the last `depth` samples.
+fn reliable(depth: usize) -> QosProfile {
+    QosProfile::publisher_default()
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth })
+}
+
+/// ROS 2's sensor-data QoS (rmw_qos_profile_sensor_data): best effort,
+/// volatile, the last 5.
+fn sensor_data() -> QosProfile {
+    QosProfile::subscription_default()
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth: 5 })
+}
+
+fn publisher<M: serde::Serialize>(
+    node: &mut Node,
+    name: &Name,
+    (package, type_name): (&str, &str),
+    qos: &QosProfile,
+) -> Result<Publisher<M>> {
+    let topic = node
+        .create_topic(name, MessageTypeName::new(package, type_name), qos)
+        .map_err(|e| Error::dds("topic", e))?;
+    node.create_publisher(&topic, None).map_err(|e| Error::dds("publisher", e))
+}
+
+fn name(namespace: &str, base: &str) -> Result<Name> {
+    Name::new(namespace, base)
+        .map_err(|e| Error::InvalidInput(format!("ROS name {namespace}/{base}: {e:?}")))
+}
+
+impl Topics {
+    fn new(node: &mut Node, ns: &str) -> Result<Self> {
+        let latched = QosProfile::publisher_default()
+            .durability(Durability::TransientLocal)
+            .history(History::KeepLast { depth: 1 });
+        Ok(Self {
+            fruit: publisher(
+                node,
+                &name(ns, "fruit")?,
+                ("geometry_msgs", "PointStamped"),
+                &reliable(10),
+            )?,
+            laser_points: publisher(
+                node,
+                &name(ns, "laser_points")?,
+                ("sensor_msgs", "PointCloud2"),
+                &reliable(1),
+            )?,
+            marker: publisher(
+                node,
+                &name(ns, "fruit_marker")?,
+                ("visualization_msgs", "Marker"),
+                &reliable(10),
+            )?,
+            image: publisher(node, &name(ns, "image")?, ("sensor_msgs", "Image"), &sensor_data())?,
+            camera_info: publisher(
+                node,
+                &name(ns, "camera_info")?,
+                ("sensor_msgs", "CameraInfo"),
+                &sensor_data(),
+            )?,
+            tf_static: publisher(
+                node,
+                &name("/", "tf_static")?,
+                ("tf2_msgs", "TFMessage"),
+                &latched,
+            )?,
+            diagnostics: publisher(
+                node,
+                &name("/", "diagnostics")?,
+                ("diagnostic_msgs", "DiagnosticArray"),
+                &reliable(10),
+            )?,
+        })
+    }
+}
+
+/// The node's state for diagnostics.
+struct State {
+    rig: String,
+    summary: NodeSummary,
+    scanning: bool,
+    last_scan_s: Option<f64>,
+    last_error: Option<String>,
+    last_rejection: Option<String>,
+}
+
+impl State {
+    fn diagnostics(&self, node_name: &str) -> DiagnosticArray {
+        let level =
+            if self.last_error.is_some() { DiagnosticStatus::WARN } else { DiagnosticStatus::OK };
+        let message = match (&self.scanning, &self.last_error) {
+            (true, _) => "scanning".to_string(),
+            (false, Some(error)) => format!("idle; the last goal failed: {error}"),
+            (false, None) => "idle".to_string(),
+        };
+        let s = &self.summary;
+        let value = |key: &str, value: String| KeyValue { key: key.into(), value };
+        DiagnosticArray {
+            header: Header::new(Time::now(), ""),
+            status: vec![DiagnosticStatus {
+                level,
+                name: format!("alacs: {node_name}"),
+                message,
+                hardware_id: self.rig.clone(),
+                values: vec![
+                    value("rig", self.rig.clone()),
+                    value("state", if self.scanning { "scanning" } else { "idle" }.into()),
+                    value("goals", s.goals.to_string()),
+                    value("found", s.found.to_string()),
+                    value("rejected", s.rejected.to_string()),
+                    value("errors", s.errors.to_string()),
+                    value("cancelled", s.cancelled.to_string()),
+                    value(
+                        "last_scan_time_s",
+                        self.last_scan_s.map_or_else(String::new, |t| format!("{t:.3}")),
+                    ),
+                    value("last_error", self.last_error.clone().unwrap_or_default()),
+                    value("last_rejection", self.last_rejection.clone().unwrap_or_default()),
+                ],
+            }],
+        }
+    }
+}
+
+/// Runs the node until `stop` is set (SIGINT, SIGTERM) or
+/// `config.max_goals` goals are done, serving one goal at a time on `rig`.
+/// `log` receives one line per event (goal accepted, rejected, done).
+pub fn run_node(
+    config: &NodeConfig,
+    env: &RosEnvironment,
+    job: JobContext,
+    rig: Box<dyn ScanRig>,
+    stop: Arc<AtomicBool>,
+    log: &(dyn Fn(&str) + Sync),
+) -> Result<NodeSummary> {
+    config.validate()?;
+    let mapping = env.service_mapping()?;
+    let ctx = context(env)?;
+    let mut node = ctx
+        .new_node(
+            NodeName::new(&config.namespace, &config.node_name)
+                .map_err(|e| Error::InvalidInput(format!("{e:?}")))?,
+            // Parameter services would use one fixed mapping, not the RMW's.
+            NodeOptions::new().enable_rosout(true).start_parameter_services(false),
+        )
+        .map_err(|e| Error::dds("node", e))?;
+    let ns = config.namespace.as_str();
+    let service = reliable(10);
+    let qos = ActionServerQosPolicies {
+        goal_service: service.clone(),
+        result_service: service.clone(),
+        cancel_service: service.clone(),
+        feedback_publisher: service,
+        status_publisher: QosProfile::publisher_default()
+            .durability(Durability::TransientLocal)
+            .history(History::KeepLast { depth: 1 }),
+    };
+    let server: Arc<Server> = Arc::new(AsyncActionServer::new(
+        node.create_action_server(
+            mapping,
+            &name(ns, "localize_fruit")?,
+            &ActionTypeName::new("alacs_msgs", "LocalizeFruit"),
+            qos,
+        )
+        .map_err(|e| Error::dds("action server", e))?,
+    ));
+    let topics = Topics::new(&mut node, ns)?;
+    let rig_name = rig.describe();
+    let rig = Arc::new(Mutex::new(rig));
+    let job = Arc::new(job);
+    let frames = config.frames.clone();
+    topics
+        .tf_static
+        .publish(static_transform(&job.config.alacs_from_rgbd, &frames, Time::now()))
+        .map_err(|e| Error::dds("/tf_static", e))?;
+    log(&format!(
+        "node {}/{} serving {ns}/localize_fruit on DDS domain {} ({}, {}) with the {rig_name}",
+        if ns == "/" { "" } else { ns },
+        config.node_name,
+        env.domain_id,
+        env.rmw_implementation,
+        if env.localhost_only { "localhost only" } else { "all interfaces" },
+    ));
+    let mut state = State {
+        rig: rig_name,
+        summary: NodeSummary::default(),
+        scanning: false,
+        last_scan_s: None,
+        last_error: None,
+        last_rejection: None,
+    };
+    let node_name = config.node_name.clone();
+    smol::block_on(async {
+        let mut running: Option<Running> = None;
+        let mut last_diagnostics = Instant::now() - DIAGNOSTICS_PERIOD;
+        loop {
+            let finished = config.max_goals.is_some_and(|max| state.summary.goals >= max);
+            if running.is_none() && (stop.load(Ordering::Relaxed) || finished) {
+                break;
+            }
+            if stop.load(Ordering::Relaxed)
+                && let Some(r) = running.as_mut()
+            {
+                r.cancel.store(true, Ordering::Relaxed);
+            }
+            if last_diagnostics.elapsed() >= DIAGNOSTICS_PERIOD {
+                let _ = topics.diagnostics.publish(state.diagnostics(&node_name));
+                last_diagnostics = Instant::now();
+            }
+            let job_message = async {
+                match &running {
+                    Some(r) => r.messages.recv().await.ok(),
+                    None => futures::future::pending().await,
+                }
+            };
+            futures::select! {
+                goal = server.receive_new_goal().fuse() => {
+                    let Ok(handle) = goal else { continue };
+                    let Some(goal) = server.get_new_goal(handle.clone()) else { continue };
+                    let request = if running.is_some() {
+                        Err("busy: one goal at a time, and one is running".to_string())
+                    } else if stop.load(Ordering::Relaxed) {
+                        Err("the node is shutting down".to_string())
+                    } else {
+                        job_request(&goal, &frames)
+                    };
+                    let request = match request {
+                        Ok(request) => request,
+                        Err(reason) => {
+                            log(&format!("goal rejected: {reason}"));
+                            state.summary.rejected += 1;
+                            state.last_rejection = Some(reason);
+                            let _ = server.reject_goal(handle).await;
+                            continue;
+                        }
+                    };
+                    let Ok(accepted) = server.accept_goal(handle).await else { continue };
+                    let Ok(executing) = server.start_executing_goal(accepted).await else { continue };
+                    state.summary.goals += 1;
+                    state.scanning = true;
+                    log(&format!(
+                        "goal {}: rough position ({:.1}, {:.1}, {:.1}) mm in the {} frame",
+                        state.summary.goals,
+                        request.rough_position_mm.x,
+                        request.rough_position_mm.y,
+                        request.rough_position_mm.z,
+                        if request.in_rgbd { &frames.rgbd } else { &frames.camera },
+                    ));
+                    let (sender, receiver) = smol::channel::unbounded();
+                    let cancel = Arc::new(AtomicBool::new(false));
+                    let thread = {
+                        let (rig, job, cancel) = (Arc::clone(&rig), Arc::clone(&job), Arc::clone(&cancel));
+                        std::thread::spawn(move || {
+                            let mut rig = rig.lock().unwrap_or_else(PoisonError::into_inner);
+                            let progress = sender.clone();
+                            let mut report = |p: Progress| {
+                                let _ = progress.send_blocking(JobMessage::Progress(p));
+                            };
+                            let outcome = run_job(rig.as_mut(), &job, &request, &cancel, &mut report);
+                            let _ = sender.send_blocking(JobMessage::Done(outcome));
+                        })
+                    };
+                    running = Some(Running {
+                        handle: executing,
+                        cancel,
+                        cancelled: false,
+                        messages: receiver,
+                        thread: Some(thread),
+                    });
+                }
+                message = job_message.fuse() => {
+                    let Some(r) = running.as_mut() else { continue };
+                    match message {
+                        Some(JobMessage::Progress(Progress::Frame { frame, n_frames, slide_mm, stripe_points, image })) => {
+                            let header = Header::new(Time::now(), &frames.camera);
+                            let _ = server.publish_feedback(r.handle.clone(), LocalizeFruitFeedback {
+                                frame: u32::try_from(frame + 1).unwrap_or(u32::MAX),
+                                n_frames: u32::try_from(n_frames).unwrap_or(u32::MAX),
+                                slide_position_m: slide_mm / 1000.0,
+                                stripe_points: u32::try_from(stripe_points).unwrap_or(u32::MAX),
+                            }).await;
+                            if config.publish_images {
+                                let _ = topics.image.publish(image_message(&image, header.clone()));
+                            }
+                            let _ = topics.camera_info.publish(camera_info(&job.camera, header));
+                        }
+                        Some(JobMessage::Done(outcome)) => {
+                            let Some(mut r) = running.take() else { continue };
+                            if let Some(thread) = r.thread.take() {
+                                let _ = thread.join();
+                            }
+                            let header = Header::new(Time::now(), &frames.camera);
+                            let (end, result) = conclude(&outcome, r.cancelled, &header, &topics, &mut state, log);
+                            state.scanning = false;
+                            let result_server = Arc::clone(&server);
+                            let handle = r.handle.clone();
+                            smol::spawn(async move {
+                                let _ = result_server
+                                    .send_result_response(handle, end, result)
+                                    .or(async {
+                                        smol::Timer::after(RESULT_WAIT).await;
+                                        Err(GoalError::NoSuchGoal)
+                                    })
+                                    .await;
+                            })
+                            .detach();
+                            let _ = topics.diagnostics.publish(state.diagnostics(&node_name));
+                        }
+                        None => {
+                            // The job's thread ended without a word (it panicked).
+                            let Some(mut r) = running.take() else { continue };
+                            if let Some(thread) = r.thread.take() {
+                                let _ = thread.join();
+                            }
+                            state.scanning = false;
+                            state.summary.errors += 1;
+                            let reason = "the scan's thread ended without a result".to_string();
+                            state.last_error = Some(reason.clone());
+                            let header = Header::new(Time::now(), &frames.camera);
+                            let _ = server
+                                .send_result_response(r.handle, GoalEndStatus::Aborted, error_result("error", &reason, header))
+                                .or(async { smol::Timer::after(RESULT_WAIT).await; Err(GoalError::NoSuchGoal) })
+                                .await;
+                        }
+                    }
+                }
+                cancel = server.receive_cancel_request().fuse() => {
+                    let Ok(cancel) = cancel else { continue };
+                    match running.as_mut() {
+                        Some(r) if cancel.contains_goal(&r.handle.goal_id()) => {
+                            log("cancel requested: stopping the slide, laser off");
+                            r.cancel.store(true, Ordering::Relaxed);
+                            r.cancelled = true;
+                            let goal = r.handle.goal_id();
+                            let _ = server.respond_to_cancel_requests(&cancel, std::iter::once(goal)).await;
+                        }
+                        _ => {
+                            let _ = server.respond_to_cancel_requests(&cancel, std::iter::empty()).await;
+                        }
+                    }
+                }
+                _ = smol::Timer::after(TICK).fuse() => {}
+            }
+        }
+    });
+    // The laser is off at exit, whatever happened before.
+    let mut rig = rig.lock().unwrap_or_else(PoisonError::into_inner);
+    rig.rig().laser.set(false).map_err(Error::Scanner)?;
+    log("stopped; the laser is off");
+    Ok(state.summary)
+}
+
+/// Publishes a finished goal's topics and says how it ends.
+fn conclude(
+    outcome: &Outcome,
+    cancelled: bool,
+    header: &Header,
+    topics: &Topics,
+    state: &mut State,
+    log: &(dyn Fn(&str) + Sync),
+) -> (GoalEndStatus, LocalizeFruitResult) {
+    match outcome {
+        Outcome::Localized { localization, elapsed, .. } => {
+            state.last_scan_s = Some(elapsed.as_secs_f64());
+            state.last_error = None;
+            let result = localization_result(localization, header.clone());
+            let _ = topics.laser_points.publish(laser_cloud(localization, header.clone()));
+            match (&localization.position_mm, localization.radius_mm) {
+                (Some(centre), Some(radius)) if result.status == "ok" => {
+                    state.summary.found += 1;
+                    let p = point_m(centre);
+                    log(&format!(
+                        "found the fruit at ({:.4}, {:.4}, {:.4}) m in {:.2} s",
+                        p.x,
+                        p.y,
+                        p.z,
+                        elapsed.as_secs_f64()
+                    ));
+                    let _ = topics.fruit.publish(result.position.clone());
+                    let _ = topics.marker.publish(fruit_marker(centre, radius, header.clone()));
+                }
+                _ => log(&format!("not found: {}", localization.reason)),
+            }
+            (GoalEndStatus::Succeeded, result)
+        }
+        Outcome::Cancelled => {
+            state.summary.cancelled += 1;
+            log("goal cancelled; the laser is off");
+            (
+                GoalEndStatus::Canceled,
+                error_result("error", "the goal was cancelled", header.clone()),
+            )
+        }
+        Outcome::Failed(reason) if cancelled => {
+            state.summary.cancelled += 1;
+            log(&format!("goal cancelled ({reason}); the laser is off"));
+            (GoalEndStatus::Canceled, error_result("error", reason, header.clone()))
+        }
+        Outcome::Failed(reason) => {
+            state.summary.errors += 1;
+            state.last_error = Some(reason.clone());
+            log(&format!("goal aborted: {reason}; the laser is off"));
+            (GoalEndStatus::Aborted, error_result("error", reason, header.clone()))
+        }
+    }
+}
