@@ -35,16 +35,16 @@ use crate::output;
 /// camera in the ALACS camera frame.
 pub fn parse_pose(text: &str) -> CmdResult<Isometry3<f64>> {
     let limit_mm = alacs::model::MAX_ROUGH_DISTANCE_MM;
-    match parse_list(text, "--alacs-from-rgbd")?.as_slice() {
-        &[x, y, z, ..] if [x, y, z].iter().any(|t| t.abs() > limit_mm) => Err(Failure::bad_input(
+    match *parse_list(text, "--alacs-from-rgbd")?.as_slice() {
+        [x, y, z, ..] if [x, y, z].iter().any(|t| t.abs() > limit_mm) => Err(Failure::bad_input(
             anyhow!("--alacs-from-rgbd `{text}`: the translation must lie within +-{limit_mm} mm"),
         )),
-        &[_, _, _, roll, pitch, yaw] if [roll, pitch, yaw].iter().any(|a| a.abs() > 360.0) => {
+        [_, _, _, roll, pitch, yaw] if [roll, pitch, yaw].iter().any(|a| a.abs() > 360.0) => {
             Err(Failure::bad_input(anyhow!(
                 "--alacs-from-rgbd `{text}`: roll, pitch and yaw must lie within +-360 deg"
             )))
         }
-        &[x, y, z, roll, pitch, yaw] => Ok(Isometry3::from_parts(
+        [x, y, z, roll, pitch, yaw] => Ok(Isometry3::from_parts(
             Translation3::new(x, y, z),
             UnitQuaternion::from_euler_angles(
                 roll.to_radians(),

@@ -52,9 +52,9 @@ fn parse_slides(text: &str, laser: &LaserModel) -> CmdResult<Vec<f64>> {
 /// ordered and within [`alacs::model::MAX_ROUGH_DISTANCE_MM`].
 pub fn parse_range(text: &str, name: &str) -> CmdResult<(f64, f64)> {
     let limit = alacs::model::MAX_ROUGH_DISTANCE_MM;
-    match parse_list(text, name)?.as_slice() {
-        &[min, max] if 0.0 < min && min <= max && max <= limit => Ok((min, max)),
-        &[_, _] => Err(Failure::bad_input(anyhow!(
+    match *parse_list(text, name)?.as_slice() {
+        [min, max] if 0.0 < min && min <= max && max <= limit => Ok((min, max)),
+        [_, _] => Err(Failure::bad_input(anyhow!(
             "{name} `{text}`: MIN,MAX must satisfy 0 < MIN <= MAX <= {limit} mm"
         ))),
         _ => Err(Failure::bad_input(anyhow!("{name} takes MIN,MAX, got `{text}`"))),
