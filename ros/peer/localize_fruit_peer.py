@@ -287,6 +287,56 @@ class ServiceClient:
         raise Timeout(f"no reply on rr{self.name}Reply for seq {seq}")
 
 
+def rss_mib(pid):
+    """Resident and peak resident memory of process `pid`, MiB (from /proc)."""
+    if pid is None:
+        return None, None
+    fields = {}
+    with open(f"/proc/{pid}/status") as f:
+        for line in f:
+            key, _, value = line.partition(":")
+            if key in ("VmRSS", "VmHWM"):
+                fields[key] = int(value.split()[0]) / 1024.0
+    return fields.get("VmRSS"), fields.get("VmHWM")
+
+
+def soak(args, send_goal, get_result, log) -> int:
+    """Sends args.soak goals one after the other; prints one JSON object with
+    the goal-to-result latency and the watched node's memory after 10 goals
+    and after the last."""
+    latencies, statuses = [], {}
+    rss_warm = None
+    for k in range(args.soak):
+        goal_uuid = uuid.uuid4().bytes
+        goal = LocalizeFruit_Goal(
+            rough_position=PointStamped(Header(now_time(), args.frame_id), Point(*args.rough)),
+            fruit_radius_m=args.radius)
+        t_goal = time.monotonic()
+        seq = send_goal.send(lambda g, s: LocalizeFruit_SendGoal_Request(g, s, UUID(goal_uuid), goal))
+        rep = send_goal.wait_reply(seq, t_goal + 10.0)
+        if not rep.accepted:
+            log(f"goal {k + 1} rejected")
+            return 2
+        rseq = get_result.send(lambda g, s: LocalizeFruit_GetResult_Request(g, s, UUID(goal_uuid)))
+        res = get_result.wait_reply(rseq, t_goal + args.timeout)
+        latencies.append(time.monotonic() - t_goal)
+        statuses[res.result.status] = statuses.get(res.result.status, 0) + 1
+        if k + 1 == 10:
+            rss_warm, _ = rss_mib(args.watch_pid)
+        if (k + 1) % 100 == 0:
+            log(f"{k + 1} goals, last latency {latencies[-1] * 1000:.0f} ms")
+    rss_end, hwm = rss_mib(args.watch_pid)
+    latencies.sort()
+    growth = None if rss_warm is None else 100.0 * (rss_end - rss_warm) / rss_warm
+    print(json.dumps({
+        "goals": args.soak, "statuses": statuses,
+        "latency_s": {"median": latencies[len(latencies) // 2],
+                      "p95": latencies[int(len(latencies) * 0.95) - 1], "max": latencies[-1]},
+        "node_rss_mib_after_10": rss_warm, "node_rss_mib_after_all": rss_end,
+        "node_peak_rss_mib": hwm, "rss_growth_percent": growth}, indent=1))
+    return 6 if growth is not None and growth >= 10.0 else 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -304,6 +354,11 @@ def main(argv=None) -> int:
     ap.add_argument("--require-cloud", action="store_true", help="exit 5 if no PointCloud2 arrived")
     ap.add_argument("--cancel-after", type=float, default=None,
                     help="send cancel_goal this many seconds after acceptance")
+    ap.add_argument("--soak", type=int, default=None, metavar="N",
+                    help="send N goals in a row (each after the last result) and print latency and "
+                         "the node's memory (--watch-pid); exit 6 if its RSS grew 10 %% or more")
+    ap.add_argument("--watch-pid", type=int, default=None,
+                    help="the node's process id, whose resident memory --soak reports")
     ap.add_argument("--check-only", action="store_true",
                     help="create participant and all entities, then exit 0 (smoke test)")
     args = ap.parse_args(argv)
@@ -364,6 +419,9 @@ def main(argv=None) -> int:
             time.sleep(0.05)
         time.sleep(0.5)  # let the server side finish matching our reply readers (volatile replies)
         log("action server discovered")
+
+        if args.soak:
+            return soak(args, send_goal, get_result, log)
 
         # 2. send goal
         goal_uuid = uuid.uuid4().bytes

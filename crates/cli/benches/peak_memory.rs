@@ -117,51 +117,50 @@ fn main() {
     let big_scan = arg(&big_scan);
     let out = |name: &str| arg(&d.join(name));
 
-    let cases: Vec<(&str, Vec<String>)> = vec![
-        ("localize, 5 frames at 5 MP with laser-off images", {
-            let a = ["localize", "--scan", &scan5, "--camera", &camera, "--laser", &laser];
-            a.iter().map(|s| s.to_string()).collect()
-        }),
-        ("localize, 64 frames at 5 MP with laser-off images (MAX_SCAN_FRAMES)", {
-            let a = ["localize", "--scan", &scan64, "--camera", &camera, "--laser", &laser];
-            a.iter().map(|s| s.to_string()).collect()
-        }),
+    let (report64, eval2m, session_x2) = (out("report64"), out("eval2m"), out("session_x2"));
+    fn localize_args<'a>(scan: &'a str, camera: &'a str, laser: &'a str) -> Vec<&'a str> {
+        vec!["localize", "--scan", scan, "--camera", camera, "--laser", laser]
+    }
+    let cases: Vec<(&str, Vec<&str>)> = vec![
+        (
+            "localize, 5 frames at 5 MP with laser-off images",
+            localize_args(&scan5, &camera, &laser),
+        ),
+        (
+            "localize, 64 frames at 5 MP with laser-off images (MAX_SCAN_FRAMES)",
+            localize_args(&scan64, &camera, &laser),
+        ),
         ("report scan, 64 frames at 5 MP (holds every frame)", {
-            let o = out("report64");
-            let a = [
-                "report", "scan", "--scan", &scan64, "--camera", &camera, "--laser", &laser,
-                "--out", &o,
-            ];
-            a.iter().map(|s| s.to_string()).collect()
+            let mut a = vec!["report", "scan"];
+            a.extend_from_slice(&localize_args(&scan64, &camera, &laser)[1..]);
+            a.extend_from_slice(&["--out", &report64]);
+            a
         }),
-        ("calibrate laser, 2,000,000 samples (30 % outliers), Method 4", {
-            let a = ["calibrate", "laser", "--samples", &csv];
-            a.iter().map(|s| s.to_string()).collect()
-        }),
-        ("evaluate calibration, 2,000,000 samples (plots decimated)", {
-            let o = out("eval2m");
-            let a = ["evaluate", "calibration", "--samples", &csv, "--out", &o];
-            a.iter().map(|s| s.to_string()).collect()
-        }),
-        ("calibrate laser --samples /dev/zero (refused at the size limit)", {
-            let a = ["calibrate", "laser", "--samples", &zero];
-            a.iter().map(|s| s.to_string()).collect()
-        }),
-        ("localize, a 300 MB scan.yaml (refused at the size limit)", {
-            let a = ["localize", "--scan", &big_scan, "--camera", &camera, "--laser", &laser];
-            a.iter().map(|s| s.to_string()).collect()
-        }),
-        ("simulate session --scale 2 (MAX_SCALE: 20 MP), 1 view", {
-            let o = out("session_x2");
-            let a = ["simulate", "session", "--scale", "2", "--views", "1", "--out", &o];
-            a.iter().map(|s| s.to_string()).collect()
-        }),
+        (
+            "calibrate laser, 2,000,000 samples (30 % outliers), Method 4",
+            vec!["calibrate", "laser", "--samples", &csv],
+        ),
+        (
+            "evaluate calibration, 2,000,000 samples (plots decimated)",
+            vec!["evaluate", "calibration", "--samples", &csv, "--out", &eval2m],
+        ),
+        (
+            "calibrate laser --samples /dev/zero (refused at the size limit)",
+            vec!["calibrate", "laser", "--samples", &zero],
+        ),
+        (
+            "localize, a 300 MB scan.yaml (refused at the size limit)",
+            localize_args(&big_scan, &camera, &laser),
+        ),
+        (
+            "simulate session --scale 2 (MAX_SCALE: 20 MP), 1 view",
+            vec!["simulate", "session", "--scale", "2", "--views", "1", "--out", &session_x2],
+        ),
     ];
     println!("| case | exit | time (s) | peak RSS (MiB) |");
     println!("|---|---|---|---|");
     for (name, args) in &cases {
-        let args: Vec<&str> = args.iter().map(String::as_str).collect();
-        let (code, seconds, mib) = measure(&args);
+        let (code, seconds, mib) = measure(args);
         println!("| {name} | {code} | {seconds:.1} | {mib:.0} |");
     }
 }

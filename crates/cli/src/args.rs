@@ -639,10 +639,11 @@ pub struct DemoArgs {
     pub json: bool,
 }
 
-/// `alacs scan`
+/// The rig a scan runs on, the RGB-D camera's pose and the calibration
+/// the frames are localized with (`alacs scan`, `alacs ros`).
 #[derive(Debug, Args)]
-pub struct ScanArgs {
-    /// Scan with the built-in simulated rig (an orchard scene rendered by the
+pub struct RigArgs {
+    /// Use the built-in simulated rig (an orchard scene rendered by the
     /// simulator). Required: real hardware drivers implement the
     /// alacs::scanner traits in their own crate.
     #[arg(long)]
@@ -671,6 +672,14 @@ pub struct ScanArgs {
     /// Plan and localize with this calibrated laser.yaml instead of the simulation's true laser.
     #[arg(long, value_name = "FILE")]
     pub laser: Option<PathBuf>,
+}
+
+/// `alacs scan`
+#[derive(Debug, Args)]
+pub struct ScanArgs {
+    /// The rig and the calibration.
+    #[command(flatten)]
+    pub rig: RigArgs,
     /// Write the scan folder (scan.yaml, frames, camera.yaml, laser.yaml) and truth.json here.
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
@@ -717,23 +726,13 @@ pub const MAX_THRESHOLD_MM: f64 = 1000.0;
 /// `alacs ros`
 #[derive(Debug, Args)]
 pub struct RosArgs {
-    /// Serve goals with the built-in simulated rig (an orchard scene rendered
-    /// by the simulator, localized with the simulation's true camera and laser
-    /// unless --camera / --laser are given).
-    #[arg(long)]
-    pub sim: bool,
-    /// A real rig's description (rig.toml). Not built in yet: only --sim.
-    #[arg(long, value_name = "FILE")]
-    pub rig: Option<PathBuf>,
-    /// The simulated orchard scene.
+    /// The rig and the calibration (--sim: the simulated rig, localized
+    /// with the simulation's true camera and laser unless --camera / --laser).
     #[command(flatten)]
-    pub scene: SceneArgs,
-    /// The calibrated camera.yaml.
-    #[arg(long, value_name = "FILE")]
-    pub camera: Option<PathBuf>,
-    /// The calibrated laser.yaml.
-    #[arg(long, value_name = "FILE")]
-    pub laser: Option<PathBuf>,
+    pub rig: RigArgs,
+    /// A real rig's description (rig.toml). Not built in yet: only --sim.
+    #[arg(long = "rig", value_name = "FILE")]
+    pub rig_file: Option<PathBuf>,
     /// Namespace of the node, its action and topics (two units on one robot:
     /// /alacs_left and /alacs_right).
     #[arg(long, value_name = "NS", default_value = "/alacs")]
@@ -747,13 +746,6 @@ pub struct RosArgs {
     /// The RGB-D camera's optical frame (rough positions may come in it).
     #[arg(long, value_name = "FRAME", default_value = "rgbd_camera_optical_frame")]
     pub rgbd_frame: String,
-    /// Pose of the RGB-D camera in the ALACS camera frame: X,Y,Z in mm, then
-    /// ROLL,PITCH,YAW in degrees (as `alacs scan`); published on /tf_static.
-    #[arg(long, value_name = "X,Y,Z,ROLL,PITCH,YAW", default_value = "0,0,0,0,0,0")]
-    pub alacs_from_rgbd: String,
-    /// Also capture every frame with the laser off (for differencing).
-    #[arg(long)]
-    pub laser_off: bool,
     /// Do not publish the captured frames on <ns>/image.
     #[arg(long)]
     pub no_images: bool,

@@ -19,21 +19,21 @@ use crate::output;
 
 /// Runs `alacs ros` until SIGINT or SIGTERM (or `--max-goals`).
 pub fn run(args: &RosArgs) -> CmdResult {
-    if let Some(rig) = &args.rig {
+    if let Some(rig) = &args.rig_file {
         return Err(Failure::bad_input(anyhow!(
             "--rig {}: real rigs (rig.toml) are not built in yet; run the node on the \
              simulated rig with --sim",
             rig.display()
         )));
     }
-    if !args.sim {
+    if !args.rig.sim {
         return Err(Failure::bad_input(anyhow!(
             "only the simulated rig is built in: run `alacs ros --sim`"
         )));
     }
     let env = RosEnvironment::from_env()?;
     env.service_mapping()?;
-    let alacs_from_rgbd = parse_pose(&args.alacs_from_rgbd)?;
+    let alacs_from_rgbd = parse_pose(&args.rig.alacs_from_rgbd)?;
     let config = NodeConfig {
         namespace: args.namespace.clone(),
         node_name: args.node_name.clone(),
@@ -42,12 +42,12 @@ pub fn run(args: &RosArgs) -> CmdResult {
         max_goals: args.max_goals,
     };
     config.validate()?;
-    let camera_file = args.camera.as_deref().map(Camera::from_yaml_file).transpose()?;
-    let laser_file = args.laser.as_deref().map(LaserModel::from_yaml_file).transpose()?;
+    let camera_file = args.rig.camera.as_deref().map(Camera::from_yaml_file).transpose()?;
+    let laser_file = args.rig.laser.as_deref().map(LaserModel::from_yaml_file).transpose()?;
 
     // The simulated rig's true laser: the seed paper's Table 1, Method 4.
     let true_laser = LaserModel::seed_paper();
-    let options = args.scene.options()?;
+    let options = args.rig.scene.options()?;
     eprintln!("building the simulated orchard scene and the camera's rays ...");
     let sim = Arc::new(simulate_scan(&Camera::blackfly_s_5mp(), &true_laser, &options)?);
     let c = sim.scene.fruit_centre;
@@ -55,7 +55,7 @@ pub fn run(args: &RosArgs) -> CmdResult {
     eprintln!(
         "simulated apple (seed {}) at ({:.1}, {:.1}, {:.1}) mm, radius {:.1} mm; the RGB-D camera \
          sees it at ({:.1}, {:.1}, {:.1}) mm in its frame",
-        args.scene.seed,
+        args.rig.scene.seed,
         c.x,
         c.y,
         c.z,
@@ -69,7 +69,7 @@ pub fn run(args: &RosArgs) -> CmdResult {
         laser: laser_file.unwrap_or(true_laser),
         config: ControllerConfig {
             alacs_from_rgbd,
-            capture_laser_off: args.laser_off,
+            capture_laser_off: args.rig.laser_off,
             ..ControllerConfig::default()
         },
         locate: LocateOptions::default(),

@@ -60,19 +60,19 @@ pub fn parse_pose(text: &str) -> CmdResult<Isometry3<f64>> {
 
 /// Runs `alacs scan`.
 pub fn run(args: &ScanArgs) -> CmdResult {
-    if !args.sim {
+    if !args.rig.sim {
         return Err(Failure::bad_input(anyhow!(
             "only the simulated rig is built in: run `alacs scan --sim`. A real rig's drivers \
              implement alacs::scanner's Slide, FrameCamera and LaserSwitch traits in their own crate"
         )));
     }
-    let alacs_from_rgbd = parse_pose(&args.alacs_from_rgbd)?;
+    let alacs_from_rgbd = parse_pose(&args.rig.alacs_from_rgbd)?;
     // The simulated rig's true laser: the seed paper's Table 1, Method 4.
     let true_laser = LaserModel::seed_paper();
-    let options = args.scene.options()?;
+    let options = args.rig.scene.options()?;
     // The calibrated files, where given, are read before the long work.
-    let camera_file = args.camera.as_deref().map(Camera::from_yaml_file).transpose()?;
-    let laser_file = args.laser.as_deref().map(LaserModel::from_yaml_file).transpose()?;
+    let camera_file = args.rig.camera.as_deref().map(Camera::from_yaml_file).transpose()?;
+    let laser_file = args.rig.laser.as_deref().map(LaserModel::from_yaml_file).transpose()?;
 
     let bar = output::progress_bar(args.json, "building the scene and the camera's rays");
     let sim = Arc::new(simulate_scan(&Camera::blackfly_s_5mp(), &true_laser, &options)?);
@@ -81,12 +81,12 @@ pub fn run(args: &ScanArgs) -> CmdResult {
     let rough_in_rgbd = alacs_from_rgbd.inverse() * sim.rough_position_mm;
     let camera = camera_file.unwrap_or_else(|| sim.camera.clone());
     let laser = laser_file.unwrap_or(true_laser);
-    if args.camera.is_none() || args.laser.is_none() {
+    if args.rig.camera.is_none() || args.rig.laser.is_none() {
         bar.suspend(|| {
             eprintln!(
                 "note: localizing with the simulation's true {}; a real rig loads its calibrated \
                  camera.yaml and laser.yaml (--camera, --laser)",
-                match (args.camera.is_none(), args.laser.is_none()) {
+                match (args.rig.camera.is_none(), args.rig.laser.is_none()) {
                     (true, true) => "camera and laser",
                     (true, false) => "camera",
                     _ => "laser",
@@ -97,7 +97,7 @@ pub fn run(args: &ScanArgs) -> CmdResult {
 
     let config = ControllerConfig {
         alacs_from_rgbd,
-        capture_laser_off: args.laser_off,
+        capture_laser_off: args.rig.laser_off,
         ..ControllerConfig::default()
     };
     let controller = ScanController::new(laser, config)?;
@@ -109,7 +109,7 @@ pub fn run(args: &ScanArgs) -> CmdResult {
     bar.set_message("localizing");
     let answer = scan.localize(&camera, &laser, &LocateOptions::default()).map_err(|error| {
         let mut failure = Failure::from(error);
-        if let Some(path) = &args.camera {
+        if let Some(path) = &args.rig.camera {
             failure.error = failure.error.context(format!("localizing with {}", path.display()));
         }
         failure
@@ -167,11 +167,11 @@ fn summary(
     let slides: Vec<String> = scan.slides_mm().iter().map(|d| format!("{d:.1}")).collect();
     let mut out = format!(
         "scanned a simulated apple (seed {}, {} x {} px{}{}): rough position {} in the RGB-D frame, {} in the ALACS frame\n",
-        args.scene.seed,
+        args.rig.scene.seed,
         sim.camera.width_px,
         sim.camera.height_px,
-        if args.scene.sun { ", sun" } else { "" },
-        if args.scene.occlusion > 0.0 {
+        if args.rig.scene.sun { ", sun" } else { "" },
+        if args.rig.scene.occlusion > 0.0 {
             format!(", {:.0} % hidden", sim.scene.occlusion * 100.0)
         } else {
             String::new()
@@ -183,7 +183,7 @@ fn summary(
         "  {} frames at slides {} mm{}{}, {:.2} s of rig time\n",
         scan.frames.len(),
         slides.join(", "),
-        if args.laser_off { " with laser-off frames" } else { "" },
+        if args.rig.laser_off { " with laser-off frames" } else { "" },
         if scan.plan.shifted { " (the plan shifted into the stroke)" } else { "" },
         rig_time_s
     );
@@ -236,7 +236,7 @@ fn write(
     let mut out = OutputDir::create(dir, args.force)?;
     scan.write_into(&mut out)?;
     out.write("camera.yaml", camera.to_yaml_string())?;
-    let header = if args.laser.is_some() {
+    let header = if args.rig.laser.is_some() {
         "the calibrated laser the scan was planned and localized with"
     } else {
         "true laser of the simulated rig"
