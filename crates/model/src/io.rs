@@ -76,6 +76,11 @@ pub fn read_bounded(path: &Path, max_bytes: u64) -> Result<String> {
 /// `max_bytes` as [`read_bounded`] does.
 pub fn read_bytes_bounded(path: &Path, max_bytes: u64) -> Result<Vec<u8>> {
     let file = std::fs::File::open(path).map_err(io_error(path))?;
+    // A regular file says its size: refused before a byte is read. Others
+    // (a pipe, /dev/zero) are read up to the limit.
+    if file.metadata().is_ok_and(|m| m.is_file() && m.len() > max_bytes) {
+        return Err(Error::TooLarge { path: path.to_path_buf(), limit: max_bytes });
+    }
     let mut bytes = Vec::new();
     let read = file.take(max_bytes + 1).read_to_end(&mut bytes).map_err(io_error(path))?;
     if read as u64 > max_bytes {
@@ -227,6 +232,19 @@ impl OutputDir {
 mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
+
+    #[test]
+    fn an_oversized_file_is_refused_by_its_size_before_it_is_read() {
+        // Regression: a 300 MB scan.yaml was read up to the 256 MiB limit
+        // (260 MiB peak RSS, crates/cli/benches/peak_memory.rs) before
+        // it was refused. A sparse 1 TiB file takes no disk.
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("huge.yaml");
+        std::fs::File::create(&path).unwrap().set_len(1 << 40).unwrap();
+        let error = read_text(&path).unwrap_err();
+        assert!(matches!(error, Error::TooLarge { .. }), "{error}");
+        assert!(error.to_string().contains("huge.yaml"), "{error}");
+    }
 
     #[test]
     fn a_failed_write_leaves_the_old_file_whole() {
