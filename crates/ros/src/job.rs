@@ -8,7 +8,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use alacs_locate::{Localization, LocateOptions, Status};
+use alacs_locate::{Localization, LocateOptions};
 use alacs_model::{Camera, LaserModel};
 use alacs_scanner::{
     ControllerConfig, Device, Error as ScanError, FrameCamera, LaserSwitch, Rig, ScanController,
@@ -253,9 +253,4 @@ pub fn run_job(
         },
         Err(e) => Outcome::Failed(e.to_string()),
     }
-}
-
-/// Whether a localization found the fruit.
-pub fn found(localization: &Localization) -> bool {
-    localization.status == Status::Ok
 }

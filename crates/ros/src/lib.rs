@@ -21,5 +21,5 @@ mod node;
 pub use convert::{CLOUD_POINT_STEP, Frames, job_request, laser_cloud, localization_result};
 pub use env::{DEFAULT_RMW, MAX_DOMAIN_ID, RosEnvironment};
 pub use error::{Error, Result};
-pub use job::{CANCELLED, JobContext, JobRequest, Outcome, Progress, ScanRig, found, run_job};
+pub use job::{CANCELLED, JobContext, JobRequest, Outcome, Progress, ScanRig, run_job};
 pub use node::{NodeConfig, NodeSummary, run_node};

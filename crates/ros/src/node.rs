@@ -433,18 +433,7 @@ pub fn run_node(
                             let header = Header::new(Time::now(), &frames.camera);
                             let (end, result) = conclude(&outcome, r.cancelled, &header, &topics, &mut state, log);
                             state.scanning = false;
-                            let result_server = Arc::clone(&server);
-                            let handle = r.handle.clone();
-                            smol::spawn(async move {
-                                let _ = result_server
-                                    .send_result_response(handle, end, result)
-                                    .or(async {
-                                        smol::Timer::after(RESULT_WAIT).await;
-                                        Err(GoalError::NoSuchGoal)
-                                    })
-                                    .await;
-                            })
-                            .detach();
+                            send_result(&server, r.handle, end, result);
                             let _ = topics.diagnostics.publish(state.diagnostics(&node_name));
                         }
                         None => {
@@ -458,10 +447,7 @@ pub fn run_node(
                             let reason = "the scan's thread ended without a result".to_string();
                             state.last_error = Some(reason.clone());
                             let header = Header::new(Time::now(), &frames.camera);
-                            let _ = server
-                                .send_result_response(r.handle, GoalEndStatus::Aborted, error_result("error", &reason, header))
-                                .or(async { smol::Timer::after(RESULT_WAIT).await; Err(GoalError::NoSuchGoal) })
-                                .await;
+                            send_result(&server, r.handle, GoalEndStatus::Aborted, error_result("error", &reason, header));
                         }
                     }
                 }
@@ -489,6 +475,27 @@ pub fn run_node(
     rig.rig().laser.set(false).map_err(Error::Scanner)?;
     log("stopped; the laser is off");
     Ok(state.summary)
+}
+
+/// Sends a finished goal's result when its client asks for it (at most
+/// [`RESULT_WAIT`]), without holding up the loop.
+fn send_result(
+    server: &Arc<Server>,
+    handle: ExecutingGoalHandle<LocalizeFruitGoal>,
+    end: GoalEndStatus,
+    result: LocalizeFruitResult,
+) {
+    let server = Arc::clone(server);
+    smol::spawn(async move {
+        let _ = server
+            .send_result_response(handle, end, result)
+            .or(async {
+                smol::Timer::after(RESULT_WAIT).await;
+                Err(GoalError::NoSuchGoal)
+            })
+            .await;
+    })
+    .detach();
 }
 
 /// Publishes a finished goal's topics and says how it ends.
