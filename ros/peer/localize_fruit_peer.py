@@ -16,7 +16,10 @@ Eclipse Cyclone DDS Python (PyPI `cyclonedds`, tested with 11.0.1):
 
 Flow: wait for the action server (matched request writers and reply readers),
 send one goal, read feedback/status, request the result, collect PointCloud2
-samples, print a JSON summary on stdout. Exit codes:
+samples, print a JSON summary on stdout. Optionally cancel the goal
+(--cancel-after), send a second goal while the first runs (--second-goal: the
+summary says whether the server accepted it), or signal the node's process
+mid-goal (--signal-after with --signal-pid). Exit codes:
   0 result received (and, with --expect-status, the status matched)
   2 goal rejected            3 timeout (server not found / no reply / no result)
   4 result status mismatch   5 required point cloud not received
@@ -28,6 +31,7 @@ import argparse
 import json
 import os
 import random
+import signal
 import sys
 import time
 import uuid
@@ -249,6 +253,11 @@ def now_time() -> Time:
     return Time(sec=t // 1_000_000_000, nanosec=t % 1_000_000_000)
 
 
+# How often replies are polled: fine enough not to blur the goal-to-result
+# latency that --soak measures.
+POLL_S = 0.0005
+
+
 class ServiceClient:
     """One ROS 2 service client with rmw_cyclonedds request header."""
 
@@ -283,7 +292,7 @@ class ServiceClient:
                 return self.pending.pop(seq)
             if idle:
                 idle()
-            time.sleep(0.01)
+            time.sleep(POLL_S)
         raise Timeout(f"no reply on rr{self.name}Reply for seq {seq}")
 
 
@@ -320,6 +329,8 @@ def soak(args, send_goal, get_result, log) -> int:
         rseq = get_result.send(lambda g, s: LocalizeFruit_GetResult_Request(g, s, UUID(goal_uuid)))
         res = get_result.wait_reply(rseq, t_goal + args.timeout)
         latencies.append(time.monotonic() - t_goal)
+        if args.latencies:
+            print(f"latency {k + 1} {latencies[-1] * 1000:.3f} ms", file=sys.stderr, flush=True)
         statuses[res.result.status] = statuses.get(res.result.status, 0) + 1
         if k + 1 == 10:
             rss_warm, _ = rss_mib(args.watch_pid)
@@ -357,11 +368,21 @@ def main(argv=None) -> int:
     ap.add_argument("--soak", type=int, default=None, metavar="N",
                     help="send N goals in a row (each after the last result) and print latency and "
                          "the node's memory (--watch-pid); exit 6 if its RSS grew 10 %% or more")
+    ap.add_argument("--latencies", action="store_true",
+                    help="with --soak: print each goal's latency on stderr ('latency K MS ms')")
+    ap.add_argument("--second-goal", action="store_true",
+                    help="send a second goal right after the first is accepted; the summary's "
+                         "second_goal_accepted says whether the server took it")
+    ap.add_argument("--signal-after", type=float, default=None, metavar="S",
+                    help="send SIGTERM to --signal-pid S seconds after the goal is accepted")
+    ap.add_argument("--signal-pid", type=int, default=None, help="the node's process id (--signal-after)")
     ap.add_argument("--watch-pid", type=int, default=None,
                     help="the node's process id, whose resident memory --soak reports")
     ap.add_argument("--check-only", action="store_true",
                     help="create participant and all entities, then exit 0 (smoke test)")
     args = ap.parse_args(argv)
+    if (args.signal_after is None) != (args.signal_pid is None):
+        ap.error("--signal-after and --signal-pid go together")
 
     domain = int(os.environ.get("ROS_DOMAIN_ID", "0") or 0)
     dp = DomainParticipant(domain)
@@ -441,6 +462,19 @@ def main(argv=None) -> int:
         # 3. request the result immediately (server answers when the goal ends)
         rseq = get_result.send(lambda g, s: LocalizeFruit_GetResult_Request(g, s, UUID(goal_uuid)))
         deadline = t_goal + args.timeout
+        if args.second_goal:
+            second_uuid = uuid.uuid4().bytes
+            sseq = send_goal.send(lambda g, s: LocalizeFruit_SendGoal_Request(g, s, UUID(second_uuid), goal))
+            srep = send_goal.wait_reply(sseq, deadline, idle=drain)
+            summary["second_goal_accepted"] = bool(srep.accepted)
+            log(f"second goal {second_uuid.hex()} accepted={srep.accepted}")
+        if args.signal_after is not None:
+            t_signal = time.monotonic() + args.signal_after
+            while time.monotonic() < t_signal:
+                drain(); time.sleep(0.01)
+            os.kill(args.signal_pid, signal.SIGTERM)
+            summary["signalled"] = "SIGTERM"
+            log(f"sent SIGTERM to {args.signal_pid}")
         if args.cancel_after is not None:
             t_cancel = time.monotonic() + args.cancel_after
             while time.monotonic() < t_cancel:

@@ -56,76 +56,188 @@ fn q(s: &str) -> String {
     format!("'{}'", s.replace('\'', "'\\''"))
 }
 
-#[test]
-fn a_cyclone_dds_client_gets_the_fruit_from_alacs_ros_sim() {
-    let Some(python) = peer_python() else { return };
-    let dir = tempfile::tempdir().unwrap();
-    // The same scene the node builds (same seed and options): its truth.
-    let truth_dir = dir.path().join("truth");
-    let scene = ["--seed", "4", "--scale", "0.25"];
+/// The simulated scene every test's node builds: its seed and options.
+const SCENE: [&str; 4] = ["--seed", "4", "--scale", "0.25"];
+
+/// The scene's truth, from `alacs simulate scan` with the same options.
+struct Truth {
+    centre_mm: [f64; 3],
+    rough_mm: [f64; 3],
+    radius_m: f64,
+}
+
+fn scene_truth(dir: &Path) -> Truth {
+    let truth_dir = dir.join("truth");
     let status = Command::new(ALACS)
         .args(["simulate", "scan", "--out", truth_dir.to_str().unwrap()])
-        .args(scene)
+        .args(SCENE)
         .status()
         .unwrap();
     assert!(status.success());
     let truth: Value =
         serde_json::from_str(&std::fs::read_to_string(truth_dir.join("truth.json")).unwrap())
             .unwrap();
-    let centre: Vec<f64> =
-        (0..3).map(|i| truth["fruit"]["position_mm"][i].as_f64().unwrap()).collect();
-    let rough: Vec<f64> = (0..3).map(|i| truth["rough_position_mm"][i].as_f64().unwrap()).collect();
-    let radius_m = truth["fruit"]["radius_mm"].as_f64().unwrap() / 1000.0;
+    let triple = |v: &Value| -> [f64; 3] { std::array::from_fn(|i| v[i].as_f64().unwrap()) };
+    Truth {
+        centre_mm: triple(&truth["fruit"]["position_mm"]),
+        rough_mm: triple(&truth["rough_position_mm"]),
+        radius_m: truth["fruit"]["radius_mm"].as_f64().unwrap() / 1000.0,
+    }
+}
 
+/// What one run of the node and the peer left.
+struct Run {
+    /// The peer's summary (its JSON on standard output).
+    peer: Value,
+    /// The node's `--json` summary when it stopped.
+    node: Value,
+    node_exit: i32,
+    /// Everything, for failure messages.
+    context: String,
+}
+
+/// Runs `alacs ros --sim` (the scene, `node_args`) and the peer
+/// (`peer_args`; `$node` is the node's process id) in a network namespace
+/// of their own, and waits for both.
+fn run(dir: &Path, truth: &Truth, node_args: &str, peer_args: &str, peer_exit: i32) -> Run {
+    let python = std::env::var("ALACS_PEER_PYTHON").unwrap();
     let peer = repo().join("ros/peer/localize_fruit_peer.py");
-    let node_log = dir.path().join("node.log");
+    let node_log = dir.join("node.log");
+    let node_json = dir.join("node.json");
     let script = format!(
         "ip link set lo up || exit 90\n\
-         {alacs} ros --sim {scene} --max-goals 1 --no-images --namespace /alacs_left --json > {out} 2> {log} &\n\
+         {alacs} ros --sim {scene} --no-images --namespace /alacs_left --json {node_args} \
+           > {out} 2> {log} &\n\
          node=$!\n\
          {python} {peer} /alacs_left --rough {x} {y} {z} --radius {radius_m} \
-           --expect-status SUCCEEDED --require-cloud --discovery-timeout 60 --timeout 120\n\
+           --discovery-timeout 60 --timeout 120 {peer_args}\n\
          peer=$?\n\
          wait $node\n\
-         node_rc=$?\n\
-         echo \"NODE_EXIT $node_rc\"\n\
+         echo \"NODE_EXIT $?\" >&2\n\
          exit $peer\n",
         alacs = q(ALACS),
-        scene = scene.join(" "),
-        out = q(dir.path().join("node.json").to_str().unwrap()),
+        scene = SCENE.join(" "),
+        out = q(node_json.to_str().unwrap()),
         log = q(node_log.to_str().unwrap()),
         python = q(&python),
         peer = q(peer.to_str().unwrap()),
-        x = rough[0] / 1000.0,
-        y = rough[1] / 1000.0,
-        z = rough[2] / 1000.0,
+        x = truth.rough_mm[0] / 1000.0,
+        y = truth.rough_mm[1] / 1000.0,
+        z = truth.rough_mm[2] / 1000.0,
+        radius_m = truth.radius_m,
     );
     let output = run_in_namespace(&script);
     let stdout = String::from_utf8_lossy(&output.stdout);
     let stderr = String::from_utf8_lossy(&output.stderr);
     let log = std::fs::read_to_string(&node_log).unwrap_or_default();
-    let context = format!("peer stdout:\n{stdout}\npeer stderr:\n{stderr}\nnode log:\n{log}");
-    assert!(output.status.success(), "the peer failed ({:?})\n{context}", output.status);
-    assert!(stdout.contains("NODE_EXIT 0"), "the node did not stop cleanly\n{context}");
-    let json_end = stdout.rfind('}').unwrap();
-    let summary: Value = serde_json::from_str(&stdout[..=json_end]).unwrap();
-    let result = &summary["result"];
+    let node = std::fs::read_to_string(&node_json).unwrap_or_default();
+    let context = format!(
+        "peer stdout:\n{stdout}\npeer stderr:\n{stderr}\nnode log:\n{log}\nnode json:\n{node}"
+    );
+    assert_eq!(output.status.code(), Some(peer_exit), "the peer's exit\n{context}");
+    let node_exit = stderr
+        .lines()
+        .find_map(|l| l.strip_prefix("NODE_EXIT "))
+        .and_then(|c| c.trim().parse().ok())
+        .unwrap_or(-1);
+    let peer: Value = serde_json::from_str(stdout.trim()).unwrap_or(Value::Null);
+    let node: Value = serde_json::from_str(node.trim()).unwrap_or(Value::Null);
+    Run { peer, node, node_exit, context }
+}
+
+#[test]
+fn a_cyclone_dds_client_gets_the_fruit_from_alacs_ros_sim() {
+    if peer_python().is_none() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let truth = scene_truth(dir.path());
+    let r =
+        run(dir.path(), &truth, "--max-goals 1", "--expect-status SUCCEEDED --require-cloud", 0);
+    let context = &r.context;
+    assert_eq!(r.node_exit, 0, "the node did not stop cleanly\n{context}");
+    let result = &r.peer["result"];
     assert_eq!(result["status"], "ok", "{context}");
     assert_eq!(result["frame_id"], "alacs_camera_optical_frame");
     let error_mm: f64 = (0..3)
-        .map(|i| (result["position"][i].as_f64().unwrap() * 1000.0 - centre[i]).powi(2))
+        .map(|i| (result["position"][i].as_f64().unwrap() * 1000.0 - truth.centre_mm[i]).powi(2))
         .sum::<f64>()
         .sqrt();
     assert!(error_mm < 15.0, "{error_mm:.1} mm from the truth\n{context}");
-    let feedback = summary["feedback"].as_array().unwrap();
+    let feedback = r.peer["feedback"].as_array().unwrap();
     assert_eq!(feedback.len(), 5, "one feedback per frame\n{context}");
     assert!(
         feedback
             .iter()
             .all(|f| f["n_frames"] == 5 && f["slide_position_m"].as_f64().unwrap() > 0.0)
     );
-    let cloud = &summary["clouds"][0];
+    let cloud = &r.peer["clouds"][0];
     assert_eq!(cloud["fields"], serde_json::json!(["x", "y", "z", "frame", "fruit"]));
     assert!(cloud["width"].as_u64().unwrap() > 50, "{context}");
-    assert!(log.contains("the laser is off"), "{context}");
+    assert!(context.contains("the laser is off"), "{context}");
+    assert_eq!(r.node["found"], 1, "{context}");
+}
+
+#[test]
+fn a_second_goal_while_one_runs_is_rejected_and_the_first_still_succeeds() {
+    if peer_python().is_none() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let truth = scene_truth(dir.path());
+    let r = run(dir.path(), &truth, "--max-goals 1", "--second-goal --expect-status SUCCEEDED", 0);
+    let context = &r.context;
+    assert_eq!(r.peer["accepted"], true, "{context}");
+    assert_eq!(r.peer["second_goal_accepted"], false, "{context}");
+    assert_eq!(r.peer["result"]["status"], "ok", "{context}");
+    assert!(context.contains("goal rejected: busy"), "{context}");
+    assert_eq!(r.node["rejected"], 1, "{context}");
+    assert_eq!(r.node["found"], 1, "{context}");
+    assert_eq!(r.node_exit, 0, "{context}");
+}
+
+#[test]
+fn a_cancelled_goal_ends_canceled_with_the_laser_off() {
+    if peer_python().is_none() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let truth = scene_truth(dir.path());
+    let r =
+        run(dir.path(), &truth, "--max-goals 1", "--cancel-after 0.05 --expect-status CANCELED", 0);
+    let context = &r.context;
+    // The server answered the cancel request with the goal (ERROR_NONE).
+    assert_eq!(r.peer["cancel"]["return_code"], 0, "{context}");
+    assert_eq!(r.peer["cancel"]["goals_canceling"].as_array().unwrap().len(), 1, "{context}");
+    assert_eq!(r.peer["result"]["status"], "error", "{context}");
+    assert!(context.contains("goal cancelled"), "{context}");
+    assert!(context.contains("the laser is off"), "{context}");
+    assert_eq!(r.node["cancelled"], 1, "{context}");
+    // A cancelled scan publishes no point cloud.
+    assert_eq!(r.peer["clouds"].as_array().unwrap().len(), 0, "{context}");
+    assert_eq!(r.node_exit, 0, "{context}");
+}
+
+#[test]
+fn sigterm_mid_goal_aborts_it_answers_the_client_and_stops_with_the_laser_off() {
+    if peer_python().is_none() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let truth = scene_truth(dir.path());
+    // No --max-goals: only the signal stops the node.
+    let r = run(
+        dir.path(),
+        &truth,
+        "",
+        "--signal-after 0.05 --signal-pid $node --expect-status ABORTED",
+        0,
+    );
+    let context = &r.context;
+    assert_eq!(r.peer["signalled"], "SIGTERM", "{context}");
+    assert_eq!(r.peer["result"]["status"], "error", "{context}");
+    assert!(r.peer["result"]["reason"].as_str().unwrap().contains("stopped"), "{context}");
+    assert!(context.contains("stopped; the laser is off"), "{context}");
+    assert_eq!(r.node["stopped"], 1, "{context}");
+    assert_eq!(r.node_exit, 0, "{context}");
 }

@@ -40,6 +40,10 @@ const RESULT_WAIT: Duration = Duration::from_secs(30);
 /// How often the loop looks at the stop flag and publishes diagnostics.
 const TICK: Duration = Duration::from_millis(100);
 
+/// How long a stopping node waits for its last results to reach their
+/// clients.
+const EXIT_RESULT_WAIT: Duration = Duration::from_secs(2);
+
 /// Diagnostics are published this often when nothing happens.
 const DIAGNOSTICS_PERIOD: Duration = Duration::from_secs(1);
 
@@ -97,6 +101,9 @@ pub struct NodeSummary {
     pub errors: u64,
     /// Goals cancelled.
     pub cancelled: u64,
+    /// Goals aborted because the node was stopped (SIGINT, SIGTERM) while
+    /// they ran.
+    pub stopped: u64,
 }
 
 /// Messages from the job's thread.
@@ -109,9 +116,19 @@ enum JobMessage {
 struct Running {
     handle: ExecutingGoalHandle<LocalizeFruitGoal>,
     cancel: Arc<AtomicBool>,
-    cancelled: bool,
+    /// Why the job was told to stop, if it was.
+    stop_reason: Option<StopReason>,
     messages: smol::channel::Receiver<JobMessage>,
     thread: Option<std::thread::JoinHandle<()>>,
+}
+
+/// Why a running goal was told to stop.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum StopReason {
+    /// Its client cancelled it.
+    Cancelled,
+    /// The node is shutting down (SIGINT, SIGTERM).
+    Shutdown,
 }
 
 /// The publishers of the node.
@@ -251,6 +268,7 @@ impl State {
                     value("rejected", s.rejected.to_string()),
                     value("errors", s.errors.to_string()),
                     value("cancelled", s.cancelled.to_string()),
+                    value("stopped", s.stopped.to_string()),
                     value(
                         "last_scan_time_s",
                         self.last_scan_s.map_or_else(String::new, |t| format!("{t:.3}")),
@@ -333,6 +351,9 @@ pub fn run_node(
     let node_name = config.node_name.clone();
     smol::block_on(async {
         let mut running: Option<Running> = None;
+        // Results on their way to clients; the node waits for them before
+        // it exits, so a goal stopped by a signal still gets its answer.
+        let mut results: Vec<smol::Task<()>> = Vec::new();
         let mut last_diagnostics = Instant::now() - DIAGNOSTICS_PERIOD;
         loop {
             let finished = config.max_goals.is_some_and(|max| state.summary.goals >= max);
@@ -341,9 +362,13 @@ pub fn run_node(
             }
             if stop.load(Ordering::Relaxed)
                 && let Some(r) = running.as_mut()
+                && r.stop_reason.is_none()
             {
+                log("stopping: the running goal is aborted, the slide stops, laser off");
                 r.cancel.store(true, Ordering::Relaxed);
+                r.stop_reason = Some(StopReason::Shutdown);
             }
+            results.retain(|task| !task.is_finished());
             if last_diagnostics.elapsed() >= DIAGNOSTICS_PERIOD {
                 let _ = topics.diagnostics.publish(state.diagnostics(&node_name));
                 last_diagnostics = Instant::now();
@@ -404,7 +429,7 @@ pub fn run_node(
                     running = Some(Running {
                         handle: executing,
                         cancel,
-                        cancelled: false,
+                        stop_reason: None,
                         messages: receiver,
                         thread: Some(thread),
                     });
@@ -431,9 +456,9 @@ pub fn run_node(
                                 let _ = thread.join();
                             }
                             let header = Header::new(Time::now(), &frames.camera);
-                            let (end, result) = conclude(&outcome, r.cancelled, &header, &topics, &mut state, log);
+                            let (end, result) = conclude(&outcome, r.stop_reason, &header, &topics, &mut state, log);
                             state.scanning = false;
-                            send_result(&server, r.handle, end, result);
+                            results.push(send_result(&server, r.handle, end, result));
                             let _ = topics.diagnostics.publish(state.diagnostics(&node_name));
                         }
                         None => {
@@ -447,7 +472,7 @@ pub fn run_node(
                             let reason = "the scan's thread ended without a result".to_string();
                             state.last_error = Some(reason.clone());
                             let header = Header::new(Time::now(), &frames.camera);
-                            send_result(&server, r.handle, GoalEndStatus::Aborted, error_result("error", &reason, header));
+                            results.push(send_result(&server, r.handle, GoalEndStatus::Aborted, error_result("error", &reason, header)));
                         }
                     }
                 }
@@ -457,7 +482,7 @@ pub fn run_node(
                         Some(r) if cancel.contains_goal(&r.handle.goal_id()) => {
                             log("cancel requested: stopping the slide, laser off");
                             r.cancel.store(true, Ordering::Relaxed);
-                            r.cancelled = true;
+                            r.stop_reason.get_or_insert(StopReason::Cancelled);
                             let goal = r.handle.goal_id();
                             let _ = server.respond_to_cancel_requests(&cancel, std::iter::once(goal)).await;
                         }
@@ -469,6 +494,16 @@ pub fn run_node(
                 _ = smol::Timer::after(TICK).fuse() => {}
             }
         }
+        let flushed = async {
+            for task in results {
+                task.await;
+            }
+        };
+        flushed
+            .or(async {
+                smol::Timer::after(EXIT_RESULT_WAIT).await;
+            })
+            .await;
     });
     // The laser is off at exit, whatever happened before.
     let mut rig = rig.lock().unwrap_or_else(PoisonError::into_inner);
@@ -484,7 +519,7 @@ fn send_result(
     handle: ExecutingGoalHandle<LocalizeFruitGoal>,
     end: GoalEndStatus,
     result: LocalizeFruitResult,
-) {
+) -> smol::Task<()> {
     let server = Arc::clone(server);
     smol::spawn(async move {
         let _ = server
@@ -495,13 +530,12 @@ fn send_result(
             })
             .await;
     })
-    .detach();
 }
 
 /// Publishes a finished goal's topics and says how it ends.
 fn conclude(
     outcome: &Outcome,
-    cancelled: bool,
+    stop_reason: Option<StopReason>,
     header: &Header,
     topics: &Topics,
     state: &mut State,
@@ -518,18 +552,28 @@ fn conclude(
                     state.summary.found += 1;
                     let p = point_m(centre);
                     log(&format!(
-                        "found the fruit at ({:.4}, {:.4}, {:.4}) m in {:.2} s",
+                        "found the fruit at ({:.4}, {:.4}, {:.4}) m; scan and localization took {:.1} ms",
                         p.x,
                         p.y,
                         p.z,
-                        elapsed.as_secs_f64()
+                        elapsed.as_secs_f64() * 1000.0
                     ));
                     let _ = topics.fruit.publish(result.position.clone());
                     let _ = topics.marker.publish(fruit_marker(centre, radius, header.clone()));
                 }
-                _ => log(&format!("not found: {}", localization.reason)),
+                _ => log(&format!(
+                    "not found: {}; scan and localization took {:.1} ms",
+                    localization.reason,
+                    elapsed.as_secs_f64() * 1000.0
+                )),
             }
             (GoalEndStatus::Succeeded, result)
+        }
+        Outcome::Cancelled | Outcome::Failed(_) if stop_reason == Some(StopReason::Shutdown) => {
+            state.summary.stopped += 1;
+            let reason = "the node was stopped (SIGINT or SIGTERM) during the scan";
+            log(&format!("goal aborted: {reason}; the laser is off"));
+            (GoalEndStatus::Aborted, error_result("error", reason, header.clone()))
         }
         Outcome::Cancelled => {
             state.summary.cancelled += 1;
@@ -539,7 +583,7 @@ fn conclude(
                 error_result("error", "the goal was cancelled", header.clone()),
             )
         }
-        Outcome::Failed(reason) if cancelled => {
+        Outcome::Failed(reason) if stop_reason == Some(StopReason::Cancelled) => {
             state.summary.cancelled += 1;
             log(&format!("goal cancelled ({reason}); the laser is off"));
             (GoalEndStatus::Canceled, error_result("error", reason, header.clone()))

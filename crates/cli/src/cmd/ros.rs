@@ -90,15 +90,17 @@ pub fn run(args: &RosArgs) -> CmdResult {
             "rejected": summary.rejected,
             "errors": summary.errors,
             "cancelled": summary.cancelled,
+            "stopped": summary.stopped,
         }))?;
     } else {
         outln!(
-            "served {} goals: {} found, {} rejected, {} errors, {} cancelled",
+            "served {} goals: {} found, {} rejected, {} errors, {} cancelled, {} stopped by a signal",
             summary.goals,
             summary.found,
             summary.rejected,
             summary.errors,
-            summary.cancelled
+            summary.cancelled,
+            summary.stopped
         );
     }
     Ok(())
