@@ -28,6 +28,7 @@ pub use alacs_calib as calib;
 pub use alacs_eval as eval;
 pub use alacs_locate as locate;
 pub use alacs_model as model;
+pub use alacs_rig as rig;
 pub use alacs_ros as ros;
 pub use alacs_scanner as scanner;
 pub use alacs_sim as sim;

@@ -44,8 +44,12 @@ pub enum Command {
     #[command(subcommand)]
     Session(SessionCommand),
     /// Scan a fruit with the rig and locate it: the seed's 5-frame active scan
-    /// from the RGB-D camera's rough position. Only the simulated rig (--sim) is built in.
+    /// from the RGB-D camera's rough position, on the simulated rig (--sim) or
+    /// a rig.toml (--rig).
     Scan(ScanArgs),
+    /// The rig of a rig.toml: check its devices.
+    #[command(subcommand)]
+    Rig(RigCommand),
     /// Run the ROS 2 node: the action <ns>/localize_fruit (alacs_msgs/action/LocalizeFruit)
     /// and its topics, until SIGINT or SIGTERM. See README.md, "ROS 2".
     Ros(RosArgs),
@@ -70,6 +74,7 @@ impl Command {
             Command::Simulate(SimulateCommand::Scan(a)) => a.json,
             Command::Demo(a) => a.json,
             Command::Scan(a) => a.json,
+            Command::Rig(RigCommand::Check(a)) => a.json,
             Command::Session(SessionCommand::Init(a)) => a.json,
             Command::Ros(a) => a.json,
         }
@@ -644,10 +649,14 @@ pub struct DemoArgs {
 #[derive(Debug, Args)]
 pub struct RigArgs {
     /// Use the built-in simulated rig (an orchard scene rendered by the
-    /// simulator). Required: real hardware drivers implement the
-    /// alacs::scanner traits in their own crate.
-    #[arg(long)]
+    /// simulator).
+    #[arg(long, conflicts_with = "rig_file")]
     pub sim: bool,
+    /// Use the rig of this rig.toml (docs/FORMATS.md): a GRBL slide and
+    /// laser, and "sim" devices for what the rig lacks (they show the
+    /// simulated scene below).
+    #[arg(long = "rig", value_name = "FILE")]
+    pub rig_file: Option<PathBuf>,
     /// The simulated orchard scene.
     #[command(flatten)]
     pub scene: SceneArgs,
@@ -658,14 +667,14 @@ pub struct RigArgs {
     /// then roll, pitch, yaw in degrees (R = Rz(yaw) Ry(pitch) Rx(roll));
     /// point_in_alacs = R point_in_rgbd + (x, y, z). The simulated RGB-D camera
     /// is mounted there and reports the rough position in its own frame.
+    /// Default: rig.toml's [rgbd] alacs_from_rgbd with --rig, else 0,0,0,0,0,0.
     #[arg(
         long,
         alias = "rgbd-to-alacs",
         value_name = "X,Y,Z,ROLL,PITCH,YAW",
-        default_value = "0,0,0,0,0,0",
         allow_hyphen_values = true
     )]
-    pub alacs_from_rgbd: String,
+    pub alacs_from_rgbd: Option<String>,
     /// Localize with this calibrated camera.yaml instead of the simulation's true camera.
     #[arg(long, value_name = "FILE")]
     pub camera: Option<PathBuf>,
@@ -680,7 +689,13 @@ pub struct ScanArgs {
     /// The rig and the calibration.
     #[command(flatten)]
     pub rig: RigArgs,
-    /// Write the scan folder (scan.yaml, frames, camera.yaml, laser.yaml) and truth.json here.
+    /// The rough position in the RGB-D camera's frame, mm (what its
+    /// detector gave). Default with a simulated camera: the simulated
+    /// RGB-D camera's; required otherwise.
+    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
+    pub rough_mm: Option<String>,
+    /// Write the scan folder (scan.yaml, frames, camera.yaml, laser.yaml)
+    /// here, and truth.json when the camera is simulated.
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
     /// Write into --out even if it holds files this command did not write.
@@ -723,6 +738,31 @@ fn slide_mm(text: &str) -> Result<f64, String> {
 /// The largest RANSAC threshold accepted, mm: a metre is no inlier band.
 pub const MAX_THRESHOLD_MM: f64 = 1000.0;
 
+/// `alacs rig ...`
+#[derive(Debug, Subcommand)]
+pub enum RigCommand {
+    /// Connect the rig's devices, home the slide, move it to 0, half the
+    /// stroke and the stroke, switch the laser on and off and capture a
+    /// frame, printing each step with its time and result. Exit 1 naming
+    /// the device and the step that failed (the laser then switched off).
+    Check(RigCheckArgs),
+}
+
+/// `alacs rig check`
+#[derive(Debug, Args)]
+pub struct RigCheckArgs {
+    /// The rig's description.
+    #[arg(long = "rig", value_name = "FILE")]
+    pub rig_file: PathBuf,
+    /// The scene that "sim" devices show.
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    /// Print one JSON object: {"rig", "passed", "steps": [{"device", "step",
+    /// "seconds", "ok", "detail" | "error"}]}.
+    #[arg(long)]
+    pub json: bool,
+}
+
 /// `alacs ros`
 #[derive(Debug, Args)]
 pub struct RosArgs {
@@ -730,9 +770,6 @@ pub struct RosArgs {
     /// with the simulation's true camera and laser unless --camera / --laser).
     #[command(flatten)]
     pub rig: RigArgs,
-    /// A real rig's description (rig.toml). Not built in yet: only --sim.
-    #[arg(long = "rig", value_name = "FILE")]
-    pub rig_file: Option<PathBuf>,
     /// Namespace of the node, its action and topics (two units on one robot:
     /// /alacs_left and /alacs_right).
     #[arg(long, value_name = "NS", default_value = "/alacs")]

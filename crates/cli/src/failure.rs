@@ -11,6 +11,9 @@ pub struct Failure {
     pub code: u8,
     /// What went wrong, printed with its context chain.
     pub error: anyhow::Error,
+    /// With `--json`: what the command found before it failed (an object
+    /// whose keys go beside "error"), e.g. the steps of `alacs rig check`.
+    pub report: Option<serde_json::Value>,
 }
 
 /// Result of a command.
@@ -30,9 +33,14 @@ impl Failure {
     /// docs/FORMATS.md's failure object for `--json`:
     /// `{"error": {"exit_code": N, "message": "..."}}`.
     pub fn to_json(&self) -> serde_json::Value {
-        serde_json::json!({
-            "error": {"exit_code": self.code, "message": format!("{:#}", self.error)}
-        })
+        let error =
+            serde_json::json!({"exit_code": self.code, "message": format!("{:#}", self.error)});
+        let mut object = match &self.report {
+            Some(serde_json::Value::Object(report)) => report.clone(),
+            _ => serde_json::Map::new(),
+        };
+        object.insert("error".into(), error);
+        serde_json::Value::Object(object)
     }
 
     /// This failure with `context` (a file or folder) in front of its message.
@@ -42,12 +50,12 @@ impl Failure {
 
     /// Unreadable or invalid input (exit 2).
     pub fn bad_input(error: impl Into<anyhow::Error>) -> Self {
-        Self { code: BAD_INPUT, error: error.into() }
+        Self { code: BAD_INPUT, error: error.into(), report: None }
     }
 
     /// A job that failed on readable input (exit 1).
     pub fn job_failed(error: impl Into<anyhow::Error>) -> Self {
-        Self { code: JOB_FAILED, error: error.into() }
+        Self { code: JOB_FAILED, error: error.into(), report: None }
     }
 }
 
@@ -76,7 +84,8 @@ classified!(
     alacs::locate::Error,
     alacs::scanner::Error,
     alacs::eval::Error,
-    alacs::ros::Error
+    alacs::ros::Error,
+    alacs::rig::Error
 );
 
 impl<E: Classified> From<E> for Failure {

@@ -99,5 +99,6 @@ fn run(command: args::Command) -> failure::CmdResult {
         Command::Scan(a) => cmd::scan::run(&a),
         Command::Session(args::SessionCommand::Init(a)) => cmd::session::init(&a),
         Command::Ros(a) => cmd::ros::run(&a),
+        Command::Rig(args::RigCommand::Check(a)) => cmd::rig::check(&a),
     }
 }

@@ -645,11 +645,12 @@ fn report_bad_input_exits_2_naming_the_file() {
 }
 
 #[test]
-fn scan_without_sim_exits_2_naming_the_simulated_rig() {
+fn scan_without_a_rig_exits_2_naming_both_rigs() {
     let output = alacs(&["scan"]);
     assert_eq!(output.status.code(), Some(2));
     assert!(output.stdout.is_empty());
-    assert!(stderr(&output).contains("only the simulated rig is built in"), "{}", stderr(&output));
+    let message = stderr(&output);
+    assert!(message.contains("--sim") && message.contains("--rig rig.toml"), "{message}");
     let output = alacs(&["scan", "--sim", "--rgbd-to-alacs", "1,2,3"]);
     assert_eq!(output.status.code(), Some(2));
     assert!(stderr(&output).contains("--alacs-from-rgbd"), "{}", stderr(&output));

@@ -18,25 +18,7 @@ use alacs_vision::{Region, StripeOptions, extract_stripe_rgb};
 use image::RgbImage;
 use nalgebra::Point3;
 
-/// A rig the node can scan with: the three devices, borrowed for one scan.
-/// The simulated rig implements it; real rigs (issue "The real rig") too.
-pub trait ScanRig: Send {
-    /// The devices, borrowed for one scan.
-    fn rig(&mut self) -> Rig<'_>;
-    /// A one-line description for diagnostics ("simulated rig, seed 3").
-    fn describe(&self) -> String;
-}
-
-#[cfg(feature = "sim")]
-impl ScanRig for alacs_scanner::SimulatedRig {
-    fn rig(&mut self) -> Rig<'_> {
-        alacs_scanner::SimulatedRig::rig(self)
-    }
-
-    fn describe(&self) -> String {
-        "simulated rig".into()
-    }
-}
+pub use alacs_scanner::ScanRig;
 
 /// What a job reports while it runs.
 #[derive(Debug)]

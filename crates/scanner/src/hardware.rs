@@ -85,3 +85,17 @@ pub struct Rig<'a> {
     /// The laser's switch.
     pub laser: &'a mut dyn LaserSwitch,
 }
+
+/// A rig that owns its devices and lends them for one scan at a time: the
+/// simulated rig, a rig of rig.toml (`alacs-rig`), the ROS node's rig.
+pub trait ScanRig: Send {
+    /// The devices, borrowed for one scan.
+    fn rig(&mut self) -> Rig<'_>;
+    /// A one-line description for logs and diagnostics ("simulated rig").
+    fn describe(&self) -> String;
+    /// For a simulated rig: the time its operations so far would have
+    /// taken on a real rig (its simulated clock). `None` for real devices.
+    fn simulated_time(&self) -> Option<Duration> {
+        None
+    }
+}

@@ -54,7 +54,7 @@ mod sim_devices;
 
 pub use controller::{CapturedFrame, CapturedScan, ControllerConfig, ScanController};
 pub use error::{Device, Error, Result, Step};
-pub use hardware::{FrameCamera, LaserSwitch, Rig, Slide};
+pub use hardware::{FrameCamera, LaserSwitch, Rig, ScanRig, Slide};
 #[cfg(feature = "sim")]
 pub use sim_devices::{
     SimulatedCamera, SimulatedLaser, SimulatedRig, SimulatedRigOptions, SimulatedSlide,

@@ -15,7 +15,7 @@ use alacs_model::SLIDE_STROKE_MM;
 use alacs_sim::SimulatedScan;
 use image::RgbImage;
 
-use crate::hardware::{FrameCamera, LaserSwitch, Rig, Slide};
+use crate::hardware::{FrameCamera, LaserSwitch, Rig, ScanRig, Slide};
 use crate::{Device, Error, Result};
 
 /// How the simulated devices behave. `Default`: a 200 mm stroke at
@@ -257,5 +257,19 @@ impl LaserSwitch for SimulatedLaser {
             spend(&mut state, self.options.laser_switch, self.options.realtime);
         }
         Ok(())
+    }
+}
+
+impl ScanRig for SimulatedRig {
+    fn rig(&mut self) -> Rig<'_> {
+        SimulatedRig::rig(self)
+    }
+
+    fn describe(&self) -> String {
+        "simulated rig".into()
+    }
+
+    fn simulated_time(&self) -> Option<Duration> {
+        Some(self.elapsed())
     }
 }

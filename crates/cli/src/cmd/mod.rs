@@ -5,6 +5,7 @@ pub mod demo;
 pub mod evaluate;
 pub mod localize;
 pub mod report;
+pub mod rig;
 pub mod ros;
 pub mod scan;
 pub mod session;

@@ -1,0 +1,388 @@
+//! rig.toml: the rig's description (docs/FORMATS.md, "rig.toml"), read in
+//! this one place with errors that name the file, the section and the key.
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use serde::Deserialize;
+
+use crate::{Error, Result};
+
+/// A rig: its slide, laser, camera and the RGB-D camera's pose.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RigConfig {
+    /// The slide carrying the laser.
+    pub slide: SlideConfig,
+    /// The laser's switch.
+    #[serde(default)]
+    pub laser: LaserConfig,
+    /// The ALACS camera.
+    #[serde(default)]
+    pub camera: CameraConfig,
+    /// The RGB-D camera that gives the rough position.
+    #[serde(default)]
+    pub rgbd: RgbdConfig,
+}
+
+/// Which slide driver.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SlideDriver {
+    /// A GRBL 1.1 controller on a serial port.
+    Grbl,
+    /// The simulated slide.
+    Sim,
+}
+
+/// `[slide]`.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SlideConfig {
+    /// `driver`: "grbl" or "sim".
+    pub driver: SlideDriver,
+    /// `port`: the controller's serial port (grbl), e.g. /dev/ttyUSB0.
+    #[serde(default)]
+    pub port: String,
+    /// `baud`: 115200 for GRBL 1.1.
+    #[serde(default = "default_baud")]
+    pub baud: u32,
+    /// `axis`: the controller's axis that carries the laser, X, Y or Z.
+    #[serde(default = "default_axis")]
+    pub axis: String,
+    /// `stroke_mm`: travel d from 0 to this is reachable.
+    #[serde(default = "default_stroke_mm")]
+    pub stroke_mm: f64,
+    /// `feed_mm_per_min`: the feed rate of the moves (G1 F).
+    #[serde(default = "default_feed")]
+    pub feed_mm_per_min: f64,
+    /// `home`: home the axis (`$H`) when the rig connects.
+    #[serde(default = "default_true")]
+    pub home: bool,
+    /// `axis_mm_at_zero`: the controller's coordinate (work coordinates,
+    /// mm) where the slide travel d is 0.
+    #[serde(default)]
+    pub axis_mm_at_zero: f64,
+    /// `direction`: +1 when the controller's coordinate grows with d, -1
+    /// when it shrinks.
+    #[serde(default = "default_direction")]
+    pub direction: i8,
+    /// `tolerance_mm`: the largest difference between target and reported
+    /// position when the slide stands.
+    #[serde(default = "default_tolerance_mm")]
+    pub tolerance_mm: f64,
+    /// `command_timeout_s`: the longest wait for a command's answer.
+    #[serde(default = "default_command_timeout_s")]
+    pub command_timeout_s: f64,
+    /// `homing_timeout_s`: the longest wait for homing.
+    #[serde(default = "default_homing_timeout_s")]
+    pub homing_timeout_s: f64,
+    /// `move_timeout_s`: the longest wait for a move of the scan to end
+    /// with the slide standing at its target.
+    #[serde(default = "default_move_timeout_s")]
+    pub move_timeout_s: f64,
+}
+
+/// Which laser driver.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum LaserDriver {
+    /// The spindle output of the slide's GRBL controller (M3 S<power> / M5,
+    /// spindle mode: `$32=0`).
+    GrblSpindle,
+    /// The simulated laser.
+    Sim,
+}
+
+/// `[laser]`.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LaserConfig {
+    /// `driver`: "grbl-spindle" or "sim".
+    pub driver: LaserDriver,
+    /// `power`: the spindle value S of the on command (0-100000).
+    #[serde(default = "default_power")]
+    pub power: u32,
+    /// `on_command`: the G-code that switches the laser on; `{power}` is
+    /// replaced by `power`.
+    #[serde(default = "default_on_command")]
+    pub on_command: String,
+    /// `off_command`: the G-code that switches it off.
+    #[serde(default = "default_off_command")]
+    pub off_command: String,
+    /// `settle_ms`: time the laser needs after switching before it is
+    /// steady (or dark).
+    #[serde(default)]
+    pub settle_ms: f64,
+}
+
+impl Default for LaserConfig {
+    fn default() -> Self {
+        Self {
+            driver: LaserDriver::Sim,
+            power: default_power(),
+            on_command: default_on_command(),
+            off_command: default_off_command(),
+            settle_ms: 0.0,
+        }
+    }
+}
+
+/// Which camera driver.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum CameraDriver {
+    /// A GenICam camera through aravis (cargo feature `genicam`).
+    Genicam,
+    /// The simulator's camera, rendering the scene at the slide's position.
+    Sim,
+}
+
+/// `[camera]`.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraConfig {
+    /// `driver`: "genicam" or "sim".
+    pub driver: CameraDriver,
+    /// `device`: the GenICam device id; the first camera found when empty.
+    #[serde(default)]
+    pub device: String,
+    /// `exposure_us`: the exposure time, microseconds.
+    #[serde(default = "default_exposure_us")]
+    pub exposure_us: f64,
+    /// `gain_db`: the analogue gain, dB.
+    #[serde(default)]
+    pub gain_db: f64,
+}
+
+impl Default for CameraConfig {
+    fn default() -> Self {
+        Self {
+            driver: CameraDriver::Sim,
+            device: String::new(),
+            exposure_us: default_exposure_us(),
+            gain_db: 0.0,
+        }
+    }
+}
+
+/// `[rgbd]`.
+#[derive(Debug, Clone, PartialEq, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct RgbdConfig {
+    /// `alacs_from_rgbd`: the RGB-D camera's pose in the ALACS camera frame,
+    /// x y z in mm, roll pitch yaw in degrees.
+    #[serde(default)]
+    pub alacs_from_rgbd: [f64; 6],
+}
+
+fn default_baud() -> u32 {
+    115_200
+}
+fn default_axis() -> String {
+    "X".into()
+}
+fn default_stroke_mm() -> f64 {
+    alacs_model::SLIDE_STROKE_MM
+}
+fn default_feed() -> f64 {
+    3000.0
+}
+fn default_true() -> bool {
+    true
+}
+fn default_direction() -> i8 {
+    1
+}
+fn default_tolerance_mm() -> f64 {
+    0.05
+}
+fn default_command_timeout_s() -> f64 {
+    2.0
+}
+fn default_homing_timeout_s() -> f64 {
+    60.0
+}
+fn default_move_timeout_s() -> f64 {
+    10.0
+}
+fn default_power() -> u32 {
+    1000
+}
+fn default_on_command() -> String {
+    "M3 S{power}".into()
+}
+fn default_off_command() -> String {
+    "M5".into()
+}
+fn default_exposure_us() -> f64 {
+    2000.0
+}
+
+impl RigConfig {
+    /// Reads and checks rig.toml.
+    pub fn from_file(path: &Path) -> Result<Self> {
+        let text = alacs_model::io::read_text(path)?;
+        Self::from_toml(&text, path)
+    }
+
+    /// Parses and checks rig.toml's text; `path` names it in errors.
+    pub fn from_toml(text: &str, path: &Path) -> Result<Self> {
+        let config: RigConfig = toml::from_str(text).map_err(|e| Error::Config {
+            path: path.to_path_buf(),
+            message: e.to_string().trim_end().replace('\n', "\n  "),
+        })?;
+        config.validate(path)?;
+        Ok(config)
+    }
+
+    /// Checks every value against its range and the drivers against each other.
+    pub fn validate(&self, path: &Path) -> Result<()> {
+        let bad = |key: &str, message: String| Error::Config {
+            path: PathBuf::from(path),
+            message: format!("{key}: {message}"),
+        };
+        let s = &self.slide;
+        let positive = |key: &str, value: f64, max: f64| {
+            if value.is_finite() && value > 0.0 && value <= max {
+                Ok(())
+            } else {
+                Err(bad(key, format!("{value} must be positive and at most {max}")))
+            }
+        };
+        positive("[slide] stroke_mm", s.stroke_mm, 10_000.0)?;
+        positive("[slide] feed_mm_per_min", s.feed_mm_per_min, 1.0e6)?;
+        positive("[slide] tolerance_mm", s.tolerance_mm, 10.0)?;
+        positive("[slide] command_timeout_s", s.command_timeout_s, 3600.0)?;
+        positive("[slide] homing_timeout_s", s.homing_timeout_s, 3600.0)?;
+        positive("[slide] move_timeout_s", s.move_timeout_s, 3600.0)?;
+        if !(s.axis_mm_at_zero.is_finite() && s.axis_mm_at_zero.abs() <= 100_000.0) {
+            return Err(bad(
+                "[slide] axis_mm_at_zero",
+                format!("{} must be finite, within +-100000 mm", s.axis_mm_at_zero),
+            ));
+        }
+        if s.direction != 1 && s.direction != -1 {
+            return Err(bad("[slide] direction", format!("{} must be 1 or -1", s.direction)));
+        }
+        if !matches!(s.axis.as_str(), "X" | "Y" | "Z") {
+            return Err(bad("[slide] axis", format!("`{}` must be X, Y or Z", s.axis)));
+        }
+        if s.driver == SlideDriver::Grbl {
+            if s.port.trim().is_empty() {
+                return Err(bad(
+                    "[slide] port",
+                    "the grbl driver needs the controller's serial port, e.g. \
+                     port = \"/dev/ttyUSB0\""
+                        .into(),
+                ));
+            }
+            if !(300..=4_000_000).contains(&s.baud) {
+                return Err(bad("[slide] baud", format!("{} must lie within 300-4000000", s.baud)));
+            }
+        }
+        let l = &self.laser;
+        if l.driver == LaserDriver::GrblSpindle && s.driver != SlideDriver::Grbl {
+            return Err(bad(
+                "[laser] driver",
+                "\"grbl-spindle\" switches the laser on the slide's GRBL controller, but \
+                 [slide] driver is not \"grbl\""
+                    .into(),
+            ));
+        }
+        if l.power > 100_000 {
+            return Err(bad("[laser] power", format!("{} must lie within 0-100000", l.power)));
+        }
+        for (key, command) in
+            [("[laser] on_command", &l.on_command), ("[laser] off_command", &l.off_command)]
+        {
+            if command.trim().is_empty() || command.len() > 70 || !command.is_ascii() {
+                return Err(bad(
+                    key,
+                    format!("`{command}` must be one ASCII G-code line of at most 70 characters"),
+                ));
+            }
+            if command.contains(['\n', '\r', '?', '!', '~']) {
+                return Err(bad(
+                    key,
+                    format!(
+                        "`{command}` must not hold a line break or a real-time command (? ! ~)"
+                    ),
+                ));
+            }
+        }
+        if !(l.settle_ms.is_finite() && (0.0..=10_000.0).contains(&l.settle_ms)) {
+            return Err(bad(
+                "[laser] settle_ms",
+                format!("{} must lie within 0-10000", l.settle_ms),
+            ));
+        }
+        let c = &self.camera;
+        positive("[camera] exposure_us", c.exposure_us, 10.0e6)?;
+        if !(c.gain_db.is_finite() && (0.0..=48.0).contains(&c.gain_db)) {
+            return Err(bad("[camera] gain_db", format!("{} must lie within 0-48 dB", c.gain_db)));
+        }
+        let pose = &self.rgbd.alacs_from_rgbd;
+        if pose[..3]
+            .iter()
+            .any(|t| !(t.is_finite() && t.abs() <= alacs_model::MAX_ROUGH_DISTANCE_MM))
+        {
+            return Err(bad(
+                "[rgbd] alacs_from_rgbd",
+                format!(
+                    "the translation {:?} mm must lie within +-{} mm",
+                    &pose[..3],
+                    alacs_model::MAX_ROUGH_DISTANCE_MM
+                ),
+            ));
+        }
+        if pose[3..].iter().any(|a| !(a.is_finite() && a.abs() <= 360.0)) {
+            return Err(bad(
+                "[rgbd] alacs_from_rgbd",
+                format!("roll, pitch and yaw {:?} must lie within +-360 deg", &pose[3..]),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Whether any device is simulated (the rig then needs a scene).
+    pub fn has_simulated_devices(&self) -> bool {
+        self.slide.driver == SlideDriver::Sim
+            || self.laser.driver == LaserDriver::Sim
+            || self.camera.driver == CameraDriver::Sim
+    }
+}
+
+impl SlideConfig {
+    /// The controller's coordinate of slide travel `d_mm`.
+    pub fn axis_mm(&self, d_mm: f64) -> f64 {
+        self.axis_mm_at_zero + f64::from(self.direction) * d_mm
+    }
+
+    /// The slide travel d of the controller's coordinate `axis_mm`.
+    pub fn travel_mm(&self, axis_mm: f64) -> f64 {
+        (axis_mm - self.axis_mm_at_zero) * f64::from(self.direction)
+    }
+
+    /// `command_timeout_s` as a duration.
+    pub fn command_timeout(&self) -> Duration {
+        Duration::from_secs_f64(self.command_timeout_s)
+    }
+
+    /// `move_timeout_s` as a duration.
+    pub fn move_timeout(&self) -> Duration {
+        Duration::from_secs_f64(self.move_timeout_s)
+    }
+
+    /// `homing_timeout_s` as a duration.
+    pub fn homing_timeout(&self) -> Duration {
+        Duration::from_secs_f64(self.homing_timeout_s)
+    }
+}
+
+impl LaserConfig {
+    /// The on command with its power.
+    pub fn on_line(&self) -> String {
+        self.on_command.replace("{power}", &self.power.to_string())
+    }
+}
