@@ -620,6 +620,11 @@ pub struct LocalizeArgs {
     #[arg(long, value_enum, default_value_t = LocalizeMethodArg::Fused)]
     pub method: LocalizeMethodArg,
     /// Print one JSON object (docs/FORMATS.md) on standard output instead of text.
+    /// Also write every triangulated laser point (frame, on the fruit or
+    /// not) and the fitted centre as a point cloud: .ply (binary PLY) or
+    /// .pcd (binary PCD), millimetres, ALACS camera frame.
+    #[arg(long, value_name = "FILE")]
+    pub points: Option<PathBuf>,
     #[arg(long)]
     pub json: bool,
 }

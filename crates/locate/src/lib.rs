@@ -26,6 +26,7 @@ mod fusion;
 mod locate;
 pub mod outline;
 mod output;
+mod points;
 mod selection;
 mod types;
 
@@ -36,6 +37,7 @@ pub use folder::{
 };
 pub use locate::locate;
 pub use output::{CandidateOutput, FrameOutput, FusedOutput, LocalizeOutput, OutlineOutput};
+pub use points::{CloudFormat, write_points};
 pub use types::{
     Candidate, FrameImages, FrameResult, FusedFit, Localization, LocateOptions, Method, Prior,
     Status,

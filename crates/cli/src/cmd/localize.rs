@@ -9,6 +9,10 @@ use crate::output;
 
 /// Runs `alacs localize`. `not_found` is an answer (exit 0), per FORMATS.md.
 pub fn run(args: &LocalizeArgs) -> CmdResult {
+    if let Some(path) = &args.points {
+        // A bad extension is refused before the long work.
+        alacs::locate::CloudFormat::from_path(path)?;
+    }
     let scan = Scan::read(&args.scan)?;
     let camera = Camera::from_yaml_file(&args.camera)?;
     let laser = LaserModel::from_yaml_file(&args.laser)?;
@@ -20,6 +24,9 @@ pub fn run(args: &LocalizeArgs) -> CmdResult {
     let answer = locate_scan(&scan, &camera, &laser, &options, |_, _| bar.inc(1));
     bar.finish_and_clear();
     let answer = answer?;
+    if let Some(path) = &args.points {
+        alacs::locate::write_points(path, &answer)?;
+    }
     if args.json {
         output::print_json(&output::localization_json(&answer))?;
     } else {
