@@ -50,6 +50,9 @@ pub enum Command {
     /// The rig of a rig.toml: check its devices.
     #[command(subcommand)]
     Rig(RigCommand),
+    /// Recorded scans (ROS 2 bags, MCAP): to and from scan folders.
+    #[command(subcommand)]
+    Bag(BagCommand),
     /// Run the ROS 2 node: the action <ns>/localize_fruit (alacs_msgs/action/LocalizeFruit)
     /// and its topics, until SIGINT or SIGTERM. See README.md, "ROS 2".
     Ros(RosArgs),
@@ -75,6 +78,8 @@ impl Command {
             Command::Demo(a) => a.json,
             Command::Scan(a) => a.json,
             Command::Rig(RigCommand::Check(a)) => a.json,
+            Command::Bag(BagCommand::Export(a)) => a.json,
+            Command::Bag(BagCommand::Import(a)) => a.json,
             Command::Session(SessionCommand::Init(a)) => a.json,
             Command::Ros(a) => a.json,
         }
@@ -608,8 +613,14 @@ impl LocalizeMethodArg {
 #[derive(Debug, Args)]
 pub struct LocalizeArgs {
     /// Scan folder (scan.yaml beside the frames).
-    #[arg(long, value_name = "DIR")]
-    pub scan: PathBuf,
+    #[arg(long, value_name = "DIR", required_unless_present = "bag", conflicts_with = "bag")]
+    pub scan: Option<PathBuf>,
+    /// A recorded scan (MCAP, from `scan --record` or `alacs ros --record`).
+    #[arg(long, value_name = "FILE.mcap")]
+    pub bag: Option<PathBuf>,
+    /// Which scan of the bag, from 0.
+    #[arg(long, value_name = "N", default_value_t = 0, requires = "bag")]
+    pub bag_scan: usize,
     /// The calibrated camera (camera.yaml).
     #[arg(long, value_name = "FILE")]
     pub camera: PathBuf,
@@ -619,12 +630,12 @@ pub struct LocalizeArgs {
     /// How the final position is chosen.
     #[arg(long, value_enum, default_value_t = LocalizeMethodArg::Fused)]
     pub method: LocalizeMethodArg,
-    /// Print one JSON object (docs/FORMATS.md) on standard output instead of text.
     /// Also write every triangulated laser point (frame, on the fruit or
     /// not) and the fitted centre as a point cloud: .ply (binary PLY) or
     /// .pcd (binary PCD), millimetres, ALACS camera frame.
     #[arg(long, value_name = "FILE")]
     pub points: Option<PathBuf>,
+    /// Print one JSON object (docs/FORMATS.md) on standard output instead of text.
     #[arg(long)]
     pub json: bool,
 }
@@ -703,6 +714,10 @@ pub struct ScanArgs {
     /// here, and truth.json when the camera is simulated.
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
+    /// Record the scan as a ROS 2 bag (MCAP): every image with the slide
+    /// and laser, the camera, the goal and the result.
+    #[arg(long, value_name = "FILE.mcap")]
+    pub record: Option<PathBuf>,
     /// Write into --out even if it holds files this command did not write.
     #[arg(long)]
     pub force: bool,
@@ -742,6 +757,56 @@ fn slide_mm(text: &str) -> Result<f64, String> {
 
 /// The largest RANSAC threshold accepted, mm: a metre is no inlier band.
 pub const MAX_THRESHOLD_MM: f64 = 1000.0;
+
+/// `alacs bag ...`
+#[derive(Debug, Subcommand)]
+pub enum BagCommand {
+    /// Write a recorded scan as a scan folder (scan.yaml and PNG frames).
+    Export(BagExportArgs),
+    /// Record a scan folder as a ROS 2 bag (MCAP).
+    Import(BagImportArgs),
+}
+
+/// `alacs bag export`
+#[derive(Debug, Args)]
+pub struct BagExportArgs {
+    /// The recording.
+    #[arg(value_name = "FILE.mcap")]
+    pub bag: PathBuf,
+    /// The scan folder to write.
+    #[arg(value_name = "DIR")]
+    pub out: PathBuf,
+    /// Which scan of the bag, from 0.
+    #[arg(long = "scan", value_name = "N", default_value_t = 0)]
+    pub scan_index: usize,
+    /// Write into DIR even if it holds files this command did not write.
+    #[arg(long)]
+    pub force: bool,
+    /// Print one JSON object: {"bag", "scan", "scans", "frames", "out", "messages"}.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `alacs bag import`
+#[derive(Debug, Args)]
+pub struct BagImportArgs {
+    /// The scan folder.
+    #[arg(value_name = "DIR")]
+    pub scan: PathBuf,
+    /// The recording to write.
+    #[arg(value_name = "FILE.mcap")]
+    pub bag: PathBuf,
+    /// The camera, recorded as CameraInfo with every image (default: the
+    /// folder's camera.yaml when there is one).
+    #[arg(long, value_name = "FILE")]
+    pub camera: Option<PathBuf>,
+    /// The topics' namespace.
+    #[arg(long, value_name = "NS", default_value = "/alacs")]
+    pub namespace: String,
+    /// Print one JSON object: {"bag", "frames", "images"}.
+    #[arg(long)]
+    pub json: bool,
+}
 
 /// `alacs rig ...`
 #[derive(Debug, Subcommand)]
@@ -794,6 +859,9 @@ pub struct RosArgs {
     /// Stop after this many goals (tests, soaks).
     #[arg(long, value_name = "N")]
     pub max_goals: Option<u64>,
+    /// Record every goal's scan as a ROS 2 bag (MCAP), written when the node stops.
+    #[arg(long, value_name = "FILE.mcap")]
+    pub record: Option<PathBuf>,
     /// Print one JSON object on standard output when the node stops:
     /// {"goals", "found", "rejected", "errors", "cancelled"}.
     #[arg(long)]

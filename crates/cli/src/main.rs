@@ -100,5 +100,7 @@ fn run(command: args::Command) -> failure::CmdResult {
         Command::Session(args::SessionCommand::Init(a)) => cmd::session::init(&a),
         Command::Ros(a) => cmd::ros::run(&a),
         Command::Rig(args::RigCommand::Check(a)) => cmd::rig::check(&a),
+        Command::Bag(args::BagCommand::Export(a)) => cmd::bag::export(&a),
+        Command::Bag(args::BagCommand::Import(a)) => cmd::bag::import(&a),
     }
 }

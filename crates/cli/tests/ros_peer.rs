@@ -152,8 +152,9 @@ fn a_cyclone_dds_client_gets_the_fruit_from_alacs_ros_sim() {
     }
     let dir = tempfile::tempdir().unwrap();
     let truth = scene_truth(dir.path());
-    let r =
-        run(dir.path(), &truth, "--max-goals 1", "--expect-status SUCCEEDED --require-cloud", 0);
+    let bag = dir.path().join("node.mcap");
+    let node_args = format!("--max-goals 1 --record {}", q(bag.to_str().unwrap()));
+    let r = run(dir.path(), &truth, &node_args, "--expect-status SUCCEEDED --require-cloud", 0);
     let context = &r.context;
     assert_eq!(r.node_exit, 0, "the node did not stop cleanly\n{context}");
     let result = &r.peer["result"];
@@ -176,6 +177,23 @@ fn a_cyclone_dds_client_gets_the_fruit_from_alacs_ros_sim() {
     assert!(cloud["width"].as_u64().unwrap() > 50, "{context}");
     assert!(context.contains("the laser is off"), "{context}");
     assert_eq!(r.node["found"], 1, "{context}");
+    // The node recorded the goal's scan: it localizes from the bag to the
+    // answer the client got (the simulation's camera and laser, as the node).
+    let scene = dir.path().join("truth");
+    let output = Command::new(ALACS)
+        .args(["localize", "--json", "--bag", bag.to_str().unwrap(), "--camera"])
+        .arg(scene.join("camera.yaml"))
+        .arg("--laser")
+        .arg(scene.join("laser.yaml"))
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "{}\n{context}", String::from_utf8_lossy(&output.stderr));
+    let replay: Value = serde_json::from_slice(&output.stdout).unwrap();
+    for i in 0..3 {
+        let replayed_m = replay["position_mm"][i].as_f64().unwrap() / 1000.0;
+        let answered_m = result["position"][i].as_f64().unwrap();
+        assert!((replayed_m - answered_m).abs() < 1e-9, "{replay}\n{context}");
+    }
 }
 
 #[test]

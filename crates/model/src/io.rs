@@ -30,6 +30,21 @@ fn io_error(path: &Path) -> impl FnOnce(std::io::Error) -> Error + '_ {
     move |error| Error::Io { path: path.to_path_buf(), error }
 }
 
+/// A temporary file in `dir` for an output that will be renamed into place:
+/// readable by everyone, as files a program writes usually are (tempfile's
+/// own default, 0600, would keep a recording or a report from the user
+/// a robot's other programs run as).
+pub fn temp_file_in(dir: &Path, suffix: &str) -> std::io::Result<tempfile::NamedTempFile> {
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".alacs-").suffix(suffix);
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt as _;
+        builder.permissions(std::fs::Permissions::from_mode(0o644));
+    }
+    builder.tempfile_in(dir)
+}
+
 /// Writes `path` atomically: `write` fills a temporary file beside it, which
 /// is flushed, synced and renamed over `path` only when everything
 /// succeeded. On any error the temporary file is removed and an existing
@@ -42,11 +57,7 @@ pub fn write_atomic(
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
     };
-    let temp = tempfile::Builder::new()
-        .prefix(".alacs-")
-        .suffix(".tmp")
-        .tempfile_in(dir)
-        .map_err(io_error(path))?;
+    let temp = temp_file_in(dir, ".tmp").map_err(io_error(path))?;
     let mut writer = BufWriter::new(temp);
     write(&mut writer).map_err(io_error(path))?;
     let temp = writer
@@ -244,6 +255,20 @@ mod tests {
         let error = read_text(&path).unwrap_err();
         assert!(matches!(error, Error::TooLarge { .. }), "{error}");
         assert!(error.to_string().contains("huge.yaml"), "{error}");
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn written_files_are_readable_by_others_not_only_their_owner() {
+        // Regression: every output (reports, scan folders, calibrations,
+        // manifests) was created 0600, tempfile's default, so a robot's
+        // other users could not read it.
+        use std::os::unix::fs::PermissionsExt as _;
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("laser.yaml");
+        write_file(&path, "alpha_deg: 19\n").unwrap();
+        let mode = std::fs::metadata(&path).unwrap().permissions().mode();
+        assert_eq!(mode & 0o044, 0o044, "mode {mode:o}");
     }
 
     #[test]

@@ -15,7 +15,7 @@ use crate::msgs::{
 };
 
 /// Millimetres per metre.
-const MM_PER_M: f64 = 1000.0;
+pub(crate) const MM_PER_M: f64 = 1000.0;
 
 /// The frames the node names (REP 105 style; configurable).
 #[derive(Debug, Clone, PartialEq, Eq)]

@@ -21,6 +21,14 @@ pub enum Error {
     /// DDS could not be set up or failed while running.
     #[error("DDS: {0}")]
     Dds(String),
+    /// A recording (MCAP) that cannot be read or written.
+    #[error("{}: {message}", .path.display())]
+    Bag {
+        /// The .mcap file.
+        path: std::path::PathBuf,
+        /// What is wrong with it.
+        message: String,
+    },
 }
 
 impl Error {
@@ -31,6 +39,7 @@ impl Error {
             Error::Model(e) => e.class(),
             Error::Scanner(e) => e.class(),
             Error::Dds(_) => alacs_model::ErrorClass::JobFailed,
+            Error::Bag { .. } => alacs_model::ErrorClass::BadInput,
         }
     }
 

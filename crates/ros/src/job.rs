@@ -11,8 +11,8 @@ use std::time::{Duration, Instant};
 use alacs_locate::{Localization, LocateOptions};
 use alacs_model::{Camera, LaserModel};
 use alacs_scanner::{
-    ControllerConfig, Device, Error as ScanError, FrameCamera, LaserSwitch, Rig, ScanController,
-    Slide,
+    CapturedScan, ControllerConfig, Device, Error as ScanError, FrameCamera, LaserSwitch, Rig,
+    ScanController, Slide,
 };
 use alacs_vision::{Region, StripeOptions, extract_stripe_rgb};
 use image::RgbImage;
@@ -46,8 +46,8 @@ pub enum Outcome {
     Localized {
         /// The answer.
         localization: Box<Localization>,
-        /// The rough position the scan was planned from, ALACS frame, mm.
-        rough_position_mm: Point3<f64>,
+        /// What the scan captured (its rough position, frames, images).
+        scan: Box<CapturedScan>,
         /// Rig and localization time.
         elapsed: Duration,
     },
@@ -230,8 +230,8 @@ pub fn run_job(
     match captured.localize(&context.camera, &context.laser, &context.locate) {
         Ok(localization) => Outcome::Localized {
             localization: Box::new(localization),
-            rough_position_mm: captured.rough_position_mm,
             elapsed: start.elapsed(),
+            scan: Box::new(captured),
         },
         Err(e) => Outcome::Failed(e.to_string()),
     }

@@ -11,6 +11,7 @@
 //! `ROS_DOMAIN_ID`, `ROS_AUTOMATIC_DISCOVERY_RANGE` / `ROS_LOCALHOST_ONLY`,
 //! and `RMW_IMPLEMENTATION` for the service wire mapping).
 
+pub mod bag;
 mod convert;
 mod env;
 mod error;

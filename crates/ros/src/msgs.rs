@@ -360,6 +360,30 @@ pub struct DiagnosticArray {
 }
 impl Message for DiagnosticArray {}
 
+/// `sensor_msgs/JointState`: the slide as joint "slide", metres.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct JointState {
+    /// Stamp and frame.
+    pub header: Header,
+    /// Joint names.
+    pub name: Vec<String>,
+    /// Positions, m (prismatic joints).
+    pub position: Vec<f64>,
+    /// Velocities, m/s (may be empty).
+    pub velocity: Vec<f64>,
+    /// Efforts, N (may be empty).
+    pub effort: Vec<f64>,
+}
+impl Message for JointState {}
+
+/// `std_msgs/Bool`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Bool {
+    /// The value.
+    pub data: bool,
+}
+impl Message for Bool {}
+
 /// The goal of `alacs_msgs/action/LocalizeFruit`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct LocalizeFruitGoal {

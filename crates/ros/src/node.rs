@@ -19,6 +19,7 @@ use ros2_client::{
 };
 use smol::future::FutureExt as _;
 
+use crate::bag::BagWriter;
 use crate::convert::{
     Frames, camera_info, error_result, fruit_marker, image_message, job_request, laser_cloud,
     localization_result, point_m, static_transform,
@@ -61,6 +62,9 @@ pub struct NodeConfig {
     pub publish_images: bool,
     /// Stop after this many goals (tests and soaks); `None`: run until stopped.
     pub max_goals: Option<u64>,
+    /// Record every localized goal's scan in this bag (MCAP), whole when
+    /// the node stops.
+    pub record: Option<std::path::PathBuf>,
 }
 
 impl Default for NodeConfig {
@@ -71,6 +75,7 @@ impl Default for NodeConfig {
             frames: Frames::default(),
             publish_images: true,
             max_goals: None,
+            record: None,
         }
     }
 }
@@ -293,6 +298,12 @@ pub fn run_node(
     log: &(dyn Fn(&str) + Sync),
 ) -> Result<NodeSummary> {
     config.validate()?;
+    // A recording that cannot be opened stops the node before it starts.
+    let mut recorder = config
+        .record
+        .as_deref()
+        .map(|path| BagWriter::create(path, &config.namespace, &config.frames))
+        .transpose()?;
     let mapping = env.service_mapping()?;
     let ctx = context(env)?;
     let mut node = ctx
@@ -457,6 +468,11 @@ pub fn run_node(
                             }
                             let header = Header::new(Time::now(), &frames.camera);
                             let (end, result) = conclude(&outcome, r.stop_reason, &header, &topics, &mut state, log);
+                            if let (Some(bag), Outcome::Localized { localization, scan, .. }) = (recorder.as_mut(), &outcome)
+                                && let Err(e) = bag.write_scan(scan, Some(&job.camera), Some(localization))
+                            {
+                                log(&format!("recording: {e}"));
+                            }
                             state.scanning = false;
                             results.push(send_result(&server, r.handle, end, result));
                             let _ = topics.diagnostics.publish(state.diagnostics(&node_name));
@@ -507,7 +523,15 @@ pub fn run_node(
     });
     // The laser is off at exit, whatever happened before.
     let mut rig = rig.lock().unwrap_or_else(PoisonError::into_inner);
-    rig.rig().laser.set(false).map_err(Error::Scanner)?;
+    let laser_off = rig.rig().laser.set(false).map_err(Error::Scanner);
+    if let Some(bag) = recorder {
+        let scans = bag.scans();
+        match bag.finish() {
+            Ok(path) => log(&format!("recorded {scans} scans in {}", path.display())),
+            Err(e) => log(&format!("recording: {e}")),
+        }
+    }
+    laser_off?;
     log("stopped; the laser is off");
     Ok(state.summary)
 }

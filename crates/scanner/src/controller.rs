@@ -15,7 +15,7 @@
 //! localization triangulates with where the laser was.
 
 use std::path::Path;
-use std::time::Duration;
+use std::time::{Duration, SystemTime};
 
 use alacs_locate::{FrameImages, Localization, LocateOptions, Prior, locate};
 use alacs_model::io::OutputDir;
@@ -90,6 +90,9 @@ pub struct CapturedFrame {
     pub image: RgbImage,
     /// The same view with the laser off, if captured.
     pub image_laser_off: Option<RgbImage>,
+    /// When the laser-on image and the laser-off image (if any) arrived
+    /// (the host's clock).
+    pub captured_at: [Option<SystemTime>; 2],
 }
 
 /// What a scan captured.
@@ -250,21 +253,23 @@ impl ScanController {
                 });
             }
             let image = self.capture(rig, frame, true)?;
+            let on_at = SystemTime::now();
             done += 1;
             progress(done, total);
-            let image_laser_off = if self.config.capture_laser_off {
+            let (image_laser_off, off_at) = if self.config.capture_laser_off {
                 let off = self.capture(rig, frame, false)?;
                 done += 1;
                 progress(done, total);
-                Some(off)
+                (Some(off), Some(SystemTime::now()))
             } else {
-                None
+                (None, None)
             };
             frames.push(CapturedFrame {
                 planned_slide_mm: target_mm,
                 slide_mm,
                 image,
                 image_laser_off,
+                captured_at: [Some(on_at), off_at],
             });
         }
         Ok(frames)

@@ -1,6 +1,7 @@
 //! `alacs localize`: the fruit's centre from a scan folder.
 
 use alacs::locate::{LocateOptions, locate_scan};
+use alacs::ros::bag::read_scan;
 use alacs::{Camera, LaserModel, Scan};
 
 use crate::args::LocalizeArgs;
@@ -13,17 +14,36 @@ pub fn run(args: &LocalizeArgs) -> CmdResult {
         // A bad extension is refused before the long work.
         alacs::locate::CloudFormat::from_path(path)?;
     }
-    let scan = Scan::read(&args.scan)?;
-    let camera = Camera::from_yaml_file(&args.camera)?;
-    let laser = LaserModel::from_yaml_file(&args.laser)?;
-    alacs::locate::check_camera_fits(&scan, &camera)
-        .map_err(|e| Failure::from(e).with_context(&args.camera))?;
     let options = LocateOptions { method: args.method.method(), ..LocateOptions::default() };
-    let bar = output::progress_bar(args.json, "frames");
-    output::start_progress(&bar, scan.frames.len(), "frames read");
-    let answer = locate_scan(&scan, &camera, &laser, &options, |_, _| bar.inc(1));
-    bar.finish_and_clear();
-    let answer = answer?;
+    let answer = match (&args.scan, &args.bag) {
+        (Some(dir), _) => {
+            let scan = Scan::read(dir)?;
+            let camera = Camera::from_yaml_file(&args.camera)?;
+            let laser = LaserModel::from_yaml_file(&args.laser)?;
+            alacs::locate::check_camera_fits(&scan, &camera)
+                .map_err(|e| Failure::from(e).with_context(&args.camera))?;
+            let bar = output::progress_bar(args.json, "frames");
+            output::start_progress(&bar, scan.frames.len(), "frames read");
+            let answer = locate_scan(&scan, &camera, &laser, &options, |_, _| bar.inc(1));
+            bar.finish_and_clear();
+            answer?
+        }
+        (None, Some(bag)) => {
+            let camera = Camera::from_yaml_file(&args.camera)?;
+            let laser = LaserModel::from_yaml_file(&args.laser)?;
+            let bar = output::progress_bar(args.json, "reading the recording");
+            let (scan, _) = read_scan(bag, args.bag_scan)?;
+            bar.set_message("localizing");
+            let answer = scan
+                .localize(&camera, &laser, &options)
+                .map_err(|e| Failure::from(e).with_context(bag));
+            bar.finish_and_clear();
+            answer?
+        }
+        (None, None) => {
+            return Err(Failure::bad_input(anyhow::anyhow!("--scan DIR or --bag FILE.mcap")));
+        }
+    };
     if let Some(path) = &args.points {
         alacs::locate::write_points(path, &answer)?;
     }

@@ -24,6 +24,7 @@ pub fn run(args: &RosArgs) -> CmdResult {
         frames: Frames { camera: args.camera_frame.clone(), rgbd: args.rgbd_frame.clone() },
         publish_images: !args.no_images,
         max_goals: args.max_goals,
+        record: args.record.clone(),
     };
     config.validate()?;
     let OpenRig { devices, sim, camera, laser, alacs_from_rgbd, controller } =

@@ -84,6 +84,10 @@ pub fn run(args: &ScanArgs) -> CmdResult {
         }
         failure
     })?;
+    if let Some(path) = &args.record {
+        bar.set_message("recording");
+        crate::cmd::bag::record(path, &scan, &camera, &answer)?;
+    }
     if let Some(dir) = &args.out {
         bar.set_message("writing");
         write(dir, &scan, sim.as_deref(), &camera, &laser, args, &alacs_from_rgbd)
@@ -108,6 +112,7 @@ pub fn run(args: &ScanArgs) -> CmdResult {
                 "image_width": camera.width_px,
                 "image_height": camera.height_px,
                 "out": args.out.as_ref().map(|d| d.display().to_string()),
+                "record": args.record.as_ref().map(|d| d.display().to_string()),
             });
             if let Value::Object(extra) = extra {
                 map.extend(extra);

@@ -1,0 +1,167 @@
+//! Recordings (MCAP, ROS 2 bags): `scan --record`, `localize --bag`,
+//! `bag export` and `bag import` give the same answer as the scan folder,
+//! and a reader ROS users use (PyPI `rosbags`, in the Python of
+//! `ALACS_PEER_PYTHON`; `.ci/run` installs it) decodes every message.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use serde_json::Value;
+
+const ALACS: &str = env!("CARGO_BIN_EXE_alacs");
+
+fn alacs(args: &[&str]) -> Output {
+    Command::new(ALACS).args(args).output().expect("alacs runs")
+}
+
+fn json(output: &Output) -> Value {
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    serde_json::from_slice(&output.stdout).unwrap()
+}
+
+fn p(path: &Path) -> &str {
+    path.to_str().unwrap()
+}
+
+/// Localizes the scan folder `dir` or the bag `bag` with the folder's
+/// camera and laser; the answer's position.
+fn position(source: &[&str], calibration: &Path) -> Value {
+    let camera = calibration.join("camera.yaml");
+    let laser = calibration.join("laser.yaml");
+    let mut args = vec!["localize"];
+    args.extend_from_slice(source);
+    args.extend_from_slice(&["--camera", p(&camera), "--laser", p(&laser), "--json"]);
+    json(&alacs(&args))["position_mm"].clone()
+}
+
+#[test]
+fn a_recorded_scan_localizes_from_the_bag_as_from_its_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let folder = dir.path().join("scan");
+    let bag = dir.path().join("scan.mcap");
+    let scanned = json(&alacs(&[
+        "scan",
+        "--sim",
+        "--seed",
+        "4",
+        "--scale",
+        "0.25",
+        "--laser-off",
+        "--out",
+        p(&folder),
+        "--record",
+        p(&bag),
+        "--json",
+    ]));
+    assert_eq!(scanned["status"], "ok");
+    let from_folder = position(&["--scan", p(&folder)], &folder);
+    assert_eq!(from_folder, scanned["position_mm"]);
+    assert_eq!(position(&["--bag", p(&bag)], &folder), from_folder);
+
+    // The bag's scan as a folder, and that folder as a bag again.
+    let exported = dir.path().join("exported");
+    let export = json(&alacs(&["bag", "export", p(&bag), p(&exported), "--json"]));
+    assert_eq!(export["frames"], 5);
+    assert_eq!(export["scans"], 1);
+    assert_eq!(position(&["--scan", p(&exported)], &folder), from_folder);
+    let again = dir.path().join("again.mcap");
+    let import = json(&alacs(&["bag", "import", p(&exported), p(&again), "--json"]));
+    assert_eq!(import["images"], 10);
+    assert_eq!(position(&["--bag", p(&again)], &folder), from_folder);
+
+    // Read back by rosbags, as ROS 2 users do.
+    let Ok(python) = std::env::var("ALACS_PEER_PYTHON") else {
+        eprintln!("SKIPPED the rosbags reader: set ALACS_PEER_PYTHON (.ci/peers.txt)");
+        return;
+    };
+    let script = r#"
+import json, sys
+from collections import Counter
+from pathlib import Path
+from rosbags.highlevel import AnyReader
+from rosbags.typesys import Stores, get_typestore
+counts, types, result = Counter(), {}, None
+with AnyReader([Path(sys.argv[1])], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+    for conn, timestamp, rawdata in reader.messages():
+        msg = reader.deserialize(rawdata, conn.msgtype)
+        counts[conn.topic] += 1
+        types[conn.topic] = conn.msgtype
+        if conn.msgtype == "alacs_msgs/action/LocalizeFruit_Result":
+            result = [msg.status, msg.position.point.x, msg.position.point.y, msg.position.point.z]
+        if conn.msgtype == "sensor_msgs/msg/Image":
+            assert msg.encoding == "rgb8" and len(msg.data) == msg.step * msg.height
+print(json.dumps({"counts": counts, "types": types, "result": result}))
+"#;
+    let output = Command::new(python).args(["-c", script, p(&bag)]).output().unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let read: Value = serde_json::from_slice(&output.stdout).unwrap();
+    let counts = &read["counts"];
+    for (topic, n) in [
+        ("/alacs/goal", 1),
+        ("/alacs/rough_position", 1),
+        ("/alacs/slide", 10),
+        ("/alacs/laser_on", 10),
+        ("/alacs/image", 10),
+        ("/alacs/camera_info", 10),
+        ("/alacs/result", 1),
+        ("/alacs/fruit", 1),
+        ("/alacs/laser_points", 1),
+    ] {
+        assert_eq!(counts[topic], n, "{topic}: {read}");
+    }
+    assert_eq!(read["types"]["/alacs/image"], "sensor_msgs/msg/Image");
+    assert_eq!(read["types"]["/alacs/slide"], "sensor_msgs/msg/JointState");
+    assert_eq!(read["result"][0], "ok");
+    for i in 0..3 {
+        let metres = read["result"][i + 1].as_f64().unwrap();
+        let mm = from_folder[i].as_f64().unwrap();
+        assert!((metres * 1000.0 - mm).abs() < 1e-9, "{read}");
+    }
+}
+
+#[test]
+fn a_bag_that_is_not_a_recording_exits_2_naming_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let folder = dir.path().join("scan");
+    let bag = dir.path().join("scan.mcap");
+    json(&alacs(&[
+        "scan",
+        "--sim",
+        "--seed",
+        "1",
+        "--scale",
+        "0.2",
+        "--out",
+        p(&folder),
+        "--record",
+        p(&bag),
+        "--json",
+    ]));
+    let bytes = std::fs::read(&bag).unwrap();
+    let truncated = dir.path().join("truncated.mcap");
+    std::fs::write(&truncated, &bytes[..bytes.len() / 2]).unwrap();
+    let text = dir.path().join("text.mcap");
+    std::fs::write(&text, "not a bag").unwrap();
+    let camera = folder.join("camera.yaml");
+    let laser = folder.join("laser.yaml");
+    for (source, expected) in [
+        (vec!["--bag", p(&truncated)], "truncated.mcap"),
+        (vec!["--bag", p(&text)], "not a readable MCAP file"),
+        (vec!["--bag", p(&bag), "--bag-scan", "3"], "holds 1 scans, numbered from 0"),
+        (vec!["--bag", "no_such.mcap"], "no_such.mcap"),
+    ] {
+        let mut args = vec!["localize"];
+        args.extend_from_slice(&source);
+        args.extend_from_slice(&["--camera", p(&camera), "--laser", p(&laser)]);
+        let output = alacs(&args);
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(2), "{source:?}: {stderr}");
+        assert!(stderr.contains(expected), "{source:?}: expected `{expected}` in {stderr}");
+    }
+    // A recording goes to FILE.mcap, nothing else; nothing is left behind.
+    let output = alacs(&["bag", "import", p(&folder), p(&dir.path().join("scan.bag"))]);
+    assert_eq!(output.status.code(), Some(2));
+    assert!(!dir.path().join("scan.bag").exists());
+}

@@ -1,0 +1,640 @@
+//! Scans recorded as ROS 2 bags in MCAP (docs/FORMATS.md, "Recordings"):
+//! profile `ros2`, `ros2msg` schemas, CDR messages, so that `ros2 bag`,
+//! Foxglove and `rosbags` open them. Read and written here, in one place.
+//!
+//! A scan is, in order: its goal (`<ns>/goal`,
+//! `alacs_msgs/action/LocalizeFruit_Goal`: the rough position in the ALACS
+//! camera frame and the radius prior) and the rough position as the RGB-D
+//! camera gave it (`<ns>/rough_position`, PointStamped in its frame); then
+//! per captured image the slide (`<ns>/slide`, JointState, joint "slide",
+//! metres), the laser (`<ns>/laser_on`, Bool), the image (`<ns>/image`,
+//! rgb8) and the camera (`<ns>/camera_info`, when known), all with the
+//! image's stamp; then, when it was localized, the result (`<ns>/result`,
+//! `alacs_msgs/action/LocalizeFruit_Result`), the fruit (`<ns>/fruit`,
+//! when ok) and the laser points (`<ns>/laser_points`, PointCloud2). A bag
+//! holds one scan or several (the ROS node records every goal).
+
+use std::collections::BTreeMap;
+use std::io::{BufReader, BufWriter};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::{SystemTime, UNIX_EPOCH};
+
+use alacs_locate::Localization;
+use alacs_model::Camera;
+use alacs_model::ScanPlan;
+use alacs_scanner::{CapturedFrame, CapturedScan};
+use byteorder::LittleEndian;
+use image::RgbImage;
+use mcap::records::MessageHeader;
+use nalgebra::Point3;
+use ros2_client::builtin_interfaces::Time;
+use serde::Serialize;
+use serde::de::DeserializeOwned;
+
+use crate::convert::{
+    Frames, MM_PER_M, camera_info, image_message, laser_cloud, localization_result, point_m,
+};
+use crate::msgs::{
+    Bool, Header, Image, JointState, LOCALIZE_FRUIT_ACTION, LocalizeFruitGoal, PointStamped,
+};
+use crate::{Error, Result};
+
+/// The most frames one recorded scan may hold (as a scan folder).
+const MAX_FRAMES: usize = alacs_locate::MAX_SCAN_FRAMES;
+
+/// The largest record read from a bag: a 100-megapixel rgb8 image and change.
+const MAX_RECORD_BYTES: u64 = 320 << 20;
+
+const SEPARATOR: &str =
+    "================================================================================\n";
+const HEADER_DEF: &str = "builtin_interfaces/Time stamp\nstring frame_id\n";
+const TIME_DEF: &str = "int32 sec\nuint32 nanosec\n";
+const POINT_DEF: &str = "float64 x\nfloat64 y\nfloat64 z\n";
+
+/// The QoS rosbag2 records with: reliable, volatile, keep last 10 (its
+/// integer form, which every ROS 2 release reads).
+const QOS_YAML: &str = "- history: 1\n  depth: 10\n  reliability: 1\n  durability: 2\n  \
+deadline:\n    sec: 0\n    nsec: 0\n  lifespan:\n    sec: 0\n    nsec: 0\n  liveliness: 1\n  \
+liveliness_lease_duration:\n    sec: 0\n    nsec: 0\n  avoid_ros_namespace_conventions: false\n";
+
+/// A `ros2msg` schema: the type's fields, then each dependency's.
+fn schema(fields: &str, dependencies: &[(&str, &str)]) -> String {
+    let mut text = fields.to_string();
+    for (name, definition) in dependencies {
+        text += &format!("{SEPARATOR}MSG: {name}\n{definition}");
+    }
+    text
+}
+
+const HEADER_DEPS: [(&str, &str); 2] =
+    [("std_msgs/Header", HEADER_DEF), ("builtin_interfaces/Time", TIME_DEF)];
+
+/// The part `index` (0 goal, 1 result) of the action file, without comments.
+fn action_part(index: usize) -> String {
+    LOCALIZE_FRUIT_ACTION
+        .split("---")
+        .nth(index)
+        .unwrap_or_default()
+        .lines()
+        .map(|l| l.split('#').next().unwrap_or_default().trim())
+        .filter(|l| !l.is_empty())
+        .map(|l| format!("{}\n", l.split_whitespace().collect::<Vec<_>>().join(" ")))
+        .collect()
+}
+
+/// (schema name, schema text) of every type a bag holds.
+fn schemas() -> Vec<(&'static str, String)> {
+    let point_stamped_deps = [HEADER_DEPS[0], HEADER_DEPS[1], ("geometry_msgs/Point", POINT_DEF)];
+    vec![
+        (
+            "sensor_msgs/msg/Image",
+            schema(
+                "std_msgs/Header header\nuint32 height\nuint32 width\nstring encoding\n\
+                 uint8 is_bigendian\nuint32 step\nuint8[] data\n",
+                &HEADER_DEPS,
+            ),
+        ),
+        (
+            "sensor_msgs/msg/CameraInfo",
+            schema(
+                "std_msgs/Header header\nuint32 height\nuint32 width\nstring distortion_model\n\
+                 float64[] d\nfloat64[9] k\nfloat64[9] r\nfloat64[12] p\nuint32 binning_x\n\
+                 uint32 binning_y\nRegionOfInterest roi\n",
+                &[
+                    HEADER_DEPS[0],
+                    HEADER_DEPS[1],
+                    (
+                        "sensor_msgs/RegionOfInterest",
+                        "uint32 x_offset\nuint32 y_offset\nuint32 height\nuint32 width\n\
+                         bool do_rectify\n",
+                    ),
+                ],
+            ),
+        ),
+        (
+            "sensor_msgs/msg/JointState",
+            schema(
+                "std_msgs/Header header\nstring[] name\nfloat64[] position\nfloat64[] velocity\n\
+                 float64[] effort\n",
+                &HEADER_DEPS,
+            ),
+        ),
+        ("std_msgs/msg/Bool", "bool data\n".to_string()),
+        (
+            "geometry_msgs/msg/PointStamped",
+            schema("std_msgs/Header header\nPoint point\n", &point_stamped_deps),
+        ),
+        (
+            "sensor_msgs/msg/PointCloud2",
+            schema(
+                "std_msgs/Header header\nuint32 height\nuint32 width\nPointField[] fields\n\
+                 bool is_bigendian\nuint32 point_step\nuint32 row_step\nuint8[] data\n\
+                 bool is_dense\n",
+                &[
+                    HEADER_DEPS[0],
+                    HEADER_DEPS[1],
+                    (
+                        "sensor_msgs/PointField",
+                        "string name\nuint32 offset\nuint8 datatype\nuint32 count\n",
+                    ),
+                ],
+            ),
+        ),
+        (
+            "alacs_msgs/action/LocalizeFruit_Goal",
+            schema(&action_part(0), &point_stamped_deps_with_prefix()),
+        ),
+        (
+            "alacs_msgs/action/LocalizeFruit_Result",
+            schema(&action_part(1), &point_stamped_deps_with_prefix()),
+        ),
+    ]
+}
+
+/// The dependencies of a type holding a `geometry_msgs/PointStamped`.
+fn point_stamped_deps_with_prefix() -> [(&'static str, &'static str); 4] {
+    [
+        ("geometry_msgs/PointStamped", "std_msgs/Header header\nPoint point\n"),
+        HEADER_DEPS[0],
+        HEADER_DEPS[1],
+        ("geometry_msgs/Point", POINT_DEF),
+    ]
+}
+
+/// The topics of a bag, under a namespace.
+struct Topics {
+    goal: String,
+    rough_position: String,
+    slide: String,
+    laser_on: String,
+    image: String,
+    camera_info: String,
+    result: String,
+    fruit: String,
+    laser_points: String,
+}
+
+impl Topics {
+    fn new(namespace: &str) -> Self {
+        let ns = namespace.trim_end_matches('/');
+        let t = |name: &str| format!("{ns}/{name}");
+        Self {
+            goal: t("goal"),
+            rough_position: t("rough_position"),
+            slide: t("slide"),
+            laser_on: t("laser_on"),
+            image: t("image"),
+            camera_info: t("camera_info"),
+            result: t("result"),
+            fruit: t("fruit"),
+            laser_points: t("laser_points"),
+        }
+    }
+}
+
+/// CDR little endian, as ROS 2 puts it on the wire: the 4-byte
+/// encapsulation header, then the body.
+fn cdr<T: Serialize>(message: &T) -> std::result::Result<Vec<u8>, String> {
+    let mut out = vec![0x00, 0x01, 0x00, 0x00];
+    out.extend(cdr_encoding::to_vec::<T, LittleEndian>(message).map_err(|e| e.to_string())?);
+    Ok(out)
+}
+
+fn from_cdr<T: DeserializeOwned>(payload: &[u8]) -> std::result::Result<T, String> {
+    match payload {
+        [0x00, 0x01, _, _, body @ ..] => cdr_encoding::from_bytes::<T, LittleEndian>(body)
+            .map(|(value, _)| value)
+            .map_err(|e| format!("not a valid CDR message: {e}")),
+        _ => Err("only little-endian CDR messages are read".into()),
+    }
+}
+
+/// Nanoseconds since the epoch of a stamp (0 before it).
+fn nanos(stamp: &Time) -> u64 {
+    u64::try_from(stamp.to_nanos()).unwrap_or(0)
+}
+
+/// Writes scans into a new bag; the file appears, whole, at
+/// [`BagWriter::finish`] (nothing is left at the path if writing fails).
+pub struct BagWriter {
+    writer: mcap::Writer<BufWriter<tempfile::NamedTempFile>>,
+    path: PathBuf,
+    topics: Topics,
+    frames: Frames,
+    /// Channel ids by topic.
+    channels: BTreeMap<String, u16>,
+    /// Schema ids by name.
+    schema_ids: BTreeMap<&'static str, u16>,
+    sequence: u32,
+    scans: usize,
+}
+
+impl std::fmt::Debug for BagWriter {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("BagWriter").field("path", &self.path).finish_non_exhaustive()
+    }
+}
+
+impl BagWriter {
+    /// A bag to be written at `path` (.mcap), topics under `namespace`,
+    /// frames named as `frames`.
+    pub fn create(path: &Path, namespace: &str, frames: &Frames) -> Result<Self> {
+        let bad = |message: String| Error::Bag { path: path.to_path_buf(), message };
+        if path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref()
+            != Some("mcap")
+        {
+            return Err(bad("a recording is an MCAP file: name it FILE.mcap".into()));
+        }
+        let dir = match path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => Path::new("."),
+        };
+        let temp = alacs_model::io::temp_file_in(dir, ".mcap.tmp")
+            .map_err(|e| bad(format!("cannot be written: {e}")))?;
+        let mut writer = mcap::WriteOptions::new()
+            .profile("ros2")
+            .library(concat!("alacs ", env!("CARGO_PKG_VERSION")))
+            .compression(None)
+            .chunk_size(Some(4 << 20))
+            .create(BufWriter::new(temp))
+            .map_err(|e| bad(format!("cannot be written: {e}")))?;
+        let mut schema_ids = BTreeMap::new();
+        for (name, text) in schemas() {
+            let id = writer
+                .add_schema(name, "ros2msg", text.as_bytes())
+                .map_err(|e| bad(format!("cannot be written: {e}")))?;
+            schema_ids.insert(name, id);
+        }
+        Ok(Self {
+            writer,
+            path: path.to_path_buf(),
+            topics: Topics::new(namespace),
+            frames: frames.clone(),
+            channels: BTreeMap::new(),
+            schema_ids,
+            sequence: 0,
+            scans: 0,
+        })
+    }
+
+    fn bad(&self, message: impl std::fmt::Display) -> Error {
+        Error::Bag { path: self.path.clone(), message: format!("cannot be written: {message}") }
+    }
+
+    /// Writes one message of schema `schema` on `topic` at `stamp`.
+    fn write<T: Serialize>(
+        &mut self,
+        topic: &str,
+        schema: &'static str,
+        stamp: &Time,
+        message: &T,
+    ) -> Result<()> {
+        let channel = match self.channels.get(topic) {
+            Some(&id) => id,
+            None => {
+                let schema_id = *self.schema_ids.get(schema).ok_or_else(|| self.bad(schema))?;
+                let metadata = BTreeMap::from([
+                    ("offered_qos_profiles".to_string(), QOS_YAML.to_string()),
+                    ("topic_type_hash".to_string(), String::new()),
+                ]);
+                let id = self
+                    .writer
+                    .add_channel(schema_id, topic, "cdr", &metadata)
+                    .map_err(|e| self.bad(e))?;
+                self.channels.insert(topic.to_string(), id);
+                id
+            }
+        };
+        let payload = cdr(message).map_err(|e| self.bad(e))?;
+        self.sequence = self.sequence.wrapping_add(1);
+        let time = nanos(stamp);
+        let header = MessageHeader {
+            channel_id: channel,
+            sequence: self.sequence,
+            log_time: time,
+            publish_time: time,
+        };
+        self.writer.write_to_known_channel(&header, &payload).map_err(|e| self.bad(e))
+    }
+
+    /// Records `scan`: its goal, each image with the slide and the laser
+    /// (and `camera` as CameraInfo when given), and `localization` when
+    /// there is one. Each image is stamped with its capture time (now, for
+    /// a frame that has none); the goal with the first image's.
+    pub fn write_scan(
+        &mut self,
+        scan: &CapturedScan,
+        camera: Option<&Camera>,
+        localization: Option<&Localization>,
+    ) -> Result<()> {
+        let now = Time::now();
+        let stamps: Vec<Time> = scan
+            .frames
+            .iter()
+            .flat_map(|f| {
+                let off = f.image_laser_off.as_ref().map(|_| stamp_of(f.captured_at[1], now));
+                std::iter::once(stamp_of(f.captured_at[0], now)).chain(off)
+            })
+            .collect();
+        let start = stamps.first().copied().unwrap_or(now);
+        let camera_frame = self.frames.camera.clone();
+        let in_camera = |stamp: Time| Header::new(stamp, &camera_frame);
+        let goal = LocalizeFruitGoal {
+            rough_position: PointStamped {
+                header: in_camera(start),
+                point: point_m(&scan.rough_position_mm),
+            },
+            fruit_radius_m: scan.fruit_radius_mm / MM_PER_M,
+        };
+        let rough_in_rgbd = PointStamped {
+            header: Header::new(start, &self.frames.rgbd),
+            point: point_m(&scan.rough_position_in_rgbd_mm),
+        };
+        let (goal_topic, rough_topic) =
+            (self.topics.goal.clone(), self.topics.rough_position.clone());
+        self.write(&goal_topic, "alacs_msgs/action/LocalizeFruit_Goal", &start, &goal)?;
+        self.write(&rough_topic, "geometry_msgs/msg/PointStamped", &start, &rough_in_rgbd)?;
+        let mut stamp = stamps.iter();
+        for frame in &scan.frames {
+            let shots = std::iter::once((true, &frame.image))
+                .chain(frame.image_laser_off.as_ref().map(|off| (false, off)));
+            for (laser_on, image) in shots {
+                let at = stamp.next().copied().unwrap_or(start);
+                self.write_image(at, frame.slide_mm, laser_on, image, camera)?;
+            }
+        }
+        if let Some(localization) = localization {
+            let end = stamps.last().copied().unwrap_or(start);
+            let result = localization_result(localization, in_camera(end));
+            let cloud = laser_cloud(localization, in_camera(end));
+            let topics = (
+                self.topics.result.clone(),
+                self.topics.fruit.clone(),
+                self.topics.laser_points.clone(),
+            );
+            self.write(&topics.0, "alacs_msgs/action/LocalizeFruit_Result", &end, &result)?;
+            if result.status == "ok" {
+                self.write(&topics.1, "geometry_msgs/msg/PointStamped", &end, &result.position)?;
+            }
+            self.write(&topics.2, "sensor_msgs/msg/PointCloud2", &end, &cloud)?;
+        }
+        self.scans += 1;
+        Ok(())
+    }
+
+    fn write_image(
+        &mut self,
+        stamp: Time,
+        slide_mm: f64,
+        laser_on: bool,
+        image: &RgbImage,
+        camera: Option<&Camera>,
+    ) -> Result<()> {
+        let header = Header::new(stamp, &self.frames.camera);
+        let slide = JointState {
+            header: Header::new(stamp, &self.frames.camera),
+            name: vec!["slide".into()],
+            position: vec![slide_mm / MM_PER_M],
+            velocity: Vec::new(),
+            effort: Vec::new(),
+        };
+        let topics = (
+            self.topics.slide.clone(),
+            self.topics.laser_on.clone(),
+            self.topics.image.clone(),
+            self.topics.camera_info.clone(),
+        );
+        self.write(&topics.0, "sensor_msgs/msg/JointState", &stamp, &slide)?;
+        self.write(&topics.1, "std_msgs/msg/Bool", &stamp, &Bool { data: laser_on })?;
+        self.write(
+            &topics.2,
+            "sensor_msgs/msg/Image",
+            &stamp,
+            &image_message(image, header.clone()),
+        )?;
+        if let Some(camera) = camera {
+            self.write(
+                &topics.3,
+                "sensor_msgs/msg/CameraInfo",
+                &stamp,
+                &camera_info(camera, header),
+            )?;
+        }
+        Ok(())
+    }
+
+    /// Scans written so far.
+    pub fn scans(&self) -> usize {
+        self.scans
+    }
+
+    /// Ends the bag (its summary and index) and puts it at its path.
+    pub fn finish(mut self) -> Result<PathBuf> {
+        self.writer.finish().map_err(|e| self.bad(e))?;
+        let path = self.path.clone();
+        let fail = |e: String| Error::Bag {
+            path: path.clone(),
+            message: format!("cannot be written: {e}"),
+        };
+        let temp =
+            self.writer.into_inner().into_inner().map_err(|e| fail(e.error().to_string()))?;
+        temp.as_file().sync_all().map_err(|e| fail(e.to_string()))?;
+        temp.persist(&path).map_err(|e| fail(e.error.to_string()))?;
+        Ok(path)
+    }
+}
+
+/// What a bag holds, scan by scan.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BagSummary {
+    /// Frames (laser-on images) of each scan.
+    pub frames_per_scan: Vec<usize>,
+    /// Messages per topic.
+    pub messages: BTreeMap<String, u64>,
+}
+
+/// Reads scan `index` (from 0) of the bag at `path`, and what the whole bag
+/// holds. Only that scan's images are decoded.
+pub fn read_scan(path: &Path, index: usize) -> Result<(CapturedScan, BagSummary)> {
+    let bad = |message: String| Error::Bag { path: path.to_path_buf(), message };
+    let file = std::fs::File::open(path).map_err(|e| bad(format!("cannot be read: {e}")))?;
+    let options = mcap::sans_io::LinearReaderOptions::default()
+        .with_record_length_limit(usize::try_from(MAX_RECORD_BYTES).unwrap_or(usize::MAX));
+    let reader = mcap::io::MessageReader::new_with_options(BufReader::new(file), options);
+    let mut summary = BagSummary { frames_per_scan: Vec::new(), messages: BTreeMap::new() };
+    let mut scan: Option<CapturedScan> = None;
+    // The slide and the laser of the next image.
+    let mut slide_mm: Option<f64> = None;
+    let mut laser_on: Option<bool> = None;
+    for message in reader {
+        let message = message.map_err(|e| bad(format!("not a readable MCAP file: {e}")))?;
+        let channel: &Arc<mcap::Channel<'_>> = &message.channel;
+        *summary.messages.entry(channel.topic.clone()).or_default() += 1;
+        let schema = channel.schema.as_ref().map(|s| s.name.as_str()).unwrap_or_default();
+        let topic = channel.topic.as_str();
+        let current = summary.frames_per_scan.len().checked_sub(1);
+        let at = |what: &str| format!("{topic} (message {} of the bag): {what}", message.sequence);
+        match schema {
+            "alacs_msgs/action/LocalizeFruit_Goal" => {
+                summary.frames_per_scan.push(0);
+                if summary.frames_per_scan.len() - 1 == index {
+                    let goal: LocalizeFruitGoal =
+                        from_cdr(&message.data).map_err(|e| bad(at(&e)))?;
+                    scan = Some(empty_scan(&goal));
+                }
+                slide_mm = None;
+                laser_on = None;
+            }
+            "geometry_msgs/msg/PointStamped" if topic.ends_with("/rough_position") => {
+                if let (Some(scan), Some(i)) = (scan.as_mut(), current)
+                    && i == index
+                    && scan.frames.is_empty()
+                {
+                    let rough: PointStamped = from_cdr(&message.data).map_err(|e| bad(at(&e)))?;
+                    scan.rough_position_in_rgbd_mm = mm(&rough.point);
+                }
+            }
+            "sensor_msgs/msg/JointState" => {
+                let state: JointState = from_cdr(&message.data).map_err(|e| bad(at(&e)))?;
+                let Some(k) = state.name.iter().position(|n| n == "slide") else { continue };
+                let position = state.position.get(k).copied().unwrap_or(f64::NAN);
+                if !(position.is_finite()
+                    && position.abs() * MM_PER_M <= alacs_model::MAX_ABS_SLIDE_MM)
+                {
+                    return Err(bad(at(&format!(
+                        "slide position {position} m is not a slide travel"
+                    ))));
+                }
+                slide_mm = Some(position * MM_PER_M);
+            }
+            "std_msgs/msg/Bool" if topic.ends_with("/laser_on") => {
+                let state: Bool = from_cdr(&message.data).map_err(|e| bad(at(&e)))?;
+                laser_on = Some(state.data);
+            }
+            "sensor_msgs/msg/Image" => {
+                let Some(i) = current else {
+                    return Err(bad(at(
+                        "an image before any goal: not a recording of alacs scans",
+                    )));
+                };
+                let (Some(slide), Some(on)) = (slide_mm, laser_on) else {
+                    return Err(bad(at(
+                        "an image without the slide position and laser state before it",
+                    )));
+                };
+                if on {
+                    summary.frames_per_scan[i] += 1;
+                    if summary.frames_per_scan[i] > MAX_FRAMES {
+                        return Err(bad(at(&format!("more than {MAX_FRAMES} frames in one scan"))));
+                    }
+                }
+                if i != index {
+                    continue;
+                }
+                let Some(scan) = scan.as_mut() else { continue };
+                let image: Image = from_cdr(&message.data).map_err(|e| bad(at(&e)))?;
+                let image = rgb_image(image).map_err(|e| bad(at(&e)))?;
+                if on {
+                    scan.frames.push(CapturedFrame {
+                        planned_slide_mm: slide,
+                        slide_mm: slide,
+                        image,
+                        image_laser_off: None,
+                        captured_at: [Some(system_time(message.log_time)), None],
+                    });
+                } else {
+                    match scan.frames.last_mut() {
+                        Some(frame)
+                            if frame.slide_mm == slide && frame.image_laser_off.is_none() =>
+                        {
+                            frame.image_laser_off = Some(image);
+                            frame.captured_at[1] = Some(system_time(message.log_time));
+                        }
+                        _ => {
+                            return Err(bad(at(
+                                "a laser-off image that follows no laser-on image at its slide position",
+                            )));
+                        }
+                    }
+                }
+                laser_on = None;
+            }
+            _ => {}
+        }
+    }
+    let scans = summary.frames_per_scan.len();
+    let Some(mut scan) = scan else {
+        return Err(bad(if scans == 0 {
+            "holds no scan (no alacs_msgs/action/LocalizeFruit_Goal message)".to_string()
+        } else {
+            format!("holds {scans} scans, numbered from 0; there is no scan {index}")
+        }));
+    };
+    if scan.frames.is_empty() {
+        return Err(bad(format!("scan {index} holds no laser-on image")));
+    }
+    scan.plan = ScanPlan {
+        slides_mm: scan.frames.iter().map(|f| f.slide_mm).collect(),
+        unclamped_start_mm: scan.frames[0].slide_mm,
+        shifted: false,
+    };
+    Ok((scan, summary))
+}
+
+fn mm(point: &crate::msgs::Point) -> Point3<f64> {
+    Point3::new(point.x * MM_PER_M, point.y * MM_PER_M, point.z * MM_PER_M)
+}
+
+/// A scan of `goal` before its frames.
+fn empty_scan(goal: &LocalizeFruitGoal) -> CapturedScan {
+    let rough = mm(&goal.rough_position.point);
+    CapturedScan {
+        rough_position_in_rgbd_mm: rough,
+        rough_position_mm: rough,
+        fruit_radius_mm: goal.fruit_radius_m * MM_PER_M,
+        plan: ScanPlan { slides_mm: Vec::new(), unclamped_start_mm: 0.0, shifted: false },
+        frames: Vec::new(),
+    }
+}
+
+/// An Image message as an RGB image: rgb8, bgr8 or mono8.
+fn rgb_image(image: Image) -> std::result::Result<RgbImage, String> {
+    let (w, h) = (image.width, image.height);
+    let channels = match image.encoding.as_str() {
+        "rgb8" | "bgr8" => 3,
+        "mono8" => 1,
+        other => return Err(format!("image encoding `{other}`: rgb8, bgr8 or mono8 are read")),
+    };
+    let row = u64::from(w) * channels;
+    if u64::from(image.step) != row
+        || image.data.len() as u64 != row * u64::from(h)
+        || w == 0
+        || h == 0
+    {
+        return Err(format!(
+            "a {w} x {h} {} image with step {} holds {} bytes",
+            image.encoding,
+            image.step,
+            image.data.len()
+        ));
+    }
+    let data = match image.encoding.as_str() {
+        "rgb8" => image.data,
+        "bgr8" => image.data.chunks_exact(3).flat_map(|p| [p[2], p[1], p[0]]).collect(),
+        _ => image.data.iter().flat_map(|&v| [v, v, v]).collect(),
+    };
+    RgbImage::from_raw(w, h, data).ok_or_else(|| "image size and data disagree".to_string())
+}
+
+/// A capture time as a ROS stamp (`default` when unknown).
+fn stamp_of(time: Option<SystemTime>, default: Time) -> Time {
+    time.and_then(|t| t.duration_since(UNIX_EPOCH).ok())
+        .and_then(|d| i64::try_from(d.as_nanos()).ok())
+        .map_or(default, Time::from_nanos)
+}
+
+/// A bag's log time as a capture time.
+fn system_time(log_time_ns: u64) -> SystemTime {
+    UNIX_EPOCH + std::time::Duration::from_nanos(log_time_ns)
+}
