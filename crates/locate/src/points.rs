@@ -94,6 +94,19 @@ pub fn write_points(path: &Path, localization: &Localization) -> Result<()> {
     Ok(())
 }
 
+/// The points as both formats store them: x y z (f32, little endian),
+/// frame (u32), fruit (u8), 17 bytes a point.
+fn write_records(out: &mut dyn Write, points: &[CloudPoint]) -> std::io::Result<()> {
+    for p in points {
+        for c in p.xyz_mm {
+            out.write_all(&c.to_le_bytes())?;
+        }
+        out.write_all(&p.frame.to_le_bytes())?;
+        out.write_all(&[p.fruit])?;
+    }
+    Ok(())
+}
+
 fn write_ply(
     out: &mut dyn Write,
     points: &[CloudPoint],
@@ -115,13 +128,7 @@ fn write_ply(
         usize::from(centre.is_some())
     );
     out.write_all(header.as_bytes())?;
-    for p in points {
-        for c in p.xyz_mm {
-            out.write_all(&c.to_le_bytes())?;
-        }
-        out.write_all(&p.frame.to_le_bytes())?;
-        out.write_all(&[p.fruit])?;
-    }
+    write_records(out, points)?;
     if let Some((c, r)) = centre {
         for v in [c.x, c.y, c.z, r] {
             out.write_all(&(v as f32).to_le_bytes())?;
@@ -145,12 +152,6 @@ fn write_pcd(
         n = points.len()
     );
     out.write_all(header.as_bytes())?;
-    for p in points {
-        for c in p.xyz_mm {
-            out.write_all(&c.to_le_bytes())?;
-        }
-        out.write_all(&p.frame.to_le_bytes())?;
-        out.write_all(&[p.fruit])?;
-    }
+    write_records(out, points)?;
     Ok(())
 }

@@ -6,6 +6,8 @@
 
 mod config;
 mod error;
+#[cfg(feature = "genicam")]
+pub mod genicam;
 pub mod grbl;
 mod rig;
 

@@ -86,6 +86,7 @@ struct SceneCamera {
     tracker: Tracker,
     captures_on: u64,
     captures_off: u64,
+    exposure: alacs_scanner::Exposure,
 }
 
 #[cfg(feature = "sim")]
@@ -104,11 +105,21 @@ impl FrameCamera for SceneCamera {
         let counter = if laser_on { &mut self.captures_on } else { &mut self.captures_off };
         let index = *counter;
         *counter += 1;
-        self.scene.render_at(slide_mm, laser_on, index).map_err(|e| DeviceError::Device {
-            device: Device::Camera,
-            step: None,
-            message: format!("the simulated camera: {e}"),
-        })
+        let image =
+            self.scene.render_at(slide_mm, laser_on, index).map_err(|e| DeviceError::Device {
+                device: Device::Camera,
+                step: None,
+                message: format!("the simulated camera: {e}"),
+            })?;
+        Ok(self.exposure.apply(image))
+    }
+
+    fn set_exposure_us(&mut self, exposure_us: f64) -> alacs_scanner::Result<f64> {
+        self.exposure.set_exposure_us(exposure_us)
+    }
+
+    fn set_gain_db(&mut self, gain_db: f64) -> alacs_scanner::Result<f64> {
+        self.exposure.set_gain_db(gain_db)
     }
 }
 
@@ -182,6 +193,7 @@ impl<'a> Parts<'a> {
             tracker: Arc::clone(&self.tracker),
             captures_on: 0,
             captures_off: 0,
+            exposure: alacs_scanner::Exposure::default(),
         };
         Ok((Box::new(camera), detail))
     }
@@ -260,19 +272,37 @@ impl<'a> Parts<'a> {
 
     fn connect_camera(&mut self) -> alacs_scanner::Result<String> {
         match self.config.camera.driver {
+            #[cfg(feature = "genicam")]
+            CameraDriver::Genicam => {
+                let camera = crate::genicam::GenicamCamera::open(&self.config.camera.device)?;
+                let detail = format!("GenICam camera {}", camera.describe());
+                self.set_camera(Box::new(camera), detail)
+            }
+            #[cfg(not(feature = "genicam"))]
             CameraDriver::Genicam => Err(DeviceError::Device {
                 device: Device::Camera,
                 step: None,
-                message: "GenICam cameras (aravis) are not in this build of alacs; use \
-                          driver = \"sim\" for now"
+                message: "GenICam cameras need alacs built with the cargo feature `genicam` \
+                          (aravis: Debian libaravis-dev libusb-1.0-0-dev)"
                     .into(),
             }),
             CameraDriver::Sim => {
                 let (camera, detail) = self.simulated_camera()?;
-                self.camera = Some(camera);
-                Ok(detail)
+                self.set_camera(camera, detail)
             }
         }
+    }
+
+    /// Sets rig.toml's exposure and gain on the connected `camera`.
+    fn set_camera(
+        &mut self,
+        mut camera: Box<dyn FrameCamera + Send>,
+        detail: String,
+    ) -> alacs_scanner::Result<String> {
+        let exposure_us = camera.set_exposure_us(self.config.camera.exposure_us)?;
+        let gain_db = camera.set_gain_db(self.config.camera.gain_db)?;
+        self.camera = Some(camera);
+        Ok(format!("{detail}, exposure {exposure_us} us, gain {gain_db} dB"))
     }
 }
 

@@ -169,6 +169,14 @@ impl FrameCamera for WatchedCamera<'_, '_> {
         // The reporter keeps its copy only as long as it publishes it.
         Ok(Arc::try_unwrap(image).unwrap_or_else(|shared| (*shared).clone()))
     }
+
+    fn set_exposure_us(&mut self, exposure_us: f64) -> alacs_scanner::Result<f64> {
+        self.inner.set_exposure_us(exposure_us)
+    }
+
+    fn set_gain_db(&mut self, gain_db: f64) -> alacs_scanner::Result<f64> {
+        self.inner.set_gain_db(gain_db)
+    }
 }
 
 impl LaserSwitch for WatchedLaser<'_, '_> {

@@ -498,6 +498,14 @@ mod tests {
             // The laser state in the red channel, to check the pairing of images.
             Ok(RgbImage::from_pixel(4, 3, image::Rgb([u8::from(state.laser_on) * 200, 0, 0])))
         }
+
+        fn set_exposure_us(&mut self, exposure_us: f64) -> Result<f64> {
+            Ok(exposure_us)
+        }
+
+        fn set_gain_db(&mut self, gain_db: f64) -> Result<f64> {
+            Ok(gain_db)
+        }
     }
 
     impl LaserSwitch for FakeLaser {

@@ -57,10 +57,22 @@ pub trait Slide {
 /// - exposure, gain and white balance stay fixed over a scan, so that
 ///   laser-off differencing compares like with like;
 /// - no frame within the timeout gives
-///   [`Error::Timeout`](crate::Error::Timeout).
+///   [`Error::Timeout`](crate::Error::Timeout);
+/// - exposure and gain set through [`FrameCamera::set_exposure_us`] and
+///   [`FrameCamera::set_gain_db`] hold for every frame captured after the
+///   call returns; a value the camera cannot take is refused with
+///   [`Error::Device`](crate::Error::Device) naming its range, never
+///   clamped silently; the returned value is the one the camera took
+///   (rounded to its step).
 pub trait FrameCamera {
     /// Captures one frame, waiting at most `timeout`.
     fn capture(&mut self, timeout: Duration) -> Result<RgbImage>;
+
+    /// Sets the exposure time, microseconds; returns the one the camera took.
+    fn set_exposure_us(&mut self, exposure_us: f64) -> Result<f64>;
+
+    /// Sets the analogue gain, dB; returns the one the camera took.
+    fn set_gain_db(&mut self, gain_db: f64) -> Result<f64>;
 }
 
 /// The line laser's on/off switch.

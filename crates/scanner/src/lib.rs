@@ -57,5 +57,5 @@ pub use error::{Device, Error, Result, Step};
 pub use hardware::{FrameCamera, LaserSwitch, Rig, ScanRig, Slide};
 #[cfg(feature = "sim")]
 pub use sim_devices::{
-    SimulatedCamera, SimulatedLaser, SimulatedRig, SimulatedRigOptions, SimulatedSlide,
+    Exposure, SimulatedCamera, SimulatedLaser, SimulatedRig, SimulatedRigOptions, SimulatedSlide,
 };

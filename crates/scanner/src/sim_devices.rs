@@ -90,12 +90,79 @@ pub struct SimulatedSlide {
 }
 
 /// The simulated camera: renders the scene at the slide's position, with
-/// the laser as it is switched.
+/// the laser as it is switched, at its exposure and gain ([`Exposure`]).
 #[derive(Debug)]
 pub struct SimulatedCamera {
     state: Shared,
     scan: Arc<SimulatedScan>,
     options: SimulatedRigOptions,
+    exposure: Exposure,
+}
+
+/// A simulated camera's exposure time and gain. The simulator renders the
+/// scene as a camera exposed for [`Exposure::NOMINAL_US`] at 0 dB sees it;
+/// other settings scale every pixel linearly (time x 10^(gain/20)) and clip
+/// at 255, as a linear sensor does.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Exposure {
+    /// Exposure time, microseconds.
+    pub exposure_us: f64,
+    /// Analogue gain, dB.
+    pub gain_db: f64,
+}
+
+impl Default for Exposure {
+    fn default() -> Self {
+        Self { exposure_us: Self::NOMINAL_US, gain_db: 0.0 }
+    }
+}
+
+impl Exposure {
+    /// The exposure the simulator's renders stand for, microseconds.
+    pub const NOMINAL_US: f64 = 2000.0;
+    /// The exposure times a simulated camera takes, microseconds.
+    pub const EXPOSURE_RANGE_US: (f64, f64) = (1.0, 10.0e6);
+    /// The gains a simulated camera takes, dB.
+    pub const GAIN_RANGE_DB: (f64, f64) = (0.0, 48.0);
+
+    /// Checks and sets the exposure time.
+    pub fn set_exposure_us(&mut self, exposure_us: f64) -> Result<f64> {
+        let (low, high) = Self::EXPOSURE_RANGE_US;
+        if !(exposure_us.is_finite() && (low..=high).contains(&exposure_us)) {
+            return Err(Error::Device {
+                device: Device::Camera,
+                step: None,
+                message: format!("exposure {exposure_us} us is outside {low}-{high} us"),
+            });
+        }
+        self.exposure_us = exposure_us;
+        Ok(exposure_us)
+    }
+
+    /// Checks and sets the gain.
+    pub fn set_gain_db(&mut self, gain_db: f64) -> Result<f64> {
+        let (low, high) = Self::GAIN_RANGE_DB;
+        if !(gain_db.is_finite() && (low..=high).contains(&gain_db)) {
+            return Err(Error::Device {
+                device: Device::Camera,
+                step: None,
+                message: format!("gain {gain_db} dB is outside {low}-{high} dB"),
+            });
+        }
+        self.gain_db = gain_db;
+        Ok(gain_db)
+    }
+
+    /// The rendered `image` as this exposure and gain record it.
+    pub fn apply(&self, mut image: RgbImage) -> RgbImage {
+        let scale = self.exposure_us / Self::NOMINAL_US * 10f64.powf(self.gain_db / 20.0);
+        if scale != 1.0 {
+            for value in image.iter_mut() {
+                *value = (f64::from(*value) * scale).round().min(255.0) as u8;
+            }
+        }
+        image
+    }
 }
 
 /// The simulated laser switch.
@@ -144,7 +211,12 @@ impl SimulatedRig {
         }));
         Ok(Self {
             slide: SimulatedSlide { state: state.clone(), options },
-            camera: SimulatedCamera { state: state.clone(), scan: scan.clone(), options },
+            camera: SimulatedCamera {
+                state: state.clone(),
+                scan: scan.clone(),
+                options,
+                exposure: Exposure::default(),
+            },
             laser: SimulatedLaser { state: state.clone(), options },
             scan,
             state,
@@ -245,7 +317,15 @@ impl FrameCamera for SimulatedCamera {
             *counter += 1;
             (state.slide_mm, state.laser_on, index)
         };
-        Ok(self.scan.render_at(slide_mm, laser_on, index)?)
+        Ok(self.exposure.apply(self.scan.render_at(slide_mm, laser_on, index)?))
+    }
+
+    fn set_exposure_us(&mut self, exposure_us: f64) -> Result<f64> {
+        self.exposure.set_exposure_us(exposure_us)
+    }
+
+    fn set_gain_db(&mut self, gain_db: f64) -> Result<f64> {
+        self.exposure.set_gain_db(gain_db)
     }
 }
 
