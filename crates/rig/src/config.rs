@@ -90,6 +90,9 @@ pub enum LaserDriver {
     /// The spindle output of the slide's GRBL controller (M3 S<power> / M5,
     /// spindle mode: `$32=0`).
     GrblSpindle,
+    /// A relay on a serial port of its own (USB relay modules): fixed bytes
+    /// switch it on and off.
+    SerialRelay,
     /// The simulated laser.
     Sim,
 }
@@ -114,6 +117,18 @@ pub struct LaserConfig {
     /// steady (or dark).
     #[serde(default)]
     pub settle_ms: f64,
+    /// `port`: the relay's serial port (serial-relay).
+    #[serde(default)]
+    pub port: String,
+    /// `baud`: the relay's baud rate (serial-relay).
+    #[serde(default = "default_relay_baud")]
+    pub baud: u32,
+    /// `on_bytes`: what switches the relay on, hexadecimal ("A0 01 01 A2").
+    #[serde(default)]
+    pub on_bytes: String,
+    /// `off_bytes`: what switches it off, hexadecimal.
+    #[serde(default)]
+    pub off_bytes: String,
 }
 
 impl Default for LaserConfig {
@@ -124,6 +139,10 @@ impl Default for LaserConfig {
             on_command: default_on_command(),
             off_command: default_off_command(),
             settle_ms: 0.0,
+            port: String::new(),
+            baud: default_relay_baud(),
+            on_bytes: String::new(),
+            off_bytes: String::new(),
         }
     }
 }
@@ -205,6 +224,9 @@ fn default_homing_timeout_s() -> f64 {
 }
 fn default_move_timeout_s() -> f64 {
     10.0
+}
+fn default_relay_baud() -> u32 {
+    9600
 }
 fn default_power() -> u32 {
     1000
@@ -311,6 +333,22 @@ impl RigConfig {
                 ));
             }
         }
+        if l.driver == LaserDriver::SerialRelay {
+            if l.port.trim().is_empty() {
+                return Err(bad(
+                    "[laser] port",
+                    "the serial-relay driver needs the relay's serial port".into(),
+                ));
+            }
+            if !(300..=4_000_000).contains(&l.baud) {
+                return Err(bad("[laser] baud", format!("{} must lie within 300-4000000", l.baud)));
+            }
+            let on = parse_hex(&l.on_bytes).map_err(|m| bad("[laser] on_bytes", m))?;
+            let off = parse_hex(&l.off_bytes).map_err(|m| bad("[laser] off_bytes", m))?;
+            if on == off {
+                return Err(bad("[laser] off_bytes", "must differ from on_bytes".into()));
+            }
+        }
         if !(l.settle_ms.is_finite() && (0.0..=10_000.0).contains(&l.settle_ms)) {
             return Err(bad(
                 "[laser] settle_ms",
@@ -378,6 +416,24 @@ impl SlideConfig {
     pub fn homing_timeout(&self) -> Duration {
         Duration::from_secs_f64(self.homing_timeout_s)
     }
+}
+
+/// Bytes written in hexadecimal, pairs of digits with optional spaces
+/// ("A0 01 01 A2"), 1 to 64 bytes.
+pub fn parse_hex(text: &str) -> std::result::Result<Vec<u8>, String> {
+    let digits: String = text.chars().filter(|c| !c.is_whitespace()).collect();
+    if digits.is_empty() || !digits.len().is_multiple_of(2) || digits.len() > 128 {
+        return Err(format!("`{text}` must be 1 to 64 bytes in hexadecimal, e.g. \"A0 01 01 A2\""));
+    }
+    (0..digits.len())
+        .step_by(2)
+        .map(|i| {
+            digits
+                .get(i..i + 2)
+                .and_then(|pair| u8::from_str_radix(pair, 16).ok())
+                .ok_or_else(|| format!("`{text}` is not hexadecimal bytes"))
+        })
+        .collect()
 }
 
 impl LaserConfig {

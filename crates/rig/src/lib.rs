@@ -9,6 +9,7 @@ mod error;
 #[cfg(feature = "genicam")]
 pub mod genicam;
 pub mod grbl;
+pub mod relay;
 mod rig;
 
 pub use config::{

@@ -261,6 +261,10 @@ impl<'a> Parts<'a> {
                 let timeout = self.config.slide.command_timeout();
                 (Box::new(GrblLaser::new(controller, laser.clone(), timeout)), detail)
             }
+            LaserDriver::SerialRelay => (
+                Box::new(crate::relay::SerialRelayLaser::open(laser)?),
+                format!("on the serial relay {} at {} baud", laser.port, laser.baud),
+            ),
             LaserDriver::Sim => (self.simulated_laser()?, "simulated laser".to_string()),
         };
         let mut laser = TrackedLaser { inner, tracker: Arc::clone(&self.tracker) };
