@@ -40,6 +40,7 @@ mod intrinsics;
 mod linear;
 mod output;
 mod refine;
+mod rgbd;
 mod session;
 
 /// The RANSAC driver is `alacs-model`'s (fruit localization uses it too).
@@ -60,6 +61,7 @@ pub use intrinsics::{
 };
 pub use output::{CalibrationOutput, StdDevOutput};
 pub use refine::Residual;
+pub use rgbd::{RgbdCalibration, RgbdPose, calibrate_rgbd};
 pub use session::{
     LaserSessionCalibration, LaserSessionOptions, ViewBoard, ViewSamples, calibrate_camera_session,
     calibrate_laser_session, detect_session_boards, rejection_note, session_view_samples,

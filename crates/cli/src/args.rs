@@ -65,6 +65,7 @@ impl Command {
         match self {
             Command::Calibrate(CalibrateCommand::Laser(a)) => a.json,
             Command::Calibrate(CalibrateCommand::Camera(a)) => a.json,
+            Command::Calibrate(CalibrateCommand::Rgbd(a)) => a.json,
             Command::Triangulate(a) => a.json,
             Command::Stripe(a) => a.json,
             Command::Localize(a) => a.json,
@@ -126,6 +127,28 @@ pub enum CalibrateCommand {
     Laser(CalibrateLaserArgs),
     /// Calibrate the camera (intrinsics, plumb_bob distortion) from a session's board views.
     Camera(CalibrateCameraArgs),
+    /// Calibrate the RGB-D camera's pose in the ALACS camera frame
+    /// (alacs_from_rgbd) from board views both cameras saw (session.yaml's
+    /// image_rgbd).
+    Rgbd(CalibrateRgbdArgs),
+}
+
+/// `alacs calibrate rgbd`
+#[derive(Debug, Args)]
+pub struct CalibrateRgbdArgs {
+    /// The session folder (views with `image_rgbd`).
+    #[arg(long, value_name = "DIR")]
+    pub session: PathBuf,
+    /// The ALACS camera's calibration.
+    #[arg(long, value_name = "FILE")]
+    pub camera: PathBuf,
+    /// The RGB-D camera's colour camera calibration.
+    #[arg(long, value_name = "FILE")]
+    pub rgbd_camera: PathBuf,
+    /// Print one JSON object: {"alacs_from_rgbd": {"xyz_mm", "rpy_deg",
+    /// "matrix"}, "poses", "rejected", "rotation_rms_deg", "translation_rms_mm"}.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// `alacs evaluate ...`
@@ -487,6 +510,12 @@ pub struct SimulateSessionArgs {
     #[arg(long, value_name = "F", default_value_t = 1.0, value_parser = positive_up_to(alacs::sim::MAX_SCALE))]
     pub scale: f64,
     /// Board centre distance range MIN,MAX in mm.
+    /// Also render every pose from an RGB-D camera's colour camera (1280 x
+    /// 720, 70 deg) at this pose in the ALACS camera frame: x,y,z mm, roll,
+    /// pitch, yaw deg (as --alacs-from-rgbd); writes viewNN_rgbd.png,
+    /// rgbd_camera.yaml and the truth (`alacs calibrate rgbd`).
+    #[arg(long, value_name = "X,Y,Z,ROLL,PITCH,YAW", allow_hyphen_values = true)]
+    pub rgbd_pose: Option<String>,
     #[arg(long, value_name = "MIN,MAX", default_value = "600,1200")]
     pub depth_mm: String,
     /// Largest board tilt away from facing the camera, degrees.

@@ -85,6 +85,7 @@ fn run(command: args::Command) -> failure::CmdResult {
     match command {
         Command::Calibrate(CalibrateCommand::Laser(a)) => cmd::calibrate::laser(&a),
         Command::Calibrate(CalibrateCommand::Camera(a)) => cmd::calibrate::camera(&a),
+        Command::Calibrate(CalibrateCommand::Rgbd(a)) => cmd::calibrate::rgbd(&a),
         Command::Evaluate(EvaluateCommand::Calibration(a)) => cmd::evaluate::calibration(&a),
         Command::Evaluate(EvaluateCommand::Accuracy(a)) => cmd::evaluate::accuracy(&a),
         Command::Report(ReportCommand::Calibration(a)) => cmd::report::calibration(&a),

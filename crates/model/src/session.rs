@@ -58,6 +58,9 @@ pub struct SessionView {
     pub slide_mm: f64,
     /// The same pose with the laser off, where the session has one.
     pub image_laser_off: Option<PathBuf>,
+    /// The same pose as the RGB-D camera's colour image saw it, where the
+    /// session has one (`alacs calibrate rgbd`).
+    pub image_rgbd: Option<PathBuf>,
 }
 
 /// A calibration session as read from session.yaml.
@@ -97,6 +100,8 @@ struct ViewFile {
     slide_mm: f64,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     image_laser_off: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    image_rgbd: Option<String>,
 }
 
 impl Session {
@@ -131,6 +136,7 @@ impl Session {
                         .image_laser_off
                         .as_ref()
                         .map(|p| p.to_string_lossy().into_owned()),
+                    image_rgbd: v.image_rgbd.as_ref().map(|p| p.to_string_lossy().into_owned()),
                 })
                 .collect(),
         };
@@ -193,6 +199,7 @@ impl Session {
                 image: PathBuf::from(view.image),
                 slide_mm: view.slide_mm,
                 image_laser_off: view.image_laser_off.map(PathBuf::from),
+                image_rgbd: view.image_rgbd.map(PathBuf::from),
             });
         }
         Ok(Session { dir: dir.to_path_buf(), board, views })
@@ -236,6 +243,7 @@ impl Session {
                 image: PathBuf::from(n),
                 slide_mm,
                 image_laser_off: off_of(n).map(PathBuf::from),
+                image_rgbd: None,
             })
             .collect();
         if views.is_empty() {
@@ -278,6 +286,7 @@ mod tests {
                     image: PathBuf::from(name),
                     slide_mm: k as f64 * 10.5,
                     image_laser_off: Some(PathBuf::from(name)),
+                    image_rgbd: (k % 2 == 0).then(|| PathBuf::from(name)),
                 })
                 .collect(),
         };

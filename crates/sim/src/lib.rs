@@ -63,5 +63,5 @@ pub use samples::{SampleOptions, SimulatedSamples, simulate_samples};
 pub use scan::{
     RenderedScan, ScanFrame, ScanOptions, SimulatedScan, simulate_rendered_scan, simulate_scan,
 };
-pub use session::{SessionOptions, SessionView, SimulatedSession, simulate_session};
+pub use session::{RgbdOptions, SessionOptions, SessionView, SimulatedSession, simulate_session};
 pub use truth::{camera_to_json, laser_to_json};

@@ -48,6 +48,37 @@ pub struct SessionOptions {
     pub render: RenderOptions,
     /// Seed: same seed, same poses and same image bytes.
     pub seed: u64,
+    /// Also render every pose from an RGB-D camera's colour camera
+    /// (`viewNN_rgbd.png`, session.yaml's `image_rgbd`): what
+    /// `alacs calibrate rgbd` takes.
+    pub rgbd: Option<RgbdOptions>,
+}
+
+/// A second camera beside the ALACS camera: an RGB-D camera's colour camera.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RgbdOptions {
+    /// Its camera (rendered as it is, not scaled).
+    pub camera: Camera,
+    /// Its pose in the ALACS camera frame: `point_in_alacs = alacs_from_rgbd * point_in_rgbd`.
+    pub alacs_from_rgbd: Isometry3<f64>,
+}
+
+impl RgbdOptions {
+    /// A 1280 x 720 colour camera with a 70 deg horizontal field of view
+    /// (a RealSense D435's, roughly), no distortion.
+    pub fn colour_camera_720p() -> Camera {
+        Camera {
+            name: "rgbd_colour_720p".into(),
+            width_px: 1280,
+            height_px: 720,
+            fx_px: 910.0,
+            fy_px: 910.0,
+            cx_px: 639.5,
+            cy_px: 359.5,
+            skew_px: 0.0,
+            distortion: alacs_model::Distortion::PlumbBob([0.0; 5]),
+        }
+    }
 }
 
 impl Default for SessionOptions {
@@ -63,6 +94,7 @@ impl Default for SessionOptions {
             board: Checkerboard::default(),
             render: RenderOptions::default(),
             seed: 0,
+            rgbd: None,
         }
     }
 }
@@ -103,6 +135,9 @@ pub struct SessionView {
     pub slide_mm: f64,
     /// Index of the board pose (views at several slides share a pose).
     pub pose: usize,
+    /// File name of the pose as the RGB-D camera saw it, if rendered
+    /// (shared by the views of one pose).
+    pub image_rgbd: Option<String>,
     /// The board's true pose.
     pub camera_from_board: Isometry3<f64>,
 }
@@ -124,7 +159,10 @@ pub struct SimulatedSession {
     pub views: Vec<SessionView>,
     /// The seed the session was generated with.
     pub seed: u64,
+    /// The RGB-D camera that also saw every pose, if any.
+    pub rgbd: Option<RgbdOptions>,
     ray_map: Arc<RayMap>,
+    rgbd_ray_map: Option<Arc<RayMap>>,
 }
 
 /// Board poses drawn before a view is declared infeasible.
@@ -176,6 +214,7 @@ pub fn simulate_session(
             ))
         })?;
         let image_laser_off = options.laser_off.then(|| format!("view{:02}_off.png", pose + 1));
+        let image_rgbd = options.rgbd.as_ref().map(|_| format!("view{:02}_rgbd.png", pose + 1));
         for (k, &slide_mm) in options.slides_mm.iter().enumerate() {
             let image = if multi_slide {
                 format!("view{:02}_slide{}.png", pose + 1, k + 1)
@@ -187,6 +226,7 @@ pub fn simulate_session(
                 image_laser_off: image_laser_off.clone(),
                 slide_mm,
                 pose,
+                image_rgbd: image_rgbd.clone(),
                 camera_from_board,
             });
         }
@@ -196,6 +236,17 @@ pub fn simulate_session(
         options.render.supersampling,
         options.render.pattern,
     )?);
+    let rgbd_ray_map = match &options.rgbd {
+        Some(rgbd) => {
+            rgbd.camera.validate()?;
+            Some(Arc::new(RayMap::with_pattern(
+                &rgbd.camera,
+                options.render.supersampling,
+                options.render.pattern,
+            )?))
+        }
+        None => None,
+    };
     Ok(SimulatedSession {
         camera,
         laser: *laser,
@@ -203,7 +254,9 @@ pub fn simulate_session(
         render: options.render,
         views,
         seed: options.seed,
+        rgbd: options.rgbd.clone(),
         ray_map,
+        rgbd_ray_map,
     })
 }
 
@@ -353,6 +406,9 @@ fn clip_line_to_rectangle(a: f64, b: f64, e: f64, w: f64, h: f64) -> f64 {
 /// Noise stream of the laser-off image of a pose (laser-on images use their view index).
 const LASER_OFF_STREAM: u64 = 1 << 32;
 
+/// Seed stream of the RGB-D camera's images (one per pose).
+const RGBD_STREAM: u64 = 1 << 33;
+
 impl SimulatedSession {
     /// The camera's ray map (computed once, shared by every view).
     pub fn ray_map(&self) -> &RayMap {
@@ -402,6 +458,19 @@ impl SimulatedSession {
         Ok(self.ray_map.render(&scene, &self.render.lighting, None, &self.render.sensor, seed))
     }
 
+    /// Renders view `index`'s pose as the RGB-D camera sees it (laser off:
+    /// its own sensor noise), if the session has one.
+    pub fn render_rgbd(&self, index: usize) -> Result<Option<RgbImage>> {
+        let (Some(rgbd), Some(ray_map)) = (&self.rgbd, &self.rgbd_ray_map) else {
+            return Ok(None);
+        };
+        let view = self.view(index)?;
+        let rgbd_from_board = rgbd.alacs_from_rgbd.inverse() * view.camera_from_board;
+        let scene = BoardScene::new(self.board, rgbd_from_board);
+        let seed = mix_seed(self.seed, RGBD_STREAM + view.pose as u64);
+        Ok(Some(ray_map.render(&scene, &self.render.lighting, None, &self.render.sensor, seed)))
+    }
+
     /// session.yaml (FORMATS.md).
     pub fn session_yaml(&self) -> String {
         let (cols, rows) = self.board.inner_corners;
@@ -416,6 +485,7 @@ impl SimulatedSession {
                     image: PathBuf::from(&v.image),
                     slide_mm: v.slide_mm,
                     image_laser_off: v.image_laser_off.as_ref().map(PathBuf::from),
+                    image_rgbd: v.image_rgbd.as_ref().map(PathBuf::from),
                 })
                 .collect(),
         };
@@ -448,7 +518,14 @@ impl SimulatedSession {
             })
             .collect();
         let board = &self.board;
+        let rgbd = self.rgbd.as_ref().map(|rgbd| {
+            let matrix = rgbd.alacs_from_rgbd.to_homogeneous();
+            let rows: Vec<Vec<f64>> =
+                (0..4).map(|r| (0..4).map(|c| matrix[(r, c)]).collect()).collect();
+            json!({"camera": camera_to_json(&rgbd.camera), "alacs_from_rgbd": rows})
+        });
         json!({
+            "rgbd": rgbd,
             "camera": camera_to_json(&self.camera),
             "laser": laser_to_json(&self.laser),
             "board": {
@@ -471,7 +548,10 @@ impl SimulatedSession {
         let mut poses_off: Vec<usize> =
             self.views.iter().filter(|v| v.image_laser_off.is_some()).map(|v| v.pose).collect();
         poses_off.dedup();
-        self.views.len() + poses_off.len()
+        let mut poses_rgbd: Vec<usize> =
+            self.views.iter().filter(|v| v.image_rgbd.is_some()).map(|v| v.pose).collect();
+        poses_rgbd.dedup();
+        self.views.len() + poses_off.len() + poses_rgbd.len()
     }
 
     /// Writes session.yaml, camera.yaml, truth.json and every image (PNG,
@@ -500,6 +580,7 @@ impl SimulatedSession {
     ) -> Result<()> {
         let mut images = ImageWriter::new(out, self.image_count(), None, progress);
         let mut last_off_pose = None;
+        let mut last_rgbd_pose = None;
         for (index, view) in self.views.iter().enumerate() {
             images.save(&view.image, &self.render_view(index)?)?;
             if let Some(off) = &view.image_laser_off
@@ -508,9 +589,19 @@ impl SimulatedSession {
                 images.save(off, &self.render_laser_off(index)?)?;
                 last_off_pose = Some(view.pose);
             }
+            if let Some(name) = &view.image_rgbd
+                && last_rgbd_pose != Some(view.pose)
+                && let Some(image) = self.render_rgbd(index)?
+            {
+                images.save(name, &image)?;
+                last_rgbd_pose = Some(view.pose);
+            }
         }
         out.write(SESSION_FILE, self.session_yaml())?;
         out.write("camera.yaml", self.camera.to_yaml_string())?;
+        if let Some(rgbd) = &self.rgbd {
+            out.write("rgbd_camera.yaml", rgbd.camera.to_yaml_string())?;
+        }
         save_json(out, "truth.json", &self.truth_json())
     }
 }

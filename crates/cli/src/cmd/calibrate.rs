@@ -10,7 +10,7 @@ use alacs::{Camera, Session};
 use anyhow::anyhow;
 use serde_json::json;
 
-use crate::args::{CalibrateCameraArgs, CalibrateLaserArgs, ResidualArg};
+use crate::args::{CalibrateCameraArgs, CalibrateLaserArgs, CalibrateRgbdArgs, ResidualArg};
 use crate::failure::{CmdResult, Failure};
 use crate::output;
 
@@ -206,6 +206,83 @@ pub fn camera(args: &CalibrateCameraArgs) -> CmdResult {
         }
         if let Some(path) = &args.output {
             outln!("wrote {}", path.display());
+        }
+    }
+    Ok(())
+}
+
+/// Runs `alacs calibrate rgbd`.
+pub fn rgbd(args: &CalibrateRgbdArgs) -> CmdResult {
+    let session = Session::read(&args.session)?;
+    let camera = Camera::from_yaml_file(&args.camera)?;
+    let rgbd_camera = Camera::from_yaml_file(&args.rgbd_camera)?;
+    let bar = output::progress_bar(args.json, "finding the board in both cameras' images");
+    let result = alacs::calib::calibrate_rgbd(&session, &camera, &rgbd_camera);
+    bar.finish_and_clear();
+    let result = result.map_err(|e| Failure::from(e).with_context(&args.session))?;
+    let pose = &result.alacs_from_rgbd;
+    let t = pose.translation.vector;
+    let (roll, pitch, yaw) = pose.rotation.euler_angles();
+    let rpy = [roll.to_degrees(), pitch.to_degrees(), yaw.to_degrees()];
+    let flag =
+        format!("{:.3},{:.3},{:.3},{:.4},{:.4},{:.4}", t.x, t.y, t.z, rpy[0], rpy[1], rpy[2]);
+    if args.json {
+        let matrix = pose.to_homogeneous();
+        let rows: Vec<Vec<f64>> =
+            (0..4).map(|r| (0..4).map(|c| matrix[(r, c)]).collect()).collect();
+        let poses: Vec<_> = result
+            .poses
+            .iter()
+            .map(|p| {
+                json!({
+                    "image": p.image,
+                    "image_rgbd": p.image_rgbd,
+                    "rms_px": p.rms_px,
+                    "rotation_deviation_deg": p.rotation_deviation_deg,
+                    "translation_deviation_mm": p.translation_deviation_mm,
+                })
+            })
+            .collect();
+        let rejected: Vec<_> = result
+            .rejected
+            .iter()
+            .map(|(image, reason)| json!({"image_rgbd": image, "reason": reason}))
+            .collect();
+        output::print_json(&json!({
+            "alacs_from_rgbd": {"xyz_mm": [t.x, t.y, t.z], "rpy_deg": rpy, "matrix": rows},
+            "alacs_from_rgbd_flag": flag,
+            "poses": poses,
+            "rejected": rejected,
+            "rotation_rms_deg": result.rotation_rms_deg,
+            "translation_rms_mm": result.translation_rms_mm,
+        }))?;
+    } else {
+        outln!(
+            "alacs_from_rgbd from {} board poses ({} rejected): translation ({:.2}, {:.2}, {:.2}) mm, \
+             roll {:.3} pitch {:.3} yaw {:.3} deg; the poses agree within {:.3} deg and {:.2} mm (RMS)",
+            result.poses.len(),
+            result.rejected.len(),
+            t.x,
+            t.y,
+            t.z,
+            rpy[0],
+            rpy[1],
+            rpy[2],
+            result.rotation_rms_deg,
+            result.translation_rms_mm
+        );
+        outln!("  --alacs-from-rgbd {flag}");
+        outln!(
+            "  rig.toml: [rgbd] alacs_from_rgbd = [{:.3}, {:.3}, {:.3}, {:.4}, {:.4}, {:.4}]",
+            t.x,
+            t.y,
+            t.z,
+            rpy[0],
+            rpy[1],
+            rpy[2]
+        );
+        for (_, reason) in &result.rejected {
+            outln!("  rejected: {reason}");
         }
     }
     Ok(())

@@ -1,8 +1,8 @@
 //! `alacs simulate samples`, `alacs simulate session` and `alacs simulate scan`.
 
 use alacs::sim::{
-    LaserLight, OrchardOptions, RenderOptions, SampleOptions, ScanOptions, Sensor, SessionOptions,
-    simulate_samples, simulate_scan, simulate_session,
+    LaserLight, OrchardOptions, RenderOptions, RgbdOptions, SampleOptions, ScanOptions, Sensor,
+    SessionOptions, simulate_samples, simulate_scan, simulate_session,
 };
 use alacs::{Camera, Fidelity, LaserModel};
 use anyhow::anyhow;
@@ -163,6 +163,16 @@ pub fn session(args: &SimulateSessionArgs) -> CmdResult {
         scale: args.scale,
         render,
         seed: args.seed,
+        rgbd: args
+            .rgbd_pose
+            .as_deref()
+            .map(|pose| -> CmdResult<RgbdOptions> {
+                Ok(RgbdOptions {
+                    camera: RgbdOptions::colour_camera_720p(),
+                    alacs_from_rgbd: crate::cmd::scan::parse_pose(pose)?,
+                })
+            })
+            .transpose()?,
         ..SessionOptions::default()
     };
     let bar = output::progress_bar(args.json, "computing the camera's rays");
