@@ -747,7 +747,8 @@ pub struct ScanArgs {
     /// and laser, the camera, the goal and the result.
     #[arg(long, value_name = "FILE.mcap")]
     pub record: Option<PathBuf>,
-    /// Write into --out even if it holds files this command did not write.
+    /// Write into --out even if it holds files this command did not write,
+    /// and replace an existing --record file.
     #[arg(long)]
     pub force: bool,
     /// Print one JSON object on standard output: docs/FORMATS.md's localize object
@@ -832,6 +833,9 @@ pub struct BagImportArgs {
     /// The topics' namespace.
     #[arg(long, value_name = "NS", default_value = "/alacs")]
     pub namespace: String,
+    /// Replace FILE.mcap if it exists.
+    #[arg(long)]
+    pub force: bool,
     /// Print one JSON object: {"bag", "frames", "images"}.
     #[arg(long)]
     pub json: bool,

@@ -165,3 +165,51 @@ fn a_bag_that_is_not_a_recording_exits_2_naming_it() {
     assert_eq!(output.status.code(), Some(2));
     assert!(!dir.path().join("scan.bag").exists());
 }
+
+#[test]
+fn a_scan_is_kept_when_its_localization_fails_and_a_recording_is_not_replaced() {
+    // Regression (review): localization ran before --out and --record were
+    // written, so a camera.yaml that does not fit lost a scan of real
+    // hardware; and an existing recording was replaced without a word.
+    let dir = tempfile::tempdir().unwrap();
+    let other = dir.path().join("other");
+    json(&alacs(&[
+        "simulate",
+        "scan",
+        "--seed",
+        "2",
+        "--scale",
+        "0.25",
+        "--out",
+        p(&other),
+        "--json",
+    ]));
+    let folder = dir.path().join("scan");
+    let bag = dir.path().join("scan.mcap");
+    let camera = other.join("camera.yaml");
+    let output = alacs(&[
+        "scan",
+        "--sim",
+        "--seed",
+        "2",
+        "--scale",
+        "0.2",
+        "--camera",
+        p(&camera),
+        "--out",
+        p(&folder),
+        "--record",
+        p(&bag),
+    ]);
+    assert_eq!(output.status.code(), Some(2), "{}", String::from_utf8_lossy(&output.stderr));
+    assert!(folder.join("scan.yaml").is_file(), "the scan folder is written");
+    assert!(folder.join("frame4.png").is_file());
+    let export = json(&alacs(&["bag", "export", p(&bag), p(&dir.path().join("e")), "--json"]));
+    assert_eq!(export["frames"], 5);
+    assert_eq!(export["messages"].get("/alacs/result"), None, "no result without a localization");
+
+    let output = alacs(&["bag", "import", p(&folder), p(&bag)]);
+    assert_eq!(output.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&output.stderr).contains("--force"));
+    json(&alacs(&["bag", "import", p(&folder), p(&bag), "--force", "--json"]));
+}

@@ -41,6 +41,10 @@ const MAX_LINE: usize = 256;
 /// that resets when the port opens takes about 2 s to boot.
 const BANNER_WAIT: Duration = Duration::from_millis(2500);
 
+/// How long a slide standing at its target waits for its move's `ok`
+/// before taking it as lost.
+const LOST_OK_WAIT: Duration = Duration::from_millis(100);
+
 /// How long a feed hold may take to bring the slide to rest before the
 /// soft reset.
 const HOLD_WAIT: Duration = Duration::from_secs(2);
@@ -354,6 +358,15 @@ impl GrblController {
         fault
     }
 
+    /// The fault of a banner that came unasked: the controller reset itself
+    /// (power, a DTR reset) and lost its position.
+    fn reset_itself(&self, banner: &str, line: &str) -> Fault {
+        self.failed(format!(
+            "the controller reset itself (`{banner}`) during `{line}`; its position is lost: \
+             home it again"
+        ))
+    }
+
     /// Sends `line` and waits for its `ok` at most `timeout`.
     fn command(&mut self, line: &str, timeout: Duration) -> Result<(), Fault> {
         self.send_line(line)?;
@@ -409,7 +422,13 @@ impl GrblController {
 
     /// Homes (`$H`), waiting at most `timeout`; the machine must be idle after.
     fn home(&mut self, timeout: Duration, status_timeout: Duration) -> Result<(), Fault> {
-        self.command("$H", timeout)?;
+        if let Err(fault) = self.command("$H", timeout) {
+            // A homing cycle still running is stopped.
+            if matches!(fault, Fault::Timeout { .. }) {
+                let _ = self.reset(BANNER_WAIT);
+            }
+            return Err(fault);
+        }
         let status = self.query_status(status_timeout)?;
         if status.state != "Idle" {
             return Err(self.failed(format!("not idle after homing: {}", status.state)));
@@ -451,6 +470,12 @@ impl GrblController {
         let start = Instant::now();
         let deadline = start + timeout;
         let mut last: Option<AxisStatus> = None;
+        // The line's `ok` (GRBL sends it when the move is queued); a status
+        // report can come before it, and an `ok` left unread would be taken
+        // for the next command's.
+        let mut queued = false;
+        // Since when the slide has stood at the target without that `ok`.
+        let mut standing_since: Option<Instant> = None;
         loop {
             if Instant::now() >= deadline {
                 self.stop();
@@ -477,6 +502,8 @@ impl GrblController {
                         )));
                     }
                     Reply::Alarm(code) => return Err(self.alarm(code, &line)),
+                    Reply::Banner(banner) => return Err(self.reset_itself(&banner, &line)),
+                    Reply::Ok => queued = true,
                     Reply::Status(status) => {
                         let status = self.axis_status(status);
                         if status.state.starts_with("Alarm") {
@@ -486,11 +513,18 @@ impl GrblController {
                         }
                         let at = status.work_mm[axis];
                         if status.state == "Idle" && (at - target_mm).abs() <= tolerance_mm {
-                            return Ok(at);
+                            // Standing there, with the `ok` read, or long
+                            // after it should have come (it was lost).
+                            let since = *standing_since.get_or_insert_with(Instant::now);
+                            if queued || since.elapsed() >= LOST_OK_WAIT {
+                                return Ok(at);
+                            }
+                        } else {
+                            standing_since = None;
                         }
                         last = Some(status);
                     }
-                    Reply::Ok | Reply::Banner(_) | Reply::Message(_) => {}
+                    Reply::Message(_) => {}
                 }
             }
         }

@@ -238,13 +238,17 @@ impl std::fmt::Debug for BagWriter {
 
 impl BagWriter {
     /// A bag to be written at `path` (.mcap), topics under `namespace`,
-    /// frames named as `frames`.
-    pub fn create(path: &Path, namespace: &str, frames: &Frames) -> Result<Self> {
+    /// frames named as `frames`. An existing file is refused unless
+    /// `overwrite` (a recording is not replaced by accident).
+    pub fn create(path: &Path, namespace: &str, frames: &Frames, overwrite: bool) -> Result<Self> {
         let bad = |message: String| Error::Bag { path: path.to_path_buf(), message };
         if path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref()
             != Some("mcap")
         {
             return Err(bad("a recording is an MCAP file: name it FILE.mcap".into()));
+        }
+        if !overwrite && path.exists() {
+            return Err(bad("exists; a recording is not replaced unless asked (--force)".into()));
         }
         let dir = match path.parent() {
             Some(p) if !p.as_os_str().is_empty() => p,

@@ -302,7 +302,7 @@ pub fn run_node(
     let mut recorder = config
         .record
         .as_deref()
-        .map(|path| BagWriter::create(path, &config.namespace, &config.frames))
+        .map(|path| BagWriter::create(path, &config.namespace, &config.frames, false))
         .transpose()?;
     let mapping = env.service_mapping()?;
     let ctx = context(env)?;

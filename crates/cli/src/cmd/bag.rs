@@ -1,8 +1,6 @@
 //! `alacs bag export|import`: recorded scans (ROS 2 bags, MCAP) to and
 //! from scan folders, and the scan of a bag for `localize --bag`.
 
-use std::path::Path;
-
 use alacs::Camera;
 use alacs::locate::read_scan_images;
 use alacs::model::io::OutputDir;
@@ -81,7 +79,7 @@ pub fn import(args: &BagImportArgs) -> CmdResult {
     });
     let camera = camera_file.as_deref().map(Camera::from_yaml_file).transpose()?;
     let captured = captured_from_folder(&scan)?;
-    let mut writer = BagWriter::create(&args.bag, &args.namespace, &Frames::default())?;
+    let mut writer = BagWriter::create(&args.bag, &args.namespace, &Frames::default(), args.force)?;
     writer.write_scan(&captured, camera.as_ref(), None)?;
     writer.finish()?;
     if args.json {
@@ -100,18 +98,5 @@ pub fn import(args: &BagImportArgs) -> CmdResult {
             args.bag.display()
         );
     }
-    Ok(())
-}
-
-/// Writes `scan` (with its camera and localization) as the bag `path`.
-pub fn record(
-    path: &Path,
-    scan: &CapturedScan,
-    camera: &Camera,
-    localization: &alacs::locate::Localization,
-) -> CmdResult {
-    let mut writer = BagWriter::create(path, "/alacs", &Frames::default())?;
-    writer.write_scan(scan, Some(camera), Some(localization))?;
-    writer.finish()?;
     Ok(())
 }

@@ -127,7 +127,15 @@ pub fn open(args: &RigArgs, note: &mut dyn FnMut(&str)) -> CmdResult<OpenRig> {
     };
     if let Some(config) = &config {
         controller.move_timeout = config.slide.move_timeout();
+        // A frame takes its exposure and a readout; 2 s at the least.
+        let exposure_s = config.camera.exposure_us * 1e-6;
+        controller.capture_timeout = controller
+            .capture_timeout
+            .max(std::time::Duration::from_secs_f64(2.0 * exposure_s + 1.0));
     }
+    // The simulated scene is the truth only when the camera shows it: a real
+    // camera with a simulated slide sees the real fruit.
+    let sim = if simulated_camera { sim } else { None };
     Ok(OpenRig { devices, sim, camera, laser, alacs_from_rgbd, controller })
 }
 

@@ -10,11 +10,12 @@
 //! 3. Localizes with `--camera` and `--laser`, or with a simulated camera
 //!    the simulation's true camera and laser.
 
-use std::path::Path;
 use std::time::Instant;
 
 use alacs::locate::{Localization, LocateOptions, Status};
 use alacs::model::io::OutputDir;
+use alacs::ros::Frames;
+use alacs::ros::bag::BagWriter;
 use alacs::scanner::{CapturedScan, ScanController};
 use alacs::sim::SimulatedScan;
 use alacs::{Camera, LaserModel};
@@ -62,16 +63,42 @@ pub fn run(args: &ScanArgs) -> CmdResult {
         (None, Some(sim)) => alacs_from_rgbd.inverse() * sim.rough_position_mm,
         (None, None) => {
             return Err(Failure::bad_input(anyhow!(
-                "--rough-mm X,Y,Z is needed: the rough position of the fruit in the RGB-D                  camera's frame"
+                "--rough-mm X,Y,Z is needed: the rough position of the fruit in the RGB-D \
+                 camera's frame"
             )));
         }
     };
     let controller = ScanController::new(laser, config)?;
+    // Where the scan goes is checked before the rig moves: a scan of real
+    // hardware must not be lost to an output that cannot be written.
+    let mut recording = args
+        .record
+        .as_deref()
+        .map(|path| BagWriter::create(path, "/alacs", &Frames::default(), args.force))
+        .transpose()?;
+    let out_was_there = args.out.as_deref().is_some_and(std::path::Path::exists);
+    let mut folder = match &args.out {
+        Some(dir) => Some(
+            OutputDir::create(dir, args.force).map_err(|e| Failure::from(e).with_context(dir))?,
+        ),
+        None => None,
+    };
     output::start_progress(&bar, controller.image_count(), "scanning");
     let started = Instant::now();
-    let scan = controller.run_with_progress(&mut devices.rig(), &rough_in_rgbd, |done, _| {
+    let scanned = controller.run_with_progress(&mut devices.rig(), &rough_in_rgbd, |done, _| {
         bar.set_position(done as u64);
-    })?;
+    });
+    let scan = match scanned {
+        Ok(scan) => scan,
+        Err(error) => {
+            // No scan: the --out folder made for it goes again (only if empty).
+            if let (Some(dir), false) = (&args.out, out_was_there) {
+                drop(folder);
+                let _ = std::fs::remove_dir(dir);
+            }
+            return Err(error.into());
+        }
+    };
     let rig_time_s = devices.simulated_time().unwrap_or_else(|| started.elapsed()).as_secs_f64();
     // The laser is off (the controller switched it off); a real rig's
     // connection closes here.
@@ -83,16 +110,22 @@ pub fn run(args: &ScanArgs) -> CmdResult {
             failure.error = failure.error.context(format!("localizing with {}", path.display()));
         }
         failure
-    })?;
-    if let Some(path) = &args.record {
+    });
+    // The scan is kept whatever localization said.
+    if let Some(mut bag) = recording.take() {
         bar.set_message("recording");
-        crate::cmd::bag::record(path, &scan, &camera, &answer)?;
+        bag.write_scan(&scan, Some(&camera), answer.as_ref().ok())?;
+        bag.finish()?;
     }
-    if let Some(dir) = &args.out {
+    if let (Some(out), Some(dir)) = (folder.as_mut(), &args.out) {
         bar.set_message("writing");
-        write(dir, &scan, sim.as_deref(), &camera, &laser, args, &alacs_from_rgbd)
+        write(out, &scan, sim.as_deref(), &camera, &laser, args, &alacs_from_rgbd)
             .map_err(|f| f.with_context(dir))?;
     }
+    if let Some(out) = folder.take() {
+        out.finish()?;
+    }
+    let answer = answer?;
     bar.finish_and_clear();
 
     let truth = sim.as_ref().map(|sim| (sim.scene.fruit_centre, sim.scene.fruit_radius_mm));
@@ -224,7 +257,7 @@ fn summary(
 
 /// Writes the scan folder, the camera and laser it was localized with, and truth.json.
 fn write(
-    dir: &Path,
+    out: &mut OutputDir,
     scan: &CapturedScan,
     sim: Option<&SimulatedScan>,
     camera: &Camera,
@@ -232,8 +265,7 @@ fn write(
     args: &ScanArgs,
     alacs_from_rgbd: &Isometry3<f64>,
 ) -> CmdResult {
-    let mut out = OutputDir::create(dir, args.force)?;
-    scan.write_into(&mut out)?;
+    scan.write_into(out)?;
     out.write("camera.yaml", camera.to_yaml_string())?;
     let header = if args.rig.laser.is_some() {
         "the calibrated laser the scan was planned and localized with"
@@ -242,7 +274,6 @@ fn write(
     };
     laser.to_yaml_file(&out.file("laser.yaml")?, header)?;
     let Some(sim) = sim else {
-        out.finish()?;
         return Ok(());
     };
     let mut truth = sim.truth_json();
@@ -259,6 +290,5 @@ fn write(
         map.insert("alacs_from_rgbd".into(), json!({"matrix": rows}));
     }
     out.write("truth.json", serde_json::to_string_pretty(&truth).unwrap_or_default() + "\n")?;
-    out.finish()?;
     Ok(())
 }
