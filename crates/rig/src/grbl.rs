@@ -208,8 +208,6 @@ pub struct GrblController {
     pending: Vec<u8>,
     /// The work coordinate offset of the last report that carried one.
     work_offset: [f64; 3],
-    /// The last line sent (for messages and tests).
-    last_sent: Option<String>,
 }
 
 impl std::fmt::Debug for GrblController {
@@ -226,20 +224,10 @@ impl GrblController {
             serialport::new(&config.port, config.baud).timeout(READ_SLICE).open().map_err(|e| {
                 Fault::Failed(format!("cannot open the serial port {}: {e}", config.port))
             })?;
-        let mut controller = Self {
-            port,
-            name: config.port.clone(),
-            pending: Vec::new(),
-            work_offset: [0.0; 3],
-            last_sent: None,
-        };
+        let mut controller =
+            Self { port, name: config.port.clone(), pending: Vec::new(), work_offset: [0.0; 3] };
         controller.reset(BANNER_WAIT.max(config.command_timeout()))?;
         Ok(controller)
-    }
-
-    /// The last line sent to the controller.
-    pub fn last_sent(&self) -> Option<&str> {
-        self.last_sent.as_deref()
     }
 
     fn failed(&self, message: impl std::fmt::Display) -> Fault {
@@ -255,7 +243,6 @@ impl GrblController {
 
     /// Sends one line (a newline is added).
     fn send_line(&mut self, line: &str) -> Result<(), Fault> {
-        self.last_sent = Some(line.to_string());
         self.write(format!("{line}\n").as_bytes())
     }
 
@@ -574,11 +561,6 @@ impl GrblSlide {
     pub fn state(&mut self) -> Result<String, DeviceError> {
         let timeout = self.config.command_timeout();
         lock(&self.controller).status(timeout).map(|s| s.state)
-    }
-
-    /// The last line sent to the controller.
-    pub fn last_sent(&self) -> Option<String> {
-        lock(&self.controller).last_sent().map(str::to_string)
     }
 }
 

@@ -218,21 +218,26 @@ fn nanos(stamp: &Time) -> u64 {
 /// Writes scans into a new bag; the file appears, whole, at
 /// [`BagWriter::finish`] (nothing is left at the path if writing fails).
 pub struct BagWriter {
-    writer: mcap::Writer<BufWriter<tempfile::NamedTempFile>>,
-    path: PathBuf,
+    out: Channels,
     topics: Topics,
     frames: Frames,
+    scans: usize,
+}
+
+/// The MCAP file being written: its channels, opened as topics are first used.
+struct Channels {
+    writer: mcap::Writer<BufWriter<tempfile::NamedTempFile>>,
+    path: PathBuf,
     /// Channel ids by topic.
     channels: BTreeMap<String, u16>,
     /// Schema ids by name.
     schema_ids: BTreeMap<&'static str, u16>,
     sequence: u32,
-    scans: usize,
 }
 
 impl std::fmt::Debug for BagWriter {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("BagWriter").field("path", &self.path).finish_non_exhaustive()
+        f.debug_struct("BagWriter").field("path", &self.out.path).finish_non_exhaustive()
     }
 }
 
@@ -271,17 +276,140 @@ impl BagWriter {
             schema_ids.insert(name, id);
         }
         Ok(Self {
-            writer,
-            path: path.to_path_buf(),
+            out: Channels {
+                writer,
+                path: path.to_path_buf(),
+                channels: BTreeMap::new(),
+                schema_ids,
+                sequence: 0,
+            },
             topics: Topics::new(namespace),
             frames: frames.clone(),
-            channels: BTreeMap::new(),
-            schema_ids,
-            sequence: 0,
             scans: 0,
         })
     }
 
+    /// Records `scan`: its goal, each image with the slide and the laser
+    /// (and `camera` as CameraInfo when given), and `localization` when
+    /// there is one. Each image is stamped with its capture time (now, for
+    /// a frame that has none); the goal with the first image's.
+    pub fn write_scan(
+        &mut self,
+        scan: &CapturedScan,
+        camera: Option<&Camera>,
+        localization: Option<&Localization>,
+    ) -> Result<()> {
+        let now = Time::now();
+        let stamps: Vec<Time> = scan
+            .frames
+            .iter()
+            .flat_map(|f| {
+                let off = f.image_laser_off.as_ref().map(|_| stamp_of(f.captured_at[1], now));
+                std::iter::once(stamp_of(f.captured_at[0], now)).chain(off)
+            })
+            .collect();
+        let start = stamps.first().copied().unwrap_or(now);
+        let goal = LocalizeFruitGoal {
+            rough_position: PointStamped {
+                header: Header::new(start, &self.frames.camera),
+                point: point_m(&scan.rough_position_mm),
+            },
+            fruit_radius_m: scan.fruit_radius_mm / MM_PER_M,
+        };
+        let rough_in_rgbd = PointStamped {
+            header: Header::new(start, &self.frames.rgbd),
+            point: point_m(&scan.rough_position_in_rgbd_mm),
+        };
+        let (out, topics) = (&mut self.out, &self.topics);
+        out.write(&topics.goal, "alacs_msgs/action/LocalizeFruit_Goal", &start, &goal)?;
+        out.write(
+            &topics.rough_position,
+            "geometry_msgs/msg/PointStamped",
+            &start,
+            &rough_in_rgbd,
+        )?;
+        let mut stamp = stamps.iter();
+        for frame in &scan.frames {
+            let shots = std::iter::once((true, &frame.image))
+                .chain(frame.image_laser_off.as_ref().map(|off| (false, off)));
+            for (laser_on, image) in shots {
+                let at = stamp.next().copied().unwrap_or(start);
+                self.write_image(at, frame.slide_mm, laser_on, image, camera)?;
+            }
+        }
+        if let Some(localization) = localization {
+            let end = stamps.last().copied().unwrap_or(start);
+            let result = localization_result(localization, Header::new(end, &self.frames.camera));
+            let cloud = laser_cloud(localization, Header::new(end, &self.frames.camera));
+            let (out, topics) = (&mut self.out, &self.topics);
+            out.write(&topics.result, "alacs_msgs/action/LocalizeFruit_Result", &end, &result)?;
+            if result.status == "ok" {
+                out.write(&topics.fruit, "geometry_msgs/msg/PointStamped", &end, &result.position)?;
+            }
+            out.write(&topics.laser_points, "sensor_msgs/msg/PointCloud2", &end, &cloud)?;
+        }
+        self.scans += 1;
+        Ok(())
+    }
+
+    fn write_image(
+        &mut self,
+        stamp: Time,
+        slide_mm: f64,
+        laser_on: bool,
+        image: &RgbImage,
+        camera: Option<&Camera>,
+    ) -> Result<()> {
+        let header = Header::new(stamp, &self.frames.camera);
+        let slide = JointState {
+            header: Header::new(stamp, &self.frames.camera),
+            name: vec!["slide".into()],
+            position: vec![slide_mm / MM_PER_M],
+            velocity: Vec::new(),
+            effort: Vec::new(),
+        };
+        let (out, topics) = (&mut self.out, &self.topics);
+        out.write(&topics.slide, "sensor_msgs/msg/JointState", &stamp, &slide)?;
+        out.write(&topics.laser_on, "std_msgs/msg/Bool", &stamp, &Bool { data: laser_on })?;
+        out.write(
+            &topics.image,
+            "sensor_msgs/msg/Image",
+            &stamp,
+            &image_message(image, header.clone()),
+        )?;
+        if let Some(camera) = camera {
+            out.write(
+                &topics.camera_info,
+                "sensor_msgs/msg/CameraInfo",
+                &stamp,
+                &camera_info(camera, header),
+            )?;
+        }
+        Ok(())
+    }
+
+    /// Scans written so far.
+    pub fn scans(&self) -> usize {
+        self.scans
+    }
+
+    /// Ends the bag (its summary and index) and puts it at its path.
+    pub fn finish(self) -> Result<PathBuf> {
+        let mut out = self.out;
+        out.writer.finish().map_err(|e| out.bad(e))?;
+        let path = out.path.clone();
+        let fail = |e: String| Error::Bag {
+            path: path.clone(),
+            message: format!("cannot be written: {e}"),
+        };
+        let temp = out.writer.into_inner().into_inner().map_err(|e| fail(e.error().to_string()))?;
+        temp.as_file().sync_all().map_err(|e| fail(e.to_string()))?;
+        temp.persist(&path).map_err(|e| fail(e.error.to_string()))?;
+        Ok(path)
+    }
+}
+
+impl Channels {
     fn bad(&self, message: impl std::fmt::Display) -> Error {
         Error::Bag { path: self.path.clone(), message: format!("cannot be written: {message}") }
     }
@@ -320,132 +448,6 @@ impl BagWriter {
             publish_time: time,
         };
         self.writer.write_to_known_channel(&header, &payload).map_err(|e| self.bad(e))
-    }
-
-    /// Records `scan`: its goal, each image with the slide and the laser
-    /// (and `camera` as CameraInfo when given), and `localization` when
-    /// there is one. Each image is stamped with its capture time (now, for
-    /// a frame that has none); the goal with the first image's.
-    pub fn write_scan(
-        &mut self,
-        scan: &CapturedScan,
-        camera: Option<&Camera>,
-        localization: Option<&Localization>,
-    ) -> Result<()> {
-        let now = Time::now();
-        let stamps: Vec<Time> = scan
-            .frames
-            .iter()
-            .flat_map(|f| {
-                let off = f.image_laser_off.as_ref().map(|_| stamp_of(f.captured_at[1], now));
-                std::iter::once(stamp_of(f.captured_at[0], now)).chain(off)
-            })
-            .collect();
-        let start = stamps.first().copied().unwrap_or(now);
-        let camera_frame = self.frames.camera.clone();
-        let in_camera = |stamp: Time| Header::new(stamp, &camera_frame);
-        let goal = LocalizeFruitGoal {
-            rough_position: PointStamped {
-                header: in_camera(start),
-                point: point_m(&scan.rough_position_mm),
-            },
-            fruit_radius_m: scan.fruit_radius_mm / MM_PER_M,
-        };
-        let rough_in_rgbd = PointStamped {
-            header: Header::new(start, &self.frames.rgbd),
-            point: point_m(&scan.rough_position_in_rgbd_mm),
-        };
-        let (goal_topic, rough_topic) =
-            (self.topics.goal.clone(), self.topics.rough_position.clone());
-        self.write(&goal_topic, "alacs_msgs/action/LocalizeFruit_Goal", &start, &goal)?;
-        self.write(&rough_topic, "geometry_msgs/msg/PointStamped", &start, &rough_in_rgbd)?;
-        let mut stamp = stamps.iter();
-        for frame in &scan.frames {
-            let shots = std::iter::once((true, &frame.image))
-                .chain(frame.image_laser_off.as_ref().map(|off| (false, off)));
-            for (laser_on, image) in shots {
-                let at = stamp.next().copied().unwrap_or(start);
-                self.write_image(at, frame.slide_mm, laser_on, image, camera)?;
-            }
-        }
-        if let Some(localization) = localization {
-            let end = stamps.last().copied().unwrap_or(start);
-            let result = localization_result(localization, in_camera(end));
-            let cloud = laser_cloud(localization, in_camera(end));
-            let topics = (
-                self.topics.result.clone(),
-                self.topics.fruit.clone(),
-                self.topics.laser_points.clone(),
-            );
-            self.write(&topics.0, "alacs_msgs/action/LocalizeFruit_Result", &end, &result)?;
-            if result.status == "ok" {
-                self.write(&topics.1, "geometry_msgs/msg/PointStamped", &end, &result.position)?;
-            }
-            self.write(&topics.2, "sensor_msgs/msg/PointCloud2", &end, &cloud)?;
-        }
-        self.scans += 1;
-        Ok(())
-    }
-
-    fn write_image(
-        &mut self,
-        stamp: Time,
-        slide_mm: f64,
-        laser_on: bool,
-        image: &RgbImage,
-        camera: Option<&Camera>,
-    ) -> Result<()> {
-        let header = Header::new(stamp, &self.frames.camera);
-        let slide = JointState {
-            header: Header::new(stamp, &self.frames.camera),
-            name: vec!["slide".into()],
-            position: vec![slide_mm / MM_PER_M],
-            velocity: Vec::new(),
-            effort: Vec::new(),
-        };
-        let topics = (
-            self.topics.slide.clone(),
-            self.topics.laser_on.clone(),
-            self.topics.image.clone(),
-            self.topics.camera_info.clone(),
-        );
-        self.write(&topics.0, "sensor_msgs/msg/JointState", &stamp, &slide)?;
-        self.write(&topics.1, "std_msgs/msg/Bool", &stamp, &Bool { data: laser_on })?;
-        self.write(
-            &topics.2,
-            "sensor_msgs/msg/Image",
-            &stamp,
-            &image_message(image, header.clone()),
-        )?;
-        if let Some(camera) = camera {
-            self.write(
-                &topics.3,
-                "sensor_msgs/msg/CameraInfo",
-                &stamp,
-                &camera_info(camera, header),
-            )?;
-        }
-        Ok(())
-    }
-
-    /// Scans written so far.
-    pub fn scans(&self) -> usize {
-        self.scans
-    }
-
-    /// Ends the bag (its summary and index) and puts it at its path.
-    pub fn finish(mut self) -> Result<PathBuf> {
-        self.writer.finish().map_err(|e| self.bad(e))?;
-        let path = self.path.clone();
-        let fail = |e: String| Error::Bag {
-            path: path.clone(),
-            message: format!("cannot be written: {e}"),
-        };
-        let temp =
-            self.writer.into_inner().into_inner().map_err(|e| fail(e.error().to_string()))?;
-        temp.as_file().sync_all().map_err(|e| fail(e.to_string()))?;
-        temp.persist(&path).map_err(|e| fail(e.error.to_string()))?;
-        Ok(path)
     }
 }
 
