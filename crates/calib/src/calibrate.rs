@@ -4,6 +4,7 @@ use alacs_model::{Fidelity, LaserModel, PreparedLaser};
 
 use crate::linear::LinearForm;
 use crate::refine::{Residual, refine};
+use crate::uncertainty::{StdSource, at_least, bootstrap_samples};
 use crate::{Error, LaserSample, Result, validate_samples};
 use alacs_model::ransac::{self, Estimator, RansacOptions};
 
@@ -108,6 +109,22 @@ pub struct ParameterStdDev {
     pub l0_mm: f64,
     /// Of beta, degrees (`None` for the low-fidelity model).
     pub beta_deg: Option<f64>,
+    /// How they were estimated.
+    pub source: StdSource,
+}
+
+impl ParameterStdDev {
+    /// From standard deviations of (alpha rad, L0 mm[, beta rad]).
+    pub(crate) fn from_parameters(std: &[f64], source: StdSource) -> Option<Self> {
+        let (alpha, l0) = (*std.first()?, *std.get(1)?);
+        let all_finite = std.iter().all(|s| s.is_finite());
+        all_finite.then(|| ParameterStdDev {
+            alpha_deg: alpha.to_degrees(),
+            l0_mm: l0,
+            beta_deg: std.get(2).map(|b| b.to_degrees()),
+            source,
+        })
+    }
 }
 
 /// The result of one calibration method.
@@ -127,7 +144,8 @@ pub struct LaserCalibration {
     pub mean_abs_error_all_mm: f64,
     /// Root mean square of z - z_hat over `inliers`.
     pub rms_error_mm: f64,
-    /// Parameter standard deviations from the fit's covariance, where defined.
+    /// Parameter standard deviations, where defined: over board poses where
+    /// the samples name theirs (see `uncertainty`), else the fit's covariance.
     pub std_dev: Option<ParameterStdDev>,
     /// Hypotheses RANSAC drew (robust methods only).
     pub ransac_iterations: Option<usize>,
@@ -196,6 +214,22 @@ pub fn calibrate(
     let rms = (inliers.iter().map(|&i| errors[i] * errors[i]).sum::<f64>()
         / inliers.len().max(1) as f64)
         .sqrt();
+    let covariance_std: Option<Vec<f64>> =
+        covariance.map(|c| (0..c.nrows()).map(|k| c[(k, k)].max(0.0).sqrt()).collect());
+    // Samples that name their board poses get standard deviations over the
+    // poses (none from fewer than MIN_BOOTSTRAP_POSES: a spread over so few
+    // says nothing, and the covariance's would understate it); samples
+    // without poses are taken as independent.
+    let with_poses = !inliers.is_empty() && inliers.iter().all(|&i| samples[i].pose.is_some());
+    let std_dev = if with_poses {
+        bootstrap_samples(samples, &inliers, &laser, options.residual, options.seed).and_then(
+            |(std, source)| {
+                ParameterStdDev::from_parameters(&at_least(&std, covariance_std.as_deref()), source)
+            },
+        )
+    } else {
+        covariance_std.and_then(|std| ParameterStdDev::from_parameters(&std, StdSource::Covariance))
+    };
     Ok(LaserCalibration {
         method,
         laser,
@@ -204,11 +238,7 @@ pub fn calibrate(
         rms_error_mm: rms,
         inliers,
         n_samples: samples.len(),
-        std_dev: covariance.map(|c| ParameterStdDev {
-            alpha_deg: c[(0, 0)].sqrt().to_degrees(),
-            l0_mm: c[(1, 1)].sqrt(),
-            beta_deg: (fidelity == Fidelity::High).then(|| c[(2, 2)].sqrt().to_degrees()),
-        }),
+        std_dev,
         ransac_iterations,
         residual: options.residual,
     })

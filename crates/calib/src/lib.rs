@@ -9,7 +9,9 @@
 //! - Levenberg-Marquardt on the depth residual `z - z_hat` of eq. (9) (or,
 //!   as an option, the distance to the laser plane), refitted on the inliers
 //!   until the inlier set is stable,
-//! - parameter standard deviations from the fit's covariance.
+//! - parameter standard deviations: a bootstrap over board poses where the
+//!   samples name their poses (samples of one pose share its error), else
+//!   the fit's covariance.
 //!
 //! Samples may carry `slide_mm`: L = L0 - d per sample, L0 fitted jointly.
 //!
@@ -26,7 +28,7 @@
 //!     let v_n = -0.4 + 0.8 * f64::from(i % 6) / 5.0;
 //!     let u_n = -0.3 + 0.02 * f64::from(i);
 //!     let z_mm = truth.depth_mm(&Point2::new(u_n, v_n), 0.0).unwrap();
-//!     samples.push(LaserSample { u_n, v_n, z_mm, slide_mm: 0.0 });
+//!     samples.push(LaserSample { u_n, v_n, z_mm, slide_mm: 0.0, pose: None });
 //! }
 //! let fit = calibrate(&samples, Method::HighFidelityRansac, &CalibrationOptions::default()).unwrap();
 //! assert!((fit.laser.alpha_deg() - 19.07).abs() < 1e-6);
@@ -42,6 +44,7 @@ mod output;
 mod refine;
 mod rgbd;
 mod session;
+mod uncertainty;
 
 /// The RANSAC driver is `alacs-model`'s (fruit localization uses it too).
 pub use alacs_model::ransac;
@@ -59,11 +62,12 @@ pub use error::{Error, Result};
 pub use intrinsics::{
     BoardObservation, IntrinsicsFit, IntrinsicsOptions, ViewFit, board_pose, calibrate_intrinsics,
 };
-pub use output::{CalibrationOutput, StdDevOutput};
+pub use output::CalibrationOutput;
 pub use refine::Residual;
 pub use rgbd::{RgbdCalibration, RgbdPose, calibrate_rgbd};
 pub use session::{
-    LaserSessionCalibration, LaserSessionOptions, ViewBoard, ViewSamples, calibrate_camera_session,
-    calibrate_laser_session, detect_session_boards, rejection_note, session_view_samples,
-    view_samples,
+    LaserSessionCalibration, LaserSessionOptions, ViewBoard, ViewSamples, board_pose_groups,
+    calibrate_camera_session, calibrate_laser_session, detect_session_boards, rejection_note,
+    session_view_samples, view_samples,
 };
+pub use uncertainty::{BOOTSTRAP_REPLICATES, MIN_BOOTSTRAP_POSES, StdSource};

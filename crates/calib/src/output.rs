@@ -5,31 +5,28 @@ use serde::{Deserialize, Serialize};
 
 use crate::LaserCalibration;
 
-/// The parameter standard deviations of a [`CalibrationOutput`].
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct StdDevOutput {
-    /// Of alpha, degrees.
-    pub alpha_deg: f64,
-    /// Of L0, mm.
-    pub l0_mm: f64,
-    /// Of beta, degrees (`null` for the low-fidelity model).
-    pub beta_deg: Option<f64>,
-}
-
 /// One calibration as the `calibrate laser --json` object: the laser
-/// (`model`, `alpha_deg`, `beta_deg`, `l0_mm`), the fit's `inliers` and
-/// statistics, and the paper's `method` number and `name`. Keys in
+/// (`model`, `alpha_deg`, `beta_deg`, `l0_mm`) with one standard deviation
+/// of each (`*_std_*`, and how they were estimated: `std_source`), the
+/// fit's `inliers` and statistics, and the paper's `method` number and `name`. Keys in
 /// alphabetical order, as the CLI has always printed them.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CalibrationOutput {
     /// alpha, degrees.
     pub alpha_deg: f64,
+    /// One standard deviation of alpha, degrees (`null` where undefined).
+    pub alpha_std_deg: Option<f64>,
     /// beta, degrees (0 for the low-fidelity model).
     pub beta_deg: f64,
+    /// One standard deviation of beta, degrees (`null` for the low-fidelity
+    /// model or where undefined).
+    pub beta_std_deg: Option<f64>,
     /// 0-based indices of the samples the final fit used.
     pub inliers: Vec<usize>,
     /// L0, mm.
     pub l0_mm: f64,
+    /// One standard deviation of L0, mm (`null` where undefined).
+    pub l0_std_mm: Option<f64>,
     /// Mean |z - z_hat| over all samples, mm.
     pub mean_abs_error_all_mm: f64,
     /// Mean |z - z_hat| over the inliers, mm (the paper's Table 1 metric).
@@ -48,8 +45,8 @@ pub struct CalibrationOutput {
     pub residual: String,
     /// RMS of z - z_hat over the inliers, mm.
     pub rms_error_mm: f64,
-    /// Parameter standard deviations, where defined.
-    pub std_dev: Option<StdDevOutput>,
+    /// How the standard deviations were estimated (`null` where undefined).
+    pub std_source: Option<String>,
 }
 
 impl LaserCalibration {
@@ -57,9 +54,12 @@ impl LaserCalibration {
     pub fn to_output(&self) -> CalibrationOutput {
         CalibrationOutput {
             alpha_deg: self.laser.alpha_deg(),
+            alpha_std_deg: self.std_dev.map(|s| s.alpha_deg),
             beta_deg: self.laser.beta_deg(),
+            beta_std_deg: self.std_dev.and_then(|s| s.beta_deg),
             inliers: self.inliers.clone(),
             l0_mm: self.laser.l0_mm,
+            l0_std_mm: self.std_dev.map(|s| s.l0_mm),
             mean_abs_error_all_mm: self.mean_abs_error_all_mm,
             mean_abs_error_mm: self.mean_abs_error_mm,
             method: self.method.number(),
@@ -69,11 +69,7 @@ impl LaserCalibration {
             ransac_iterations: self.ransac_iterations,
             residual: self.residual.as_str().to_owned(),
             rms_error_mm: self.rms_error_mm,
-            std_dev: self.std_dev.map(|s| StdDevOutput {
-                alpha_deg: s.alpha_deg,
-                l0_mm: s.l0_mm,
-                beta_deg: s.beta_deg,
-            }),
+            std_source: self.std_dev.map(|s| s.source.describe()),
         }
     }
 }
@@ -92,7 +88,7 @@ mod tests {
             .map(|i| {
                 let (u_n, v_n) = (-0.3 + 0.02 * f64::from(i), -0.4 + 0.8 * f64::from(i % 6) / 5.0);
                 let z_mm = truth.depth_mm(&Point2::new(u_n, v_n), 0.0).unwrap();
-                LaserSample { u_n, v_n, z_mm, slide_mm: 0.0 }
+                LaserSample { u_n, v_n, z_mm, slide_mm: 0.0, pose: None }
             })
             .collect();
         let fit = calibrate(&samples, Method::HighFidelityRansac, &CalibrationOptions::default())
@@ -103,9 +99,12 @@ mod tests {
             keys,
             [
                 "alpha_deg",
+                "alpha_std_deg",
                 "beta_deg",
+                "beta_std_deg",
                 "inliers",
                 "l0_mm",
+                "l0_std_mm",
                 "mean_abs_error_all_mm",
                 "mean_abs_error_mm",
                 "method",
@@ -115,7 +114,7 @@ mod tests {
                 "ransac_iterations",
                 "residual",
                 "rms_error_mm",
-                "std_dev"
+                "std_source"
             ]
         );
         assert_eq!(value["method"], 4);

@@ -17,12 +17,15 @@ use std::path::Path;
 use alacs_board::{BoardCorners, board_gray, detect_checkerboard};
 use alacs_model::{Camera, Session, SessionView};
 use alacs_vision::{Region, StripeOptions, extract_stripe, laser_score, read_image};
-use nalgebra::{Isometry3, Vector3};
+use nalgebra::{Isometry3, Point2};
 use rayon::prelude::*;
 
+use crate::uncertainty::{
+    MIN_BOOTSTRAP_POSES, PoseData, at_least, bootstrap_session, sample_on_board,
+};
 use crate::{
     BoardObservation, CalibrationOptions, Error, IntrinsicsFit, IntrinsicsOptions,
-    LaserCalibration, LaserSample, Method, Result, ViewFit, board_pose, calibrate,
+    LaserCalibration, LaserSample, Method, ParameterStdDev, Result, ViewFit, board_pose, calibrate,
     calibrate_intrinsics,
 };
 
@@ -47,6 +50,82 @@ const WARN_INLIER_FRACTION: f64 = 0.8;
 
 /// RMS depth residual above which a laser calibration warns (mm).
 const WARN_RMS_MM: f64 = 1.0;
+
+/// Largest distance (px) between the same corner in two images for them to
+/// show one board pose: the corner detector's noise is a few hundredths of
+/// a pixel, and a board moved by hand moves its corners by many pixels.
+const SAME_POSE_PX: f64 = 1.0;
+
+/// Whether two images' corners show one board pose: at least half of each
+/// one's corners in common (by their board points), and every common corner
+/// within [`SAME_POSE_PX`].
+fn same_pose(a: &BoardObservation, b: &BoardObservation) -> bool {
+    let mut common = 0usize;
+    for (point, pixel) in a.points_in_board.iter().zip(&a.pixels) {
+        if let Some(k) = b.points_in_board.iter().position(|q| q == point) {
+            if (b.pixels[k] - pixel).norm() >= SAME_POSE_PX {
+                return false;
+            }
+            common += 1;
+        }
+    }
+    common >= 4 && 2 * common >= a.pixels.len().max(b.pixels.len())
+}
+
+/// The board pose of each image, numbered 0, 1, ... in order of first
+/// appearance (`None` where no board was found): a session takes each pose
+/// at several slide positions, and those images are one pose, not several.
+pub fn board_pose_groups(observations: &[Option<&BoardObservation>]) -> Vec<Option<u32>> {
+    let mut first_of_group: Vec<&BoardObservation> = Vec::new();
+    observations
+        .iter()
+        .map(|observation| {
+            let observation = (*observation)?;
+            let group = match first_of_group.iter().position(|f| same_pose(f, observation)) {
+                Some(g) => g,
+                None => {
+                    first_of_group.push(observation);
+                    first_of_group.len() - 1
+                }
+            };
+            u32::try_from(group).ok()
+        })
+        .collect()
+}
+
+/// One observation of a board pose seen in several images: per corner the
+/// median of where the images saw it (a laser line over a corner in one
+/// image does not move it), named by the first image.
+fn merge_pose(members: &[&BoardObservation]) -> Option<BoardObservation> {
+    let first = members.first()?;
+    let mut merged = BoardObservation {
+        name: if members.len() > 1 {
+            format!("{} (+{} images of the same pose)", first.name, members.len() - 1)
+        } else {
+            first.name.clone()
+        },
+        points_in_board: Vec::with_capacity(first.pixels.len()),
+        pixels: Vec::with_capacity(first.pixels.len()),
+    };
+    for point in &first.points_in_board {
+        let (mut us, mut vs): (Vec<f64>, Vec<f64>) = members
+            .iter()
+            .filter_map(|m| {
+                let k = m.points_in_board.iter().position(|q| q == point)?;
+                Some((m.pixels[k].x, m.pixels[k].y))
+            })
+            .unzip();
+        us.sort_by(f64::total_cmp);
+        vs.sort_by(f64::total_cmp);
+        let median = |v: &[f64]| {
+            let n = v.len();
+            if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) }
+        };
+        merged.points_in_board.push(*point);
+        merged.pixels.push(Point2::new(median(&us), median(&vs)));
+    }
+    Some(merged)
+}
 
 /// Detection result of one view's board.
 #[derive(Debug, Clone)]
@@ -121,9 +200,24 @@ pub fn calibrate_camera_session(
     progress: &(dyn Fn() + Sync),
 ) -> Result<IntrinsicsFit> {
     let ((width, height), boards) = detect_session_boards(session, progress)?;
-    let observations: Vec<BoardObservation> = boards
+    let found: Vec<Option<BoardObservation>> = boards
         .iter()
-        .filter_map(|b| b.corners.as_ref().ok().map(|c| observation(session, &b.image, c)))
+        .map(|b| b.corners.as_ref().ok().map(|c| observation(session, &b.image, c)))
+        .collect();
+    // One observation per board pose: the images of one pose at several
+    // slide positions are one view of the board, not several.
+    let groups = board_pose_groups(&found.iter().map(Option::as_ref).collect::<Vec<_>>());
+    let n_poses = groups.iter().flatten().map(|&g| g as usize + 1).max().unwrap_or(0);
+    let observations: Vec<BoardObservation> = (0..n_poses)
+        .filter_map(|g| {
+            let members: Vec<&BoardObservation> = found
+                .iter()
+                .zip(&groups)
+                .filter(|(_, group)| **group == u32::try_from(g).ok())
+                .filter_map(|(o, _)| o.as_ref())
+                .collect();
+            merge_pose(&members)
+        })
         .collect();
     let no_board = || {
         boards
@@ -134,7 +228,7 @@ pub fn calibrate_camera_session(
     if observations.len() < options.min_views {
         let rejected = no_board();
         return Err(Error::Degenerate(format!(
-            "camera calibration needs at least {} views with a {} x {} board, found {} of {}{}",
+            "camera calibration needs at least {} board poses with a {} x {} board, found {} in {} images{}",
             options.min_views,
             session.board.cols,
             session.board.rows,
@@ -144,25 +238,21 @@ pub fn calibrate_camera_session(
         )));
     }
     let mut fit = calibrate_intrinsics(width, height, &observations, options)?;
-    // Every image in session order, the ones without a board included.
-    let mut fitted = std::mem::take(&mut fit.views).into_iter();
-    fit.views = boards
-        .iter()
-        .filter_map(|board| match &board.corners {
-            Ok(_) => fitted.next(),
-            Err(reason) => Some(ViewFit {
-                name: board.image.clone(),
-                camera_from_board: None,
-                rms_px: None,
-                rejected: Some(reason.clone()),
-            }),
+    // Every pose in order, then every image without a board.
+    fit.views.extend(boards.iter().filter_map(|board| {
+        board.corners.as_ref().err().map(|reason| ViewFit {
+            name: board.image.clone(),
+            camera_from_board: None,
+            rms_px: None,
+            rejected: Some(reason.clone()),
         })
-        .collect();
+    }));
+    fit.images = boards.len();
     Ok(fit)
 }
 
 /// Settings of [`calibrate_laser_session`].
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub struct LaserSessionOptions {
     /// Stripe extraction.
     pub stripe: StripeOptions,
@@ -170,6 +260,22 @@ pub struct LaserSessionOptions {
     pub calibration: CalibrationOptions,
     /// Which of the four methods (default: 4, high fidelity + RANSAC).
     pub method: Option<Method>,
+    /// Whether the standard deviations include the camera's: each bootstrap
+    /// replicate re-calibrates the camera from its board poses' corners.
+    /// Off takes the camera as exact (one calibrated from far more views
+    /// than the session holds).
+    pub camera_uncertainty: bool,
+}
+
+impl Default for LaserSessionOptions {
+    fn default() -> Self {
+        LaserSessionOptions {
+            stripe: StripeOptions::default(),
+            calibration: CalibrationOptions::default(),
+            method: None,
+            camera_uncertainty: true,
+        }
+    }
 }
 
 /// What one view gave the laser calibration.
@@ -190,6 +296,13 @@ pub struct ViewSamples {
     pub n_on_square_edges: usize,
     /// Why it gave none, where it gave none.
     pub rejected: Option<String>,
+    /// The board's corners found in it.
+    pub observation: Option<BoardObservation>,
+    /// The laser pixel of each of its samples, in order.
+    pub pixels_px: Vec<Point2<f64>>,
+    /// Which board pose it shows (0, 1, ... in session order; images of one
+    /// pose at several slide positions share it), where the board was found.
+    pub pose: Option<u32>,
 }
 
 /// The result of [`calibrate_laser_session`].
@@ -252,6 +365,9 @@ pub fn view_samples(
         n_samples: 0,
         n_on_square_edges: 0,
         rejected: None,
+        observation: None,
+        pixels_px: Vec::new(),
+        pose: None,
     };
     let on = read_image(&session.path_of(&view.image))?;
     let off = match &view.image_laser_off {
@@ -289,6 +405,7 @@ pub fn view_samples(
     };
     report.camera_from_board = Some(camera_from_board);
     report.pose_rms_px = Some(rms);
+    report.observation = Some(observation);
     let Some(outline) = corners.outline_px() else {
         report.rejected = Some("an outer corner of the board was not found".into());
         return Ok((Vec::new(), report));
@@ -297,27 +414,16 @@ pub fn view_samples(
         Region::convex_polygon(&outline, BOARD_MARGIN_PX, camera.width_px, camera.height_px);
     let score = laser_score(&on.to_rgb8(), off.as_ref().map(|o| o.to_rgb8()).as_ref())?;
     let stripe_points = extract_stripe(&score, &region, stripe);
-    // The board plane in the camera frame: normal n, through the board origin t.
-    let normal: Vector3<f64> = camera_from_board.rotation * Vector3::z();
-    let offset = normal.dot(&camera_from_board.translation.vector);
-    // A pixel's ray on the board: its normalized coordinates and the point.
-    let on_board = |u_px: f64, v_px: f64| {
-        let normalized = camera.undistort_pixel(&nalgebra::Point2::new(u_px, v_px)).ok()?;
-        let ray = Vector3::new(normalized.x, normalized.y, 1.0);
-        let denominator = normal.dot(&ray);
-        if denominator.abs() < 1e-9 {
-            return None;
-        }
-        let z_mm = offset / denominator;
-        (z_mm.is_finite() && z_mm > 0.0).then(|| (normalized, nalgebra::Point3::from(ray * z_mm)))
-    };
     let board_from_camera = camera_from_board.inverse();
     let shade_at = |u_px: f64, v_px: f64| {
-        on_board(u_px, v_px).map(|(_, p)| board_shade(&session.board, &(board_from_camera * p)))
+        sample_on_board(camera, &camera_from_board, &Point2::new(u_px, v_px), 0.0)
+            .map(|s| board_shade(&session.board, &(board_from_camera * s.point_in_camera())))
     };
     let mut samples = Vec::with_capacity(stripe_points.len());
     for point in stripe_points {
-        let Some((normalized, point_in_camera)) = on_board(point.u_px, point.v_px) else {
+        let pixel = nalgebra::Point2::new(point.u_px, point.v_px);
+        let Some(sample) = sample_on_board(camera, &camera_from_board, &pixel, view.slide_mm)
+        else {
             continue;
         };
         // The stripe's profile must lie on one shade of the board: where a
@@ -335,12 +441,8 @@ pub fn view_samples(
             report.n_on_square_edges += 1;
             continue;
         }
-        samples.push(LaserSample {
-            u_n: normalized.x,
-            v_n: normalized.y,
-            z_mm: point_in_camera.z,
-            slide_mm: view.slide_mm,
-        });
+        samples.push(sample);
+        report.pixels_px.push(pixel);
     }
     report.n_samples = samples.len();
     if samples.is_empty() {
@@ -371,10 +473,14 @@ pub fn calibrate_laser_session(
     progress: &(dyn Fn() + Sync),
 ) -> Result<LaserSessionCalibration> {
     let per_view = session_view_samples(session, camera, &options.stripe, progress)?;
+    let groups = board_pose_groups(
+        &per_view.iter().map(|(_, report)| report.observation.as_ref()).collect::<Vec<_>>(),
+    );
     let mut samples = Vec::new();
     let mut views = Vec::with_capacity(per_view.len());
-    for (view_samples, report) in per_view {
-        samples.extend(view_samples);
+    for ((view_samples, mut report), pose) in per_view.into_iter().zip(groups) {
+        report.pose = pose;
+        samples.extend(view_samples.into_iter().map(|s| LaserSample { pose, ..s }));
         views.push(report);
     }
     let contributing = views.iter().filter(|v| v.n_samples > 0).count();
@@ -386,10 +492,72 @@ pub fn calibrate_laser_session(
         )));
     }
     let method = options.method.unwrap_or(Method::HighFidelityRansac);
-    let calibration = calibrate(&samples, method, &options.calibration)?;
-    let warnings =
+    let mut calibration = calibrate(&samples, method, &options.calibration)?;
+    let poses = pose_data(&views, &calibration.inliers);
+    let mut warnings =
         quality_warnings(&samples, &calibration, contributing, options.calibration.threshold_mm);
+    if let Some((std, source)) = bootstrap_session(
+        &poses,
+        camera,
+        &calibration.laser,
+        options.calibration.residual,
+        options.camera_uncertainty,
+        options.calibration.seed,
+    ) {
+        let covariance: Option<Vec<f64>> = calibration.std_dev.map(|s| {
+            let mut v = vec![s.alpha_deg.to_radians(), s.l0_mm];
+            v.extend(s.beta_deg.map(f64::to_radians));
+            v
+        });
+        calibration.std_dev =
+            ParameterStdDev::from_parameters(&at_least(&std, covariance.as_deref()), source);
+    } else {
+        calibration.std_dev = None;
+        warnings.push(format!(
+            "only {} board poses gave laser samples: no standard deviations (samples of one pose share its error, and a spread over fewer than {MIN_BOOTSTRAP_POSES} poses says nothing); use more poses",
+            poses.len()
+        ));
+    }
     Ok(LaserSessionCalibration { calibration, samples, views, warnings })
+}
+
+/// The board poses that gave inlier samples, for the bootstrap: per pose the
+/// corners of its first image, its pose, and per image its inlier pixels.
+fn pose_data(views: &[ViewSamples], inliers: &[usize]) -> Vec<PoseData> {
+    let mut is_inlier = vec![false; views.iter().map(|v| v.n_samples).sum()];
+    for &i in inliers {
+        if let Some(flag) = is_inlier.get_mut(i) {
+            *flag = true;
+        }
+    }
+    let mut poses: Vec<(u32, PoseData)> = Vec::new();
+    let mut first_sample = 0;
+    for view in views {
+        let flags = &is_inlier[first_sample..first_sample + view.n_samples];
+        first_sample += view.n_samples;
+        let (Some(pose), Some(observation), Some(camera_from_board)) =
+            (view.pose, &view.observation, view.camera_from_board)
+        else {
+            continue;
+        };
+        let pixels: Vec<Point2<f64>> =
+            view.pixels_px.iter().zip(flags).filter(|(_, f)| **f).map(|(p, _)| *p).collect();
+        if pixels.is_empty() {
+            continue;
+        }
+        match poses.iter_mut().find(|(p, _)| *p == pose) {
+            Some((_, data)) => data.stripes.push((view.slide_mm, pixels)),
+            None => poses.push((
+                pose,
+                PoseData {
+                    observation: observation.clone(),
+                    camera_from_board,
+                    stripes: vec![(view.slide_mm, pixels)],
+                },
+            )),
+        }
+    }
+    poses.into_iter().map(|(_, data)| data).collect()
 }
 
 /// The quality gate's warnings for a finished laser calibration.

@@ -219,7 +219,7 @@ fn same_seed_same_result() {
 }
 
 fn sample(u_n: f64, v_n: f64, z_mm: f64) -> LaserSample {
-    LaserSample { u_n, v_n, z_mm, slide_mm: 0.0 }
+    LaserSample { u_n, v_n, z_mm, slide_mm: 0.0, pose: None }
 }
 
 #[test]
@@ -331,7 +331,10 @@ fn samples_csv_reads_with_and_without_slide() {
     let samples = parse("u_n,v_n,z_mm\n0.1,0.2,800\n-0.1, 0.0 ,650.5\n").unwrap();
     assert_eq!(samples, vec![sample(0.1, 0.2, 800.0), sample(-0.1, 0.0, 650.5)]);
     let samples = parse("# comment\nz_mm,slide_mm,v_n,u_n,extra\n800,50,0.2,0.1,x\n").unwrap();
-    assert_eq!(samples, vec![LaserSample { u_n: 0.1, v_n: 0.2, z_mm: 800.0, slide_mm: 50.0 }]);
+    assert_eq!(
+        samples,
+        vec![LaserSample { u_n: 0.1, v_n: 0.2, z_mm: 800.0, slide_mm: 50.0, pose: None }]
+    );
     let round_trip = parse(&alacs_calib::samples_csv_string(&paper_like(0.1, 4).samples)).unwrap();
     assert_eq!(round_trip, paper_like(0.1, 4).samples);
 }

@@ -166,7 +166,7 @@ pub enum EvaluateCommand {
 /// `alacs evaluate calibration`
 #[derive(Debug, Args)]
 pub struct EvaluateCalibrationArgs {
-    /// Samples CSV: header u_n,v_n,z_mm and optionally slide_mm.
+    /// Samples CSV: header u_n,v_n,z_mm and optionally slide_mm and pose.
     #[arg(
         long,
         value_name = "FILE",
@@ -339,7 +339,7 @@ pub enum ResidualArg {
 /// `alacs calibrate laser`
 #[derive(Debug, Args)]
 pub struct CalibrateLaserArgs {
-    /// Samples CSV: header u_n,v_n,z_mm and optionally slide_mm.
+    /// Samples CSV: header u_n,v_n,z_mm and optionally slide_mm and pose.
     #[arg(
         long,
         value_name = "FILE",
@@ -354,7 +354,12 @@ pub struct CalibrateLaserArgs {
     /// The calibrated camera.yaml of the session's camera.
     #[arg(long, value_name = "FILE", requires = "session")]
     pub camera: Option<PathBuf>,
-    /// Write the session's laser samples to this CSV (u_n,v_n,z_mm,slide_mm).
+    /// Take the camera as exact in the standard deviations (it was calibrated
+    /// from far more views than the session holds); by default each bootstrap
+    /// replicate re-calibrates it from the session's board poses.
+    #[arg(long, requires = "session")]
+    pub camera_exact: bool,
+    /// Write the session's laser samples to this CSV (u_n,v_n,z_mm,slide_mm,pose).
     #[arg(long, value_name = "FILE", requires = "session")]
     pub export_samples: Option<PathBuf>,
     /// The seed paper's method: 1 low fidelity, 2 low fidelity + RANSAC,

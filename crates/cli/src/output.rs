@@ -89,6 +89,9 @@ pub fn summary(c: &LaserCalibration, threshold_mm: f64) -> String {
             pm(std.and_then(|s| s.beta_deg), 4)
         );
     }
+    if let Some(s) = std {
+        let _ = writeln!(out, "  +- one standard deviation: {}", s.source.describe());
+    }
     let _ = writeln!(
         out,
         "  mean |z - z_hat| = {:.3} mm over the fitted samples, {:.3} mm over all ({} residual)",

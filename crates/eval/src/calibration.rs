@@ -153,7 +153,7 @@ mod tests {
             if i % 10 == 3 {
                 z_mm += 30.0; // a gross outlier
             }
-            samples.push(LaserSample { u_n, v_n, z_mm, slide_mm: 0.0 });
+            samples.push(LaserSample { u_n, v_n, z_mm, slide_mm: 0.0, pose: None });
         }
         let eval = evaluate_calibration(&samples, &CalibrationOptions::default()).unwrap();
         assert_eq!(eval.methods.len(), 4);

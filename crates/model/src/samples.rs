@@ -28,6 +28,11 @@ pub struct LaserSample {
     /// Slide travel d when the sample was taken (L = L0 - d).
     #[serde(default)]
     pub slide_mm: f64,
+    /// The board pose the sample was measured on, where known: samples of
+    /// one pose share that pose's error, so uncertainties are estimated
+    /// over poses, not samples (samples.csv's optional `pose` column).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pose: Option<u32>,
 }
 
 impl LaserSample {
@@ -82,8 +87,9 @@ pub fn validate_samples(samples: &[LaserSample]) -> Result<()> {
     Ok(())
 }
 
-/// Reads samples.csv: header `u_n,v_n,z_mm`, optional `slide_mm` (missing = 0),
-/// extra columns ignored. Every value must be a finite number and every
+/// Reads samples.csv: header `u_n,v_n,z_mm`, optional `slide_mm` (missing = 0)
+/// and `pose` (a board pose number, 0 or more; missing = unknown), extra
+/// columns ignored. Every value must be a finite number and every
 /// depth positive; errors name the file, line and column.
 /// Files larger than [`crate::io::MAX_TEXT_INPUT_BYTES`] are refused.
 pub fn read_samples_csv(path: &Path) -> Result<Vec<LaserSample>> {
@@ -94,12 +100,25 @@ pub fn read_samples_csv(path: &Path) -> Result<Vec<LaserSample>> {
 /// [`read_samples_csv`] from any reader; `path` names the input in errors.
 pub fn parse_samples_csv(reader: impl std::io::Read, path: &Path) -> Result<Vec<LaserSample>> {
     let mut samples = Vec::new();
-    read_numeric_csv(reader, path, &["u_n", "v_n", "z_mm"], &["slide_mm"], |line, values| {
+    let columns = ["slide_mm", "pose"];
+    read_numeric_csv(reader, path, &["u_n", "v_n", "z_mm"], &columns, |line, values| {
+        let pose = match values[4] {
+            None => None,
+            Some(p) if p >= 0.0 && p.fract() == 0.0 && p <= f64::from(u32::MAX) => Some(p as u32),
+            Some(p) => {
+                return Err(csv_error(
+                    path,
+                    line,
+                    format!("column `pose`: `{p}` is not a board pose number (0, 1, 2, ...)"),
+                ));
+            }
+        };
         let sample = LaserSample {
             u_n: values[0].unwrap_or_default(),
             v_n: values[1].unwrap_or_default(),
             z_mm: values[2].unwrap_or_default(),
             slide_mm: values[3].unwrap_or(0.0),
+            pose,
         };
         if let Some(message) = sample.problem() {
             return Err(csv_error(path, line, message));
@@ -187,8 +206,8 @@ pub(crate) fn check_unique_columns(headers: &csv::StringRecord) -> std::result::
     Ok(())
 }
 
-/// Writes samples.csv with all four columns (shortest round-trip floats),
-/// atomically.
+/// Writes samples.csv with all four columns, and `pose` where any sample
+/// knows its board pose (shortest round-trip floats), atomically.
 pub fn write_samples_csv(path: &Path, samples: &[LaserSample]) -> Result<()> {
     crate::io::write_atomic(path, |w| write_samples(w, samples))
 }
@@ -198,9 +217,15 @@ pub fn write_samples(
     writer: &mut dyn std::io::Write,
     samples: &[LaserSample],
 ) -> std::io::Result<()> {
-    writeln!(writer, "u_n,v_n,z_mm,slide_mm")?;
+    let with_pose = samples.iter().any(|s| s.pose.is_some());
+    writeln!(writer, "u_n,v_n,z_mm,slide_mm{}", if with_pose { ",pose" } else { "" })?;
     for s in samples {
-        writeln!(writer, "{},{},{},{}", s.u_n, s.v_n, s.z_mm, s.slide_mm)?;
+        write!(writer, "{},{},{},{}", s.u_n, s.v_n, s.z_mm, s.slide_mm)?;
+        match (with_pose, s.pose) {
+            (false, _) => writeln!(writer)?,
+            (true, Some(pose)) => writeln!(writer, ",{pose}")?,
+            (true, None) => writeln!(writer, ",")?,
+        }
     }
     Ok(())
 }

@@ -135,6 +135,7 @@ pub fn simulate_samples(
                 v_n: point.y / point.z,
                 z_mm: point.z + noise.sample(&mut rng),
                 slide_mm,
+                pose: u32::try_from(view).ok(),
             });
         }
     }

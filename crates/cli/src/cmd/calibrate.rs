@@ -42,10 +42,11 @@ pub fn laser(args: &CalibrateLaserArgs) -> CmdResult {
     let options = options(args)?;
     let method = Method::from_number(args.method)
         .ok_or_else(|| Failure::bad_input(anyhow!("--method must be 1, 2, 3 or 4")))?;
-    let (samples, source) = match (&args.samples, &args.session, &args.camera) {
-        (Some(path), _, _) => (read_samples_csv(path)?, path.display().to_string()),
+    let (samples, session_fit, source) = match (&args.samples, &args.session, &args.camera) {
+        (Some(path), _, _) => (read_samples_csv(path)?, None, path.display().to_string()),
         (None, Some(dir), Some(camera)) => {
-            (session_samples(args, dir, camera, &options)?, dir.display().to_string())
+            let (samples, fit) = session_samples(args, dir, camera, &options)?;
+            (samples, Some(fit), dir.display().to_string())
         }
         _ => {
             return Err(Failure::bad_input(anyhow!(
@@ -58,12 +59,19 @@ pub fn laser(args: &CalibrateLaserArgs) -> CmdResult {
         Failure { error: code.error.context(source.clone()), ..code }
     };
 
-    let (chosen, results) = if args.compare {
-        let results = alacs::compare(&samples, &options).map_err(context)?;
-        let chosen = results.iter().position(|c| c.method == method).unwrap_or(3);
-        (chosen, results)
-    } else {
-        (0, vec![alacs::calibrate(&samples, method, &options).map_err(context)?])
+    // A session's calibration of --method is the one with the session's
+    // uncertainties (its camera and board poses); --compare adds the others.
+    let (chosen, results) = match (args.compare, session_fit) {
+        (true, session_fit) => {
+            let mut results = alacs::compare(&samples, &options).map_err(context)?;
+            let chosen = results.iter().position(|c| c.method == method).unwrap_or(3);
+            if let Some(fit) = session_fit {
+                results[chosen] = fit;
+            }
+            (chosen, results)
+        }
+        (false, Some(fit)) => (0, vec![fit]),
+        (false, None) => (0, vec![alacs::calibrate(&samples, method, &options).map_err(context)?]),
     };
     let fit = &results[chosen];
 
@@ -101,20 +109,22 @@ pub fn laser(args: &CalibrateLaserArgs) -> CmdResult {
     Ok(())
 }
 
-/// The dense laser samples of a session (with the quality gate's warnings on
-/// standard error), exported where asked.
+/// The dense laser samples of a session and its calibration by `--method`
+/// (with the quality gate's warnings on standard error), the samples
+/// exported where asked.
 fn session_samples(
     args: &CalibrateLaserArgs,
     dir: &Path,
     camera_path: &Path,
     calibration: &CalibrationOptions,
-) -> CmdResult<Vec<alacs::LaserSample>> {
+) -> CmdResult<(Vec<alacs::LaserSample>, alacs::LaserCalibration)> {
     let session = Session::read(dir)?;
     let camera = Camera::from_yaml_file(camera_path)?;
     let method = Method::from_number(args.method).unwrap_or(Method::HighFidelityRansac);
     let options = LaserSessionOptions {
         calibration: *calibration,
         method: Some(method),
+        camera_uncertainty: !args.camera_exact,
         ..LaserSessionOptions::default()
     };
     let bar = output::progress_bar(args.json, "laser samples");
@@ -144,7 +154,7 @@ fn session_samples(
     if let Some(path) = &args.export_samples {
         write_samples_csv(path, &result.samples)?;
     }
-    Ok(result.samples)
+    Ok((result.samples, result.calibration))
 }
 
 /// Runs `alacs calibrate camera`.
@@ -175,11 +185,11 @@ pub fn camera(args: &CalibrateCameraArgs) -> CmdResult {
             "fx_px": c.fx_px, "fy_px": c.fy_px, "cx_px": c.cx_px, "cy_px": c.cy_px,
             "distortion_model": model, "dist": dist,
             "rms_px": fit.rms_px, "views_used": fit.views_used(), "views_rejected": rejected,
+            "board_poses": fit.views_used(), "images": fit.images,
             "width_px": c.width_px, "height_px": c.height_px,
-            "std_dev": fit.std_dev.map(|s| json!({
-                "fx_px": s[0], "fy_px": s[1], "cx_px": s[2], "cy_px": s[3],
-                "k1": s[4], "k2": s[5], "p1": s[6], "p2": s[7], "k3": s[8],
-            })),
+            "fx_std_px": fit.std_dev.map(|s| s[0]), "fy_std_px": fit.std_dev.map(|s| s[1]),
+            "cx_std_px": fit.std_dev.map(|s| s[2]), "cy_std_px": fit.std_dev.map(|s| s[3]),
+            "dist_std": fit.std_dev.map(|s| s[4..9].to_vec()),
             "views": fit.views.iter().map(|v| json!({
                 "image": v.name, "rms_px": v.rms_px, "rejected": v.rejected,
             })).collect::<Vec<_>>(),
@@ -187,11 +197,12 @@ pub fn camera(args: &CalibrateCameraArgs) -> CmdResult {
     } else {
         let sd = |i: usize| fit.std_dev.map(|s| format!(" +- {:.2}", s[i])).unwrap_or_default();
         outln!(
-            "camera {} x {} px from {} of {} views",
+            "camera {} x {} px from {} board poses ({} images; views rejected: {})",
             c.width_px,
             c.height_px,
             fit.views_used(),
-            fit.views.len()
+            fit.images,
+            rejected.len()
         );
         outln!("  fx {:.2}{} px, fy {:.2}{} px", c.fx_px, sd(0), c.fy_px, sd(1));
         outln!("  cx {:.2}{} px, cy {:.2}{} px", c.cx_px, sd(2), c.cy_px, sd(3));

@@ -1,0 +1,267 @@
+//! Standard deviations that hold when samples are not independent.
+//!
+//! Every laser sample of one board pose inherits that pose's error (the
+//! board plane from PnP is a little off, for all of its pixels at once), and
+//! every pose inherits the camera's. The covariance of the least-squares
+//! fit, sigma^2 (J^T J)^-1, takes thousands of dense samples as thousands
+//! of independent measurements and so reports a spread far too small: on a
+//! rendered session it printed alpha +- 0.0001 deg for an error of
+//! 0.0074 deg. A bootstrap over board poses (Efron's cluster bootstrap)
+//! resamples what is independent, the poses: each replicate draws as many
+//! poses as there are, with replacement, and repeats the fit on their
+//! samples; with the session's images at hand it repeats the camera
+//! calibration on the drawn poses' corners too, so the camera's error
+//! reaches the laser's (`bootstrap_session`). The reported standard
+//! deviation is the larger of the bootstrap's (scaled by sqrt(G / (G - 1))
+//! for G poses, the usual small-cluster correction) and the covariance's.
+
+use alacs_model::{Camera, LaserModel};
+use nalgebra::{Isometry3, Point2, Vector3};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+
+use crate::intrinsics::CameraLinearization;
+use crate::refine::refine;
+use crate::{BoardObservation, LaserSample, Residual};
+
+/// Bootstrap replicates drawn: the standard deviation of a standard
+/// deviation from B replicates is about 1 / sqrt(2 B), 5 % at 200.
+pub const BOOTSTRAP_REPLICATES: usize = 200;
+
+/// Fewest board poses a bootstrap is run on; with fewer, the spread over
+/// poses says little, the covariance's would understate the error, and a
+/// calibration gives no standard deviations (and warns).
+pub const MIN_BOOTSTRAP_POSES: usize = 5;
+
+/// Fewest distinct poses a replicate re-calibrates the camera from; a draw
+/// with fewer is drawn again.
+const MIN_CAMERA_POSES: usize = 4;
+
+/// Fraction of replicates that must give a fit for the bootstrap to count.
+const MIN_GOOD_REPLICATES: f64 = 0.8;
+
+/// Where a calibration's standard deviations come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StdSource {
+    /// The fit's covariance, sigma^2 (J^T J)^-1: the samples taken as
+    /// independent (samples that do not name their board poses).
+    Covariance,
+    /// A bootstrap over board poses, never below the covariance's.
+    PoseBootstrap {
+        /// Board poses resampled.
+        poses: usize,
+        /// Replicates that gave a fit.
+        replicates: usize,
+        /// Whether each replicate re-calibrated the camera from its poses.
+        camera: bool,
+    },
+}
+
+impl StdSource {
+    /// A short description for reports and the JSON's `std_source`.
+    pub fn describe(&self) -> String {
+        match self {
+            StdSource::Covariance => "covariance of the fit (samples taken as independent)".into(),
+            StdSource::PoseBootstrap { poses, replicates, camera } => format!(
+                "bootstrap over {poses} board poses ({replicates} replicates{})",
+                if *camera { ", camera re-calibrated in each" } else { "" }
+            ),
+        }
+    }
+}
+
+/// The laser parameters a fit gives, as a vector: alpha (rad), L0 (mm) and,
+/// for the high-fidelity model, beta (rad).
+fn parameters(laser: &LaserModel) -> Vec<f64> {
+    let mut p = vec![laser.alpha_rad, laser.l0_mm];
+    if laser.fidelity == alacs_model::Fidelity::High {
+        p.push(laser.beta_rad);
+    }
+    p
+}
+
+/// Standard deviations over `replicates` draws of `groups` groups with
+/// replacement; `fit` gets each draw (group indices, repeats allowed) and
+/// returns the parameters or `None`. Returns the corrected standard
+/// deviations and the number of replicates that gave a fit, or `None` when
+/// too few did.
+fn bootstrap(
+    groups: usize,
+    replicates: usize,
+    seed: u64,
+    min_distinct: usize,
+    fit: impl Fn(&[usize]) -> Option<Vec<f64>> + Sync,
+) -> Option<(Vec<f64>, usize)> {
+    if groups < 2 {
+        return None;
+    }
+    let results: Vec<Vec<f64>> = (0..replicates)
+        .into_par_iter()
+        .filter_map(|r| {
+            let mut rng =
+                ChaCha8Rng::seed_from_u64(seed ^ (r as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15));
+            // Redraw the rare draw with too few distinct groups (a few tries).
+            let draw = (0..20)
+                .map(|_| (0..groups).map(|_| rng.random_range(0..groups)).collect::<Vec<usize>>());
+            let mut chosen = None;
+            for d in draw {
+                let mut distinct = d.clone();
+                distinct.sort_unstable();
+                distinct.dedup();
+                if distinct.len() >= min_distinct.min(groups) {
+                    chosen = Some(d);
+                    break;
+                }
+            }
+            fit(&chosen?)
+        })
+        .collect();
+    if (results.len() as f64) < MIN_GOOD_REPLICATES * replicates as f64 || results.len() < 2 {
+        return None;
+    }
+    let n = results.len() as f64;
+    let dims = results[0].len();
+    let correction = (groups as f64 / (groups as f64 - 1.0)).sqrt();
+    let std = (0..dims)
+        .map(|k| {
+            let mean = results.iter().map(|p| p[k]).sum::<f64>() / n;
+            let var = results.iter().map(|p| (p[k] - mean).powi(2)).sum::<f64>() / (n - 1.0);
+            var.sqrt() * correction
+        })
+        .collect();
+    Some((std, results.len()))
+}
+
+/// The bootstrap over the board poses the samples name (their `pose`),
+/// with the samples as measured: a replicate refits `laser` on the
+/// `inliers` of the drawn poses (inliers without a pose are left out).
+/// `None` when fewer than [`MIN_BOOTSTRAP_POSES`] poses are named among the
+/// inliers or the replicates fail.
+pub(crate) fn bootstrap_samples(
+    samples: &[LaserSample],
+    inliers: &[usize],
+    laser: &LaserModel,
+    residual: Residual,
+    seed: u64,
+) -> Option<(Vec<f64>, StdSource)> {
+    let mut poses: Vec<u32> = inliers.iter().filter_map(|&i| samples[i].pose).collect();
+    poses.sort_unstable();
+    poses.dedup();
+    if poses.len() < MIN_BOOTSTRAP_POSES {
+        return None;
+    }
+    let mut members: Vec<Vec<usize>> = vec![Vec::new(); poses.len()];
+    for &i in inliers {
+        if let Some(g) = samples[i].pose.and_then(|p| poses.binary_search(&p).ok()) {
+            members[g].push(i);
+        }
+    }
+    let (std, replicates) = bootstrap(poses.len(), BOOTSTRAP_REPLICATES, seed, 2, |draw| {
+        let indices: Vec<usize> = draw.iter().flat_map(|&g| members[g].iter().copied()).collect();
+        refine(samples, &indices, laser, residual).ok().map(|r| parameters(&r.laser))
+    })?;
+    Some((std, StdSource::PoseBootstrap { poses: poses.len(), replicates, camera: false }))
+}
+
+/// One board pose of a session as the bootstrap needs it.
+#[derive(Debug, Clone)]
+pub(crate) struct PoseData {
+    /// The board's corners (of one of the pose's images).
+    pub observation: BoardObservation,
+    /// The pose found with the given camera.
+    pub camera_from_board: Isometry3<f64>,
+    /// Per image of this pose: its slide position and its laser pixels
+    /// that the fit used.
+    pub stripes: Vec<(f64, Vec<Point2<f64>>)>,
+}
+
+/// The bootstrap over a session's board poses, the whole calibration
+/// repeated per replicate: the camera re-calibrated from the drawn poses'
+/// corners (when `recalibrate_camera`, starting at `camera`), the laser
+/// pixels turned into samples on the replicate's board planes, and the
+/// laser refitted from `laser`.
+pub(crate) fn bootstrap_session(
+    poses: &[PoseData],
+    camera: &Camera,
+    laser: &LaserModel,
+    residual: Residual,
+    recalibrate_camera: bool,
+    seed: u64,
+) -> Option<(Vec<f64>, StdSource)> {
+    if poses.len() < MIN_BOOTSTRAP_POSES {
+        return None;
+    }
+    let min_distinct = if recalibrate_camera { MIN_CAMERA_POSES } else { 2 };
+    let linearized = if recalibrate_camera {
+        let views: Vec<&BoardObservation> = poses.iter().map(|p| &p.observation).collect();
+        let initial = poses.iter().map(|p| p.camera_from_board).collect();
+        Some(CameraLinearization::new(camera.clone(), initial, &views).ok()?)
+    } else {
+        None
+    };
+    let (std, replicates) =
+        bootstrap(poses.len(), BOOTSTRAP_REPLICATES, seed, min_distinct, |draw| {
+            let (camera_r, poses_r) = match &linearized {
+                Some(linearized) => {
+                    let mut counts = vec![0; poses.len()];
+                    for &g in draw {
+                        counts[g] += 1;
+                    }
+                    linearized.replicate(&counts)?
+                }
+                None => (camera.clone(), poses.iter().map(|p| p.camera_from_board).collect()),
+            };
+            let mut samples = Vec::new();
+            for &g in draw {
+                for (slide_mm, pixels) in &poses[g].stripes {
+                    samples.extend(
+                        pixels.iter().filter_map(|px| {
+                            sample_on_board(&camera_r, &poses_r[g], px, *slide_mm)
+                        }),
+                    );
+                }
+            }
+            let all: Vec<usize> = (0..samples.len()).collect();
+            refine(&samples, &all, laser, residual).ok().map(|r| parameters(&r.laser))
+        })?;
+    Some((
+        std,
+        StdSource::PoseBootstrap { poses: poses.len(), replicates, camera: recalibrate_camera },
+    ))
+}
+
+/// A laser pixel's sample: its ray through `camera` met with the board
+/// plane of `camera_from_board`.
+pub(crate) fn sample_on_board(
+    camera: &Camera,
+    camera_from_board: &Isometry3<f64>,
+    pixel: &Point2<f64>,
+    slide_mm: f64,
+) -> Option<LaserSample> {
+    let normal: Vector3<f64> = camera_from_board.rotation * Vector3::z();
+    let offset = normal.dot(&camera_from_board.translation.vector);
+    let normalized = camera.undistort_pixel(pixel).ok()?;
+    let denominator = normal.dot(&Vector3::new(normalized.x, normalized.y, 1.0));
+    if denominator.abs() < 1e-9 {
+        return None;
+    }
+    let z_mm = offset / denominator;
+    (z_mm.is_finite() && z_mm > 0.0).then_some(LaserSample {
+        u_n: normalized.x,
+        v_n: normalized.y,
+        z_mm,
+        slide_mm,
+        pose: None,
+    })
+}
+
+/// The larger, parameter by parameter, of the bootstrap's and the
+/// covariance's standard deviations.
+pub(crate) fn at_least(bootstrap: &[f64], covariance: Option<&[f64]>) -> Vec<f64> {
+    bootstrap
+        .iter()
+        .enumerate()
+        .map(|(k, b)| covariance.and_then(|c| c.get(k)).map_or(*b, |c| b.max(*c)))
+        .collect()
+}
