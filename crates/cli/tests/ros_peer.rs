@@ -165,6 +165,22 @@ fn a_cyclone_dds_client_gets_the_fruit_from_alacs_ros_sim() {
         .sum::<f64>()
         .sqrt();
     assert!(error_mm < 15.0, "{error_mm:.1} mm from the truth\n{context}");
+    // The position covariance in m^2, as the Cyclone peer decoded it: a
+    // symmetric matrix with variances of a few mm^2 (not ROS's "unknown", -1).
+    let covariance: Vec<f64> = result["position_covariance"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert_eq!(covariance.len(), 9);
+    for i in 0..3 {
+        let sigma_mm = covariance[4 * i].sqrt() * 1000.0;
+        assert!((0.05..20.0).contains(&sigma_mm), "sigma {sigma_mm} mm\n{context}");
+        for k in 0..3 {
+            assert!((covariance[3 * i + k] - covariance[3 * k + i]).abs() < 1e-15);
+        }
+    }
     let feedback = r.peer["feedback"].as_array().unwrap();
     assert_eq!(feedback.len(), 5, "one feedback per frame\n{context}");
     assert!(

@@ -29,6 +29,7 @@ mod output;
 mod points;
 mod selection;
 mod types;
+pub mod uncertainty;
 
 pub use error::{Error, Result};
 pub use folder::{

@@ -48,6 +48,7 @@ use image::RgbImage;
 use rayon::prelude::*;
 
 use crate::frame::{FrameContext, SearchBall};
+use crate::uncertainty;
 use crate::{
     Error, FrameImages, FrameResult, Localization, LocateOptions, Method, Prior, Result, Status,
     fusion, selection,
@@ -101,9 +102,17 @@ pub(crate) fn conclude(
         fused_rejected,
         frames: results,
         search_radius_mm: context.search.radius_mm,
+        position_cov_mm2: None,
     };
     match context.options.method {
-        Method::Fused => fusion::answer_fused(&mut answer),
+        Method::Fused => {
+            fusion::answer_fused(&mut answer);
+            if answer.status == Status::Ok {
+                answer.position_cov_mm2 = answer.fused.as_ref().and_then(|fit| {
+                    uncertainty::position_covariance(fit, &answer.frames, context.options)
+                });
+            }
+        }
         Method::Holistic => selection::answer_holistic(&mut answer, context.prior),
     }
     answer
@@ -184,6 +193,7 @@ pub(crate) fn check_options(options: &LocateOptions) -> Result<()> {
         options.rough_lateral_error_mm,
         options.inlier_threshold_mm,
         options.max_fit_rms_mm,
+        options.shape_std,
     ];
     if !(positive.iter().all(|v| v.is_finite() && *v >= 0.0) && lo > 0.0 && hi > lo) {
         return Err(Error::InvalidInput(format!("invalid localization options: {options:?}")));

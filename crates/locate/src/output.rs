@@ -15,6 +15,10 @@ pub struct LocalizeOutput {
     pub position_mm: Option<[f64; 3]>,
     /// The fruit radius, mm (`null` when not found).
     pub radius_mm: Option<f64>,
+    /// Covariance of `position_mm`, mm^2, rows of the 3 x 3 matrix (`null`
+    /// when not found and for the holistic method).
+    #[serde(default)]
+    pub position_cov_mm2: Option<[[f64; 3]; 3]>,
     /// Every frame's candidate, in frame order.
     pub candidates: Vec<CandidateOutput>,
     /// Index into `candidates` of the answer (the holistic method only).
@@ -112,6 +116,9 @@ impl From<&Localization> for LocalizeOutput {
         LocalizeOutput {
             position_mm: answer.position_mm.as_ref().map(xyz),
             radius_mm: answer.radius_mm,
+            position_cov_mm2: answer
+                .position_cov_mm2
+                .map(|c| std::array::from_fn(|r| std::array::from_fn(|k| c[(r, k)]))),
             candidates: answer.candidates.iter().map(CandidateOutput::from).collect(),
             selected: answer.selected,
             status: answer.status,

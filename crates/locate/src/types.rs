@@ -4,7 +4,7 @@
 
 use alacs_vision::{StripeOptions, StripePoint};
 use image::RgbImage;
-use nalgebra::{Point2, Point3};
+use nalgebra::{Matrix3, Point2, Point3};
 use serde::{Deserialize, Serialize};
 
 use crate::fit::{Ellipsoid, Sphere};
@@ -62,6 +62,10 @@ pub struct LocateOptions {
     /// fruit's outline in the image and the laser points together
     /// ([`crate::outline`]).
     pub use_outline: bool,
+    /// Relative standard deviation of a fruit's semi-axes about its mean
+    /// radius (apples: about 5 %), for the position covariance: the depth
+    /// semi-axis behind the centre is never seen ([`crate::uncertainty`]).
+    pub shape_std: f64,
     /// Seed of the RANSAC samplers: same seed, same answer.
     pub seed: u64,
 }
@@ -79,6 +83,7 @@ impl Default for LocateOptions {
             min_points_fraction: 0.08,
             min_coverage: 0.2,
             use_outline: true,
+            shape_std: 0.05,
             seed: 0,
         }
     }
@@ -229,4 +234,8 @@ pub struct Localization {
     pub frames: Vec<FrameResult>,
     /// Radius of the search ball around the rough position, mm.
     pub search_radius_mm: f64,
+    /// Covariance of `position_mm`, mm^2, camera frame: the fused answer's
+    /// ([`crate::uncertainty`]); `None` when not found and for the holistic
+    /// method.
+    pub position_cov_mm2: Option<Matrix3<f64>>,
 }

@@ -20,10 +20,13 @@ fn check(answer: &Localization) {
     let keys = |v: &Value| v.as_object().unwrap().keys().cloned().collect::<Vec<_>>().join(" ");
     assert_eq!(
         keys(&value),
-        "candidates frames fused fused_rejected holistic_selection method position_mm radius_mm reason selected status"
+        "candidates frames fused fused_rejected holistic_selection method position_cov_mm2 position_mm radius_mm reason selected status"
     );
     assert_eq!(value["status"], answer.status.as_str());
     assert_eq!(value["method"], answer.method.as_str());
+    // A covariance exactly when the fused method found the fruit.
+    let fused_ok = answer.status == Status::Ok && answer.method == Method::Fused;
+    assert_eq!(!value["position_cov_mm2"].is_null(), fused_ok, "{}", value["position_cov_mm2"]);
     if let Some(c) = value["candidates"].get(0) {
         assert_eq!(
             keys(c),

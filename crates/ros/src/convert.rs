@@ -100,9 +100,24 @@ pub fn localization_result(localization: &Localization, header: Header) -> Local
             point: localization.position_mm.as_ref().map(point_m).unwrap_or_default(),
         },
         radius_m: localization.radius_mm.unwrap_or(0.0) / MM_PER_M,
-        position_covariance: [0.0; 9],
+        position_covariance: position_covariance_m2(localization),
         selected_frame,
         n_points: u32::try_from(n_points).unwrap_or(u32::MAX),
+    }
+}
+
+/// The position covariance in m^2, row-major, in the point's frame (the
+/// camera's optical frame, whose axes are the ALACS camera frame's). Where
+/// there is none (not found, the holistic method), element 0 is -1: ROS's
+/// "not estimated" (as sensor_msgs/Imu).
+pub fn position_covariance_m2(localization: &Localization) -> [f64; 9] {
+    match (localization.status, localization.position_cov_mm2) {
+        (Status::Ok, Some(c)) => std::array::from_fn(|i| c[(i / 3, i % 3)] / (MM_PER_M * MM_PER_M)),
+        _ => {
+            let mut unknown = [0.0; 9];
+            unknown[0] = -1.0;
+            unknown
+        }
     }
 }
 
@@ -113,7 +128,11 @@ pub fn error_result(status: &str, reason: &str, header: Header) -> LocalizeFruit
         reason: reason.into(),
         position: PointStamped { header, point: Point::default() },
         radius_m: 0.0,
-        position_covariance: [0.0; 9],
+        position_covariance: {
+            let mut unknown = [0.0; 9];
+            unknown[0] = -1.0;
+            unknown
+        },
         selected_frame: -1,
         n_points: 0,
     }

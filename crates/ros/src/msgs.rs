@@ -405,7 +405,8 @@ pub struct LocalizeFruitResult {
     pub position: PointStamped,
     /// The fruit radius, m.
     pub radius_m: f64,
-    /// Position covariance, m^2, row-major; zeros until it is estimated.
+    /// Position covariance, m^2, row-major; element 0 is -1 where it was
+    /// not estimated (not found, the holistic method).
     pub position_covariance: [f64; 9],
     /// The frame whose candidate was chosen; -1: the fused fit.
     pub selected_frame: i32,
