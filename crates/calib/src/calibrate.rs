@@ -151,6 +151,10 @@ pub struct LaserCalibration {
     pub ransac_iterations: Option<usize>,
     /// What the least-squares step minimized.
     pub residual: Residual,
+    /// The inlier threshold the robust fit ended with, mm: `--threshold-mm`,
+    /// or more where the model's residual scale asked for it (see
+    /// `robust_fit`); the option's value for methods 1 and 3.
+    pub threshold_mm: f64,
 }
 
 /// Rounds of "refit on the inliers, re-classify with the refit model" after
@@ -193,8 +197,10 @@ pub fn calibrate(
     let form = LinearForm::new(fidelity, samples);
     check_geometry(samples, fidelity, form.unknowns() + 1)?;
 
+    let mut threshold_mm = options.threshold_mm;
     let (laser, inliers, covariance, ransac_iterations) = if method.is_robust() {
-        let (refined, inliers, iterations) = robust_fit(samples, &form, options)?;
+        let (refined, inliers, iterations, threshold) = robust_fit(samples, &form, options)?;
+        threshold_mm = threshold;
         (refined.laser, inliers, refined.covariance, Some(iterations))
     } else {
         let all: Vec<usize> = (0..samples.len()).collect();
@@ -241,6 +247,7 @@ pub fn calibrate(
         std_dev,
         ransac_iterations,
         residual: options.residual,
+        threshold_mm,
     })
 }
 
@@ -301,7 +308,7 @@ fn check_geometry(samples: &[LaserSample], fidelity: Fidelity, need: usize) -> R
 
 /// RANSAC over the linear minimal solver, then LM refits on the inliers
 /// until the inlier set is stable.
-fn robust_fit(
+fn robust_fit_at(
     samples: &[LaserSample],
     form: &LinearForm,
     options: &CalibrationOptions,
@@ -341,6 +348,84 @@ fn robust_fit(
     }
     let refined = refine(samples, &inliers, &laser, options.residual)?;
     Ok((refined, inliers, outcome.iterations))
+}
+
+/// The inlier threshold follows each model's residual scale (MSAC and
+/// MAGSAC choose it so too): `--threshold-mm` (2 mm: four sigma of the
+/// paper's 0.5 mm depth noise) fits the high-fidelity model, whose
+/// residuals are the noise, but not the low-fidelity model, whose own bias
+/// (beta left out) reaches several mm at the image's top and bottom rows:
+/// at 2 mm its consensus can be a band of rows, no better than chance, and
+/// a fit that extrapolates badly to the rest of the working volume. So
+/// after each robust fit the threshold becomes [`SCALE_THRESHOLD_FACTOR`]
+/// times the fit's robust residual scale (least median of squares:
+/// 1.4826 (1 + 5 / (n - p)) sqrt(median r^2), which holds up to half the
+/// samples being outliers), never below `--threshold-mm` nor above
+/// [`MAX_THRESHOLD_FACTOR`] times it, and the fit is repeated until the
+/// threshold stands. A low-fidelity fit with no clear consensus tries twice
+/// the threshold (its bias is not known before a fit); a high-fidelity
+/// model's residuals are the noise, and no consensus at the noise's
+/// threshold is an answer (samples that are all outliers are refused).
+fn robust_fit(
+    samples: &[LaserSample],
+    form: &LinearForm,
+    options: &CalibrationOptions,
+) -> Result<(crate::refine::Refined, Vec<usize>, usize, f64)> {
+    let ceiling = MAX_THRESHOLD_FACTOR * options.threshold_mm;
+    let mut threshold = options.threshold_mm;
+    let mut last_error = None;
+    for _ in 0..MAX_SCALE_ROUNDS {
+        let at = CalibrationOptions { threshold_mm: threshold, ..*options };
+        match robust_fit_at(samples, form, &at) {
+            Ok((refined, inliers, iterations)) => {
+                let scale = residual_scale(samples, &refined.laser, form.unknowns());
+                let adapted = (SCALE_THRESHOLD_FACTOR * scale).clamp(options.threshold_mm, ceiling);
+                if adapted <= threshold * 1.05 {
+                    return Ok((refined, inliers, iterations, threshold));
+                }
+                threshold = adapted;
+                last_error = None;
+            }
+            Err(e @ (Error::NoConsensus { .. } | Error::NotBetterThanChance { .. }))
+                if form.fidelity() == Fidelity::Low && threshold < ceiling =>
+            {
+                threshold = (2.0 * threshold).min(ceiling);
+                last_error = Some(e);
+            }
+            Err(e) => return Err(e),
+        }
+    }
+    match last_error {
+        Some(e) => Err(e),
+        None => {
+            let at = CalibrationOptions { threshold_mm: threshold, ..*options };
+            robust_fit_at(samples, form, &at).map(|(r, i, k)| (r, i, k, threshold))
+        }
+    }
+}
+
+/// Rounds of "fit, then set the threshold from the fit's residual scale".
+const MAX_SCALE_ROUNDS: usize = 4;
+
+/// The inlier threshold in robust residual scales: 2.5 sigma keeps 99 % of
+/// Gaussian inliers.
+const SCALE_THRESHOLD_FACTOR: f64 = 2.5;
+
+/// The threshold never grows beyond this many times `--threshold-mm`.
+const MAX_THRESHOLD_FACTOR: f64 = 4.0;
+
+/// Least-median-of-squares scale of the depth residuals of `laser` over all
+/// samples (Rousseeuw and Leroy, 1987), `p` the fitted unknowns.
+fn residual_scale(samples: &[LaserSample], laser: &LaserModel, p: usize) -> f64 {
+    let prepared = laser.prepare();
+    let mut squared: Vec<f64> = samples.iter().map(|s| depth_error(&prepared, s).powi(2)).collect();
+    if squared.is_empty() {
+        return 0.0;
+    }
+    let middle = squared.len() / 2;
+    let median = *squared.select_nth_unstable_by(middle, f64::total_cmp).1;
+    let n = samples.len() as f64;
+    1.4826 * (1.0 + 5.0 / (n - p as f64).max(1.0)) * median.sqrt()
 }
 
 /// Refuses a consensus of `best` samples that is not clearly more than the

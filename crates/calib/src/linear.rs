@@ -48,6 +48,11 @@ impl LinearForm {
         Self { fidelity, common_slide_mm }
     }
 
+    /// The model's fidelity.
+    pub(crate) fn fidelity(&self) -> Fidelity {
+        self.fidelity
+    }
+
     /// Number of unknowns, which is also the minimal sample size.
     pub(crate) fn unknowns(&self) -> usize {
         let angles = match self.fidelity {

@@ -47,6 +47,8 @@ pub struct CalibrationOutput {
     pub rms_error_mm: f64,
     /// How the standard deviations were estimated (`null` where undefined).
     pub std_source: Option<String>,
+    /// The inlier threshold the fit ended with, mm.
+    pub threshold_mm: f64,
 }
 
 impl LaserCalibration {
@@ -70,6 +72,7 @@ impl LaserCalibration {
             residual: self.residual.as_str().to_owned(),
             rms_error_mm: self.rms_error_mm,
             std_source: self.std_dev.map(|s| s.source.describe()),
+            threshold_mm: self.threshold_mm,
         }
     }
 }
@@ -114,7 +117,8 @@ mod tests {
                 "ransac_iterations",
                 "residual",
                 "rms_error_mm",
-                "std_source"
+                "std_source",
+                "threshold_mm"
             ]
         );
         assert_eq!(value["method"], 4);

@@ -495,7 +495,7 @@ pub fn calibrate_laser_session(
     let mut calibration = calibrate(&samples, method, &options.calibration)?;
     let poses = pose_data(&views, &calibration.inliers);
     let mut warnings =
-        quality_warnings(&samples, &calibration, contributing, options.calibration.threshold_mm);
+        quality_warnings(&samples, &calibration, contributing, calibration.threshold_mm);
     if let Some((std, source)) = bootstrap_session(
         &poses,
         camera,

@@ -55,7 +55,8 @@ pub fn print_text(text: &str) -> CmdResult {
 }
 
 /// A readable summary of one calibration, with standard deviations.
-pub fn summary(c: &LaserCalibration, threshold_mm: f64) -> String {
+pub fn summary(c: &LaserCalibration) -> String {
+    let threshold_mm = c.threshold_mm;
     let mut out = String::new();
     let _ =
         write!(out, "Method {} ({}): {} samples", c.method.number(), c.method.name(), c.n_samples);
@@ -63,7 +64,7 @@ pub fn summary(c: &LaserCalibration, threshold_mm: f64) -> String {
         Some(k) => {
             let _ = writeln!(
                 out,
-                ", {} inliers within {threshold_mm} mm ({k} RANSAC hypotheses)",
+                ", {} inliers within {threshold_mm:.2} mm ({k} RANSAC hypotheses)",
                 c.inliers.len()
             );
         }

@@ -101,7 +101,7 @@ pub fn laser(args: &CalibrateLaserArgs) -> CmdResult {
             out!("{}", output::table_1(&results));
             outln!();
         }
-        out!("{}", output::summary(fit, options.threshold_mm));
+        out!("{}", output::summary(fit));
         if let Some(path) = &args.output {
             outln!("wrote {}", path.display());
         }
