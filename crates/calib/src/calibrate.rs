@@ -373,7 +373,6 @@ fn robust_fit(
 ) -> Result<(crate::refine::Refined, Vec<usize>, usize, f64)> {
     let ceiling = MAX_THRESHOLD_FACTOR * options.threshold_mm;
     let mut threshold = options.threshold_mm;
-    let mut last_error = None;
     for _ in 0..MAX_SCALE_ROUNDS {
         let at = CalibrationOptions { threshold_mm: threshold, ..*options };
         match robust_fit_at(samples, form, &at) {
@@ -384,24 +383,19 @@ fn robust_fit(
                     return Ok((refined, inliers, iterations, threshold));
                 }
                 threshold = adapted;
-                last_error = None;
             }
-            Err(e @ (Error::NoConsensus { .. } | Error::NotBetterThanChance { .. }))
+            Err(Error::NoConsensus { .. } | Error::NotBetterThanChance { .. })
                 if form.fidelity() == Fidelity::Low && threshold < ceiling =>
             {
                 threshold = (2.0 * threshold).min(ceiling);
-                last_error = Some(e);
             }
             Err(e) => return Err(e),
         }
     }
-    match last_error {
-        Some(e) => Err(e),
-        None => {
-            let at = CalibrationOptions { threshold_mm: threshold, ..*options };
-            robust_fit_at(samples, form, &at).map(|(r, i, k)| (r, i, k, threshold))
-        }
-    }
+    // The rounds are spent: a last fit at the threshold they ended with
+    // (also the doubled one the last failure asked for).
+    let at = CalibrationOptions { threshold_mm: threshold, ..*options };
+    robust_fit_at(samples, form, &at).map(|(r, i, k)| (r, i, k, threshold))
 }
 
 /// Rounds of "fit, then set the threshold from the fit's residual scale".

@@ -57,19 +57,18 @@ const WARN_RMS_MM: f64 = 1.0;
 const SAME_POSE_PX: f64 = 1.0;
 
 /// Whether two images' corners show one board pose: at least half of each
-/// one's corners in common (by their board points), and every common corner
-/// within [`SAME_POSE_PX`].
+/// one's corners in common (by their board points), and nine in ten of the
+/// common corners within [`SAME_POSE_PX`] (a laser line over a corner in
+/// one image may move that corner further).
 fn same_pose(a: &BoardObservation, b: &BoardObservation) -> bool {
-    let mut common = 0usize;
+    let (mut common, mut close) = (0usize, 0usize);
     for (point, pixel) in a.points_in_board.iter().zip(&a.pixels) {
         if let Some(k) = b.points_in_board.iter().position(|q| q == point) {
-            if (b.pixels[k] - pixel).norm() >= SAME_POSE_PX {
-                return false;
-            }
             common += 1;
+            close += usize::from((b.pixels[k] - pixel).norm() < SAME_POSE_PX);
         }
     }
-    common >= 4 && 2 * common >= a.pixels.len().max(b.pixels.len())
+    common >= 4 && 2 * common >= a.pixels.len().max(b.pixels.len()) && 10 * close >= 9 * common
 }
 
 /// The board pose of each image, numbered 0, 1, ... in order of first
@@ -477,10 +476,12 @@ pub fn calibrate_laser_session(
         &per_view.iter().map(|(_, report)| report.observation.as_ref()).collect::<Vec<_>>(),
     );
     let mut samples = Vec::new();
+    let mut poses_of_samples = Vec::new();
     let mut views = Vec::with_capacity(per_view.len());
     for ((view_samples, mut report), pose) in per_view.into_iter().zip(groups) {
         report.pose = pose;
-        samples.extend(view_samples.into_iter().map(|s| LaserSample { pose, ..s }));
+        poses_of_samples.extend(std::iter::repeat_n(pose, view_samples.len()));
+        samples.extend(view_samples);
         views.push(report);
     }
     let contributing = views.iter().filter(|v| v.n_samples > 0).count();
@@ -492,7 +493,12 @@ pub fn calibrate_laser_session(
         )));
     }
     let method = options.method.unwrap_or(Method::HighFidelityRansac);
+    // Fitted without the poses, so that its standard deviations are the
+    // covariance's: the floor of the bootstrap's below.
     let mut calibration = calibrate(&samples, method, &options.calibration)?;
+    for (sample, pose) in samples.iter_mut().zip(poses_of_samples) {
+        sample.pose = pose;
+    }
     let poses = pose_data(&views, &calibration.inliers);
     let mut warnings =
         quality_warnings(&samples, &calibration, contributing, calibration.threshold_mm);
@@ -513,10 +519,17 @@ pub fn calibrate_laser_session(
             ParameterStdDev::from_parameters(&at_least(&std, covariance.as_deref()), source);
     } else {
         calibration.std_dev = None;
-        warnings.push(format!(
-            "only {} board poses gave laser samples: no standard deviations (samples of one pose share its error, and a spread over fewer than {MIN_BOOTSTRAP_POSES} poses says nothing); use more poses",
-            poses.len()
-        ));
+        warnings.push(if poses.len() < MIN_BOOTSTRAP_POSES {
+            format!(
+                "only {} board poses gave laser samples: no standard deviations (samples of one pose share its error, and a spread over fewer than {MIN_BOOTSTRAP_POSES} poses says nothing); use more poses",
+                poses.len()
+            )
+        } else {
+            format!(
+                "no standard deviations: the bootstrap over {} board poses failed (the camera's problem could not be linearized at this camera, or too few replicates gave a fit)",
+                poses.len()
+            )
+        });
     }
     Ok(LaserSessionCalibration { calibration, samples, views, warnings })
 }

@@ -34,9 +34,10 @@ pub const BOOTSTRAP_REPLICATES: usize = 200;
 /// calibration gives no standard deviations (and warns).
 pub const MIN_BOOTSTRAP_POSES: usize = 5;
 
-/// Fewest distinct poses a replicate re-calibrates the camera from; a draw
-/// with fewer is drawn again.
-const MIN_CAMERA_POSES: usize = 4;
+/// Fewest distinct poses a replicate re-calibrates the camera from (Zhang's
+/// minimum for the intrinsics); a draw with fewer is drawn again, which
+/// with 5 or more poses is rarer than 1 in 40.
+const MIN_CAMERA_POSES: usize = 3;
 
 /// Fraction of replicates that must give a fit for the bootstrap to count.
 const MIN_GOOD_REPLICATES: f64 = 0.8;

@@ -514,13 +514,13 @@ pub struct SimulateSessionArgs {
     /// Render the camera resized by this factor (camera.yaml holds the resized camera).
     #[arg(long, value_name = "F", default_value_t = 1.0, value_parser = positive_up_to(alacs::sim::MAX_SCALE))]
     pub scale: f64,
-    /// Board centre distance range MIN,MAX in mm.
     /// Also render every pose from an RGB-D camera's colour camera (1280 x
     /// 720, 70 deg) at this pose in the ALACS camera frame: x,y,z mm, roll,
     /// pitch, yaw deg (as --alacs-from-rgbd); writes viewNN_rgbd.png,
     /// rgbd_camera.yaml and the truth (`alacs calibrate rgbd`).
     #[arg(long, value_name = "X,Y,Z,ROLL,PITCH,YAW", allow_hyphen_values = true)]
     pub rgbd_pose: Option<String>,
+    /// Board centre distance range MIN,MAX in mm.
     #[arg(long, value_name = "MIN,MAX", default_value = "600,1200")]
     pub depth_mm: String,
     /// Largest board tilt away from facing the camera, degrees.

@@ -865,6 +865,8 @@ fn samples_cell_expect(column: &str, value: &str) -> Expect {
     match (column, value) {
         ("u_n" | "v_n", "-1" | "0") => Expect::Any,
         ("slide_mm", "-1" | "0" | "") => Expect::Any,
+        // A board pose number, or unknown.
+        ("pose", "0" | "") => Expect::Any,
         _ => Expect::Refused,
     }
 }
@@ -939,6 +941,8 @@ fn session_number_expect(_top: &str, key: &str, value: &str) -> Expect {
         ("square_mm", "1e308") => Expect::Any,
         ("square_mm", _) => Expect::Refused,
         ("slide_mm", "-1" | "0" | "") => Expect::Any,
+        // A board pose number, or unknown.
+        ("pose", "0" | "") => Expect::Any,
         _ => Expect::Refused,
     }
 }
