@@ -125,6 +125,14 @@ impl ParameterStdDev {
             source,
         })
     }
+
+    /// The standard deviations of (alpha rad, L0 mm[, beta rad]), as
+    /// [`Self::from_parameters`] takes them.
+    pub(crate) fn to_parameters(self) -> Vec<f64> {
+        let mut std = vec![self.alpha_deg.to_radians(), self.l0_mm];
+        std.extend(self.beta_deg.map(f64::to_radians));
+        std
+    }
 }
 
 /// The result of one calibration method.

@@ -510,11 +510,7 @@ pub fn calibrate_laser_session(
         options.camera_uncertainty,
         options.calibration.seed,
     ) {
-        let covariance: Option<Vec<f64>> = calibration.std_dev.map(|s| {
-            let mut v = vec![s.alpha_deg.to_radians(), s.l0_mm];
-            v.extend(s.beta_deg.map(f64::to_radians));
-            v
-        });
+        let covariance = calibration.std_dev.map(ParameterStdDev::to_parameters);
         calibration.std_dev =
             ParameterStdDev::from_parameters(&at_least(&std, covariance.as_deref()), source);
     } else {

@@ -180,7 +180,7 @@ const ELLIPSOID_PRIOR_POINTS: f64 = 20.0;
 const MIN_SSE_REDUCTION: f64 = 0.3;
 
 /// Every frame's fruit points, with the frame each came from.
-fn fruit_points(results: &[FrameResult]) -> (Vec<Point3<f64>>, Vec<usize>) {
+pub(crate) fn fruit_points(results: &[FrameResult]) -> (Vec<Point3<f64>>, Vec<usize>) {
     let mut points = Vec::new();
     let mut frame_of = Vec::new();
     for (k, result) in results.iter().enumerate() {

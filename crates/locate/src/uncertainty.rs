@@ -39,6 +39,7 @@ use nalgebra::{DMatrix, Matrix3, Point3, Vector3};
 
 use crate::fit::Sphere;
 use crate::frame::MIN_NOISE_MM;
+use crate::fusion::fruit_points;
 use crate::{FrameResult, FusedFit, LocateOptions};
 
 /// The shape's variances (along, across the line of sight) in (s r)^2
@@ -57,11 +58,9 @@ pub(crate) fn position_covariance(
     options: &LocateOptions,
 ) -> Option<Matrix3<f64>> {
     let sphere = &fit.sphere;
-    let points: Vec<Point3<f64>> = results
-        .iter()
-        .flat_map(|r| {
-            r.points_in_camera.iter().filter(|(i, _)| r.fruit.contains(i)).map(|(_, p)| *p)
-        })
+    let points: Vec<Point3<f64>> = fruit_points(results)
+        .0
+        .into_iter()
         .filter(|p| sphere.distance_mm(p).abs() <= options.inlier_threshold_mm)
         .collect();
     let free_radius = !fit.radius_from_prior;

@@ -106,6 +106,10 @@ pub fn localization_result(localization: &Localization, header: Header) -> Local
     }
 }
 
+/// A covariance that was not estimated: element 0 is -1 (ROS's convention,
+/// as in sensor_msgs/Imu).
+const UNKNOWN_COVARIANCE: [f64; 9] = [-1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+
 /// The position covariance in m^2, row-major, in the point's frame (the
 /// camera's optical frame, whose axes are the ALACS camera frame's). Where
 /// there is none (not found, the holistic method), element 0 is -1: ROS's
@@ -113,11 +117,7 @@ pub fn localization_result(localization: &Localization, header: Header) -> Local
 pub fn position_covariance_m2(localization: &Localization) -> [f64; 9] {
     match (localization.status, localization.position_cov_mm2) {
         (Status::Ok, Some(c)) => std::array::from_fn(|i| c[(i / 3, i % 3)] / (MM_PER_M * MM_PER_M)),
-        _ => {
-            let mut unknown = [0.0; 9];
-            unknown[0] = -1.0;
-            unknown
-        }
+        _ => UNKNOWN_COVARIANCE,
     }
 }
 
@@ -128,11 +128,7 @@ pub fn error_result(status: &str, reason: &str, header: Header) -> LocalizeFruit
         reason: reason.into(),
         position: PointStamped { header, point: Point::default() },
         radius_m: 0.0,
-        position_covariance: {
-            let mut unknown = [0.0; 9];
-            unknown[0] = -1.0;
-            unknown
-        },
+        position_covariance: UNKNOWN_COVARIANCE,
         selected_frame: -1,
         n_points: 0,
     }
