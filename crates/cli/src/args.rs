@@ -549,6 +549,13 @@ pub struct SceneArgs {
     /// Direct sunlight instead of shade.
     #[arg(long)]
     pub sun: bool,
+    /// Other apples touching the target, beside or behind it (a cluster of
+    /// 1 + N apples), 0-3.
+    #[arg(long, value_name = "N", default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=3))]
+    pub cluster: u8,
+    /// Branches crossing in front of the fruit, 0-4.
+    #[arg(long, value_name = "N", default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=4))]
+    pub front_branches: u8,
     /// Fruit distance range MIN,MAX in mm.
     #[arg(long, value_name = "MIN,MAX", default_value = "600,1200")]
     pub depth_mm: String,
@@ -613,6 +620,14 @@ pub struct SimulateScanArgs {
     /// Write JPEG frames of this quality (1-100) instead of PNG.
     #[arg(long, value_name = "Q", value_parser = clap::value_parser!(u8).range(1..=100))]
     pub jpeg: Option<u8>,
+    /// The frames' fixed exposure time, microseconds, as a camera without
+    /// metering takes them (1000 us: at 0 dB a white surface under 100 W/m^2
+    /// in the red band fills the pixel; a sunlit red apple clips with the laser on it).
+    #[arg(long, value_name = "US", default_value_t = alacs::sim::REFERENCE_EXPOSURE_US, value_parser = positive_up_to(10.0e6))]
+    pub exposure_us: f64,
+    /// The frames' analogue gain, dB.
+    #[arg(long, value_name = "DB", default_value_t = 0.0, value_parser = number_in(0.0, alacs::sim::MAX_GAIN_DB))]
+    pub gain_db: f64,
     /// How images are rendered.
     #[command(flatten)]
     pub render: RenderArgs,
@@ -711,8 +726,15 @@ pub struct RigArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
     /// Also capture every frame with the laser off (for differencing).
+    /// Without it a metered scan takes laser-off frames when the scene is bright.
     #[arg(long)]
     pub laser_off: bool,
+    /// Do not meter: keep the camera's exposure and gain (rig.toml's, or the
+    /// simulated camera's 1000 us at 0 dB). By default the target is metered
+    /// with the laser off before each scan and the exposure set so that the
+    /// fruit does not clip.
+    #[arg(long)]
+    pub fixed_exposure: bool,
     /// Pose of the RGB-D camera in the ALACS camera frame: translation in mm,
     /// then roll, pitch, yaw in degrees (R = Rz(yaw) Ry(pitch) Rx(roll));
     /// point_in_alacs = R point_in_rgbd + (x, y, z). The simulated RGB-D camera

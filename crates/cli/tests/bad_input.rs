@@ -1047,6 +1047,8 @@ fn scan_number_expect(top: &str, key: &str, value: &str) -> Expect {
         // An empty value is null: the default prior.
         ("fruit_radius_mm", _, "") => Expect::Any,
         ("fruit_radius_mm", _, _) => Expect::Refused,
+        // 0 dB is a gain; an empty gain is null: 0 dB with the exposure.
+        ("gain_db", _, "0" | "") => Expect::Any,
         (_, "slide_mm", "-1" | "0") => Expect::Any,
         // Numbers of keys alacs ignores.
         ("plan_shifted_into_stroke", _, _) => Expect::Any,
@@ -1058,6 +1060,8 @@ fn scan_key_expect(top: &str, key: &str, value: Option<&str>) -> Expect {
     match (top, key, value) {
         ("fruit_radius_mm", _, None | Some("null")) => Expect::Any,
         ("plan_shifted_into_stroke", _, _) => Expect::Any,
+        // The gain is optional beside the exposure (0 dB).
+        ("gain_db", _, None | Some("null")) => Expect::Any,
         (_, "image_laser_off", None | Some("null")) => Expect::Any,
         _ => Expect::Refused,
     }

@@ -95,9 +95,10 @@ fn rig_check_against_an_emulated_grbl_reports_every_step() {
 #[test]
 fn a_controller_that_stops_answering_mid_scan_exits_1_naming_the_slide_with_m5_last() {
     let dir = tempfile::tempdir().unwrap();
-    // Line 1 $H, 2 M5 (laser off at connect), 3 the first move, 4 its M3:
-    // silent from then on, so the second move never ends.
-    let grbl = emulator(dir.path(), &["--silent-after", "4"]);
+    // Line 1 $H, 2 M5 (laser off at connect), 3 the first move, 4 M5
+    // (metering there with the laser off), 5 its M3: silent from then on, so
+    // the second move never ends.
+    let grbl = emulator(dir.path(), &["--silent-after", "5"]);
     let rig = rig_toml(dir.path(), &grbl.port);
     let out = dir.path().join("scan");
     let output = alacs(&[

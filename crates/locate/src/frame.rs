@@ -10,21 +10,57 @@ use nalgebra::{Point2, Point3, Unit, Vector3};
 use crate::fit::{Circle, CircleEstimator, line_rms_mm, rms_mm};
 use crate::{Candidate, FrameImages, FrameResult, LocateOptions, Prior, Result};
 
-/// The ball around the rough position that holds the fruit.
+/// The ball around the rough position that holds the fruit, and the
+/// tighter region its centre may lie in.
 pub(crate) struct SearchBall {
     pub(crate) centre: Point3<f64>,
     pub(crate) radius_mm: f64,
+    /// How far the fruit's centre may lie from the rough position along the
+    /// line of sight (the RGB-D camera's depth error plus half the radius
+    /// prior for the fruit's shape and the fit), mm.
+    pub(crate) along_mm: f64,
+    /// ... and across it (its lateral error plus half the radius prior), mm.
+    pub(crate) across_mm: f64,
 }
+
+/// The margin of the centre's region beyond the rough position's error, as
+/// a fraction of the radius prior: a fitted centre errs by a few mm, a
+/// touching neighbour lies a full diameter (70-90 mm) away.
+const CENTRE_MARGIN: f64 = 0.5;
 
 impl SearchBall {
     pub(crate) fn new(prior: &Prior, options: &LocateOptions) -> SearchBall {
         let depth = prior.rough_position_mm.coords.norm();
+        let margin_mm = CENTRE_MARGIN * prior.fruit_radius_mm;
         SearchBall {
             centre: prior.rough_position_mm,
             radius_mm: 1.25 * prior.fruit_radius_mm
                 + options.rough_depth_error * depth
                 + options.rough_lateral_error_mm,
+            along_mm: options.rough_depth_error * depth + margin_mm,
+            across_mm: options.rough_lateral_error_mm + margin_mm,
         }
+    }
+
+    /// Why a fitted centre cannot be the target's, if it cannot: it lies
+    /// outside the ellipsoid of the rough position's error (depth error
+    /// along the line of sight, lateral error across it), where a
+    /// neighbouring fruit of a cluster lies (its centre a diameter away,
+    /// outside that ellipsoid in every direction).
+    pub(crate) fn centre_rejection(&self, centre: &Point3<f64>) -> Option<String> {
+        let sight = self.centre.coords.try_normalize(1e-9)?;
+        let offset = centre - self.centre;
+        let along = offset.dot(&sight);
+        let across = (offset - sight * along).norm();
+        let q = (along / self.along_mm).powi(2) + (across / self.across_mm).powi(2);
+        (q > 1.0 || !q.is_finite()).then(|| {
+            format!(
+                "the fitted centre lies {:.0} mm along the line of sight and {across:.0} mm across it from the rough position, beyond the rough position's error ({:.0} mm along, {:.0} mm across): another fruit, not the target",
+                along.abs(),
+                self.along_mm,
+                self.across_mm
+            )
+        })
     }
 }
 

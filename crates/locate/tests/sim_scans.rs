@@ -92,6 +92,80 @@ fn occluded_fruit_is_near_or_not_found() {
     assert!(from_outline >= 2, "{from_outline} answers used the outline");
 }
 
+/// A cluster of 2-4 touching apples with branches across the target:
+/// `localize` answers the target or `not_found`, never a neighbour (an
+/// `ok` within 15 mm of the target, nearer the target than any neighbour).
+/// Half scale, shade and sun, 0-20 % hidden by leaves.
+#[test]
+fn clusters_give_the_target_never_a_neighbour() {
+    let mut found = 0;
+    let n = 16;
+    for seed in 0..n {
+        let orchard = OrchardOptions {
+            cluster: 1 + seed as usize % 3,
+            front_branches: usize::from(seed % 2 == 0),
+            occlusion: [0.0, 0.1, 0.2][seed as usize % 3],
+            ..OrchardOptions::default()
+        };
+        let sim = scan(ScanOptions {
+            orchard,
+            sun: seed % 4 < 2,
+            scale: 0.5,
+            seed: 5000 + seed,
+            ..ScanOptions::default()
+        });
+        let scan = &sim.scan;
+        let neighbours: Vec<Point3<f64>> = scan
+            .scene
+            .objects
+            .iter()
+            .skip(1)
+            .filter(|o| o.kind == alacs_sim::Kind::Fruit)
+            .filter_map(|o| match o.shape {
+                alacs_sim::Shape::Ellipsoid { centre, .. } => Some(centre),
+                _ => None,
+            })
+            .collect();
+        assert!(!neighbours.is_empty(), "seed {seed}: no cluster");
+        let answer = run(&sim);
+        if answer.status == Status::Ok {
+            let position = answer.position_mm.unwrap();
+            let error = error_mm(scan, &answer).unwrap();
+            eprintln!("seed {seed}: {error:.2} mm ({})", answer.reason);
+            assert!(error < 15.0, "seed {seed}: {error:.1} mm from the target");
+            for neighbour in &neighbours {
+                assert!((position - neighbour).norm() > error, "seed {seed}: a neighbour");
+            }
+            found += 1;
+        } else {
+            eprintln!("seed {seed}: not found ({})", answer.reason);
+            assert!(!answer.reason.is_empty());
+        }
+    }
+    // A regression guard, not a rate: 15 of 16 are found today (seed 12 by
+    // the outline, after the laser's free fit found a neighbour and was
+    // refused for it).
+    assert!(found >= 13, "{found} of {n} targets found");
+}
+
+/// Regression: a sphere of the prior radius through a sunlit fruit's edge
+/// and a branch in front of it was answered 28.9 mm from the fruit (it held
+/// 50 of the frames' 113 fruit points). It must hold most of them.
+#[test]
+fn a_prior_radius_sphere_through_a_fruit_and_a_branch_is_refused() {
+    // As `alacs simulate scan --seed 2408 --scale 0.5 --sun --front-branches 2`
+    // renders it (3 x 3 rays per pixel).
+    let orchard = OrchardOptions { front_branches: 2, ..OrchardOptions::default() };
+    let defaults = ScanOptions::default();
+    let render = alacs_sim::RenderOptions { supersampling: 3, ..defaults.render };
+    let options = ScanOptions { orchard, sun: true, scale: 0.5, seed: 2408, render, ..defaults };
+    let sim = scan(options);
+    let answer = run(&sim);
+    if let Some(error) = error_mm(&sim.scan, &answer) {
+        assert!(error < 15.0, "{error:.1} mm: {}", answer.reason);
+    }
+}
+
 #[test]
 fn frames_that_do_not_fit_the_camera_are_refused() {
     let camera = Camera::blackfly_s_5mp().scaled(0.1);

@@ -54,8 +54,8 @@ pub use samples::{
     write_samples, write_samples_csv,
 };
 pub use scan::{
-    DEFAULT_FRUIT_RADIUS_MM, FRUIT_RADIUS_RANGE_MM, MAX_ABS_SLIDE_MM, MAX_ROUGH_DISTANCE_MM,
-    SCAN_FILE, Scan, ScanFrameSpec,
+    DEFAULT_FRUIT_RADIUS_MM, FRUIT_RADIUS_RANGE_MM, FrameExposure, MAX_ABS_SLIDE_MM,
+    MAX_ROUGH_DISTANCE_MM, SCAN_FILE, Scan, ScanFrameSpec,
 };
 pub use scan_plan::{ScanPlan, ScanStrategy};
 pub use session::{BoardSpec, SESSION_FILE, Session, SessionView};

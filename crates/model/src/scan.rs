@@ -73,7 +73,26 @@ pub struct Scan {
     /// Whether the scan plan was shifted to fit the slide's stroke (extra
     /// key written by the scan controller and the simulator).
     pub plan_shifted_into_stroke: Option<bool>,
+    /// The camera's exposure time and gain over the frames, when the
+    /// writer knew them (extra keys `exposure_us`, `gain_db` written by the
+    /// scan controller after metering).
+    pub exposure: Option<FrameExposure>,
 }
+
+/// The exposure the frames of a scan were taken at.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrameExposure {
+    /// Exposure time, microseconds.
+    pub exposure_us: f64,
+    /// Analogue gain, dB.
+    pub gain_db: f64,
+}
+
+/// Longest exposure time scan.yaml may name, microseconds (10 s).
+const MAX_EXPOSURE_US: f64 = 10.0e6;
+
+/// Largest gain scan.yaml may name, dB.
+const MAX_GAIN_DB: f64 = 60.0;
 
 #[derive(Deserialize, Serialize)]
 struct ScanFile {
@@ -84,6 +103,10 @@ struct ScanFile {
     fruit_radius_mm: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     plan_shifted_into_stroke: Option<bool>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    exposure_us: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    gain_db: Option<f64>,
     frames: Vec<FrameFile>,
 }
 
@@ -117,6 +140,8 @@ impl Scan {
             rough_position_in_rgbd_mm: self.rough_position_in_rgbd_mm.as_ref().map(xyz),
             fruit_radius_mm: Some(self.fruit_radius_mm),
             plan_shifted_into_stroke: self.plan_shifted_into_stroke,
+            exposure_us: self.exposure.map(|e| e.exposure_us),
+            gain_db: self.exposure.map(|e| e.gain_db),
             frames: self
                 .frames
                 .iter()
@@ -175,6 +200,27 @@ impl Scan {
                 "`fruit_radius_mm` is {fruit_radius_mm}; a fruit radius prior must lie within {r_lo}-{r_hi} mm"
             )));
         }
+        let exposure = match (file.exposure_us, file.gain_db) {
+            (None, None) => None,
+            (None, Some(_)) => {
+                return Err(parse_error("`gain_db` is given without `exposure_us`".into()));
+            }
+            (Some(exposure_us), gain_db) => {
+                let gain_db = gain_db.unwrap_or(0.0);
+                if !(exposure_us.is_finite() && exposure_us > 0.0 && exposure_us <= MAX_EXPOSURE_US)
+                {
+                    return Err(parse_error(format!(
+                        "`exposure_us` is {exposure_us}; it must lie within 0-{MAX_EXPOSURE_US} us"
+                    )));
+                }
+                if !(gain_db.is_finite() && (0.0..=MAX_GAIN_DB).contains(&gain_db)) {
+                    return Err(parse_error(format!(
+                        "`gain_db` is {gain_db}; it must lie within 0-{MAX_GAIN_DB} dB"
+                    )));
+                }
+                Some(FrameExposure { exposure_us, gain_db })
+            }
+        };
         if file.frames.is_empty() {
             return Err(parse_error("`frames` is empty".into()));
         }
@@ -208,6 +254,7 @@ impl Scan {
             frames,
             rough_position_in_rgbd_mm,
             plan_shifted_into_stroke: file.plan_shifted_into_stroke,
+            exposure,
         })
     }
 

@@ -172,6 +172,15 @@ pub struct CameraConfig {
     /// `gain_db`: the analogue gain, dB.
     #[serde(default)]
     pub gain_db: f64,
+    /// `metering`: before each scan the controller meters the target with
+    /// the laser off and sets the exposure (from `exposure_us`) so the
+    /// fruit does not clip; false keeps `exposure_us` and `gain_db` fixed.
+    #[serde(default = "default_true")]
+    pub metering: bool,
+    /// `bright_below_us`: a metered exposure shorter than this is a bright
+    /// scene, scanned with laser-off frames for differencing.
+    #[serde(default = "default_bright_below_us")]
+    pub bright_below_us: f64,
 }
 
 impl Default for CameraConfig {
@@ -181,6 +190,8 @@ impl Default for CameraConfig {
             device: String::new(),
             exposure_us: default_exposure_us(),
             gain_db: 0.0,
+            metering: true,
+            bright_below_us: default_bright_below_us(),
         }
     }
 }
@@ -238,7 +249,10 @@ fn default_off_command() -> String {
     "M5".into()
 }
 fn default_exposure_us() -> f64 {
-    2000.0
+    1000.0
+}
+fn default_bright_below_us() -> f64 {
+    600.0
 }
 
 impl RigConfig {
@@ -357,6 +371,7 @@ impl RigConfig {
         }
         let c = &self.camera;
         positive("[camera] exposure_us", c.exposure_us, 10.0e6)?;
+        positive("[camera] bright_below_us", c.bright_below_us, 10.0e6)?;
         if !(c.gain_db.is_finite() && (0.0..=48.0).contains(&c.gain_db)) {
             return Err(bad("[camera] gain_db", format!("{} must lie within 0-48 dB", c.gain_db)));
         }

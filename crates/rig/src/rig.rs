@@ -86,7 +86,7 @@ struct SceneCamera {
     tracker: Tracker,
     captures_on: u64,
     captures_off: u64,
-    exposure: alacs_scanner::Exposure,
+    exposure: alacs_scanner::ExposureSettings,
 }
 
 #[cfg(feature = "sim")]
@@ -105,13 +105,13 @@ impl FrameCamera for SceneCamera {
         let counter = if laser_on { &mut self.captures_on } else { &mut self.captures_off };
         let index = *counter;
         *counter += 1;
-        let image =
-            self.scene.render_at(slide_mm, laser_on, index).map_err(|e| DeviceError::Device {
+        self.scene.render_exposed(slide_mm, laser_on, index, self.exposure.0).map_err(|e| {
+            DeviceError::Device {
                 device: Device::Camera,
                 step: None,
                 message: format!("the simulated camera: {e}"),
-            })?;
-        Ok(self.exposure.apply(image))
+            }
+        })
     }
 
     fn set_exposure_us(&mut self, exposure_us: f64) -> alacs_scanner::Result<f64> {
@@ -193,7 +193,7 @@ impl<'a> Parts<'a> {
             tracker: Arc::clone(&self.tracker),
             captures_on: 0,
             captures_off: 0,
-            exposure: alacs_scanner::Exposure::default(),
+            exposure: alacs_scanner::ExposureSettings::default(),
         };
         Ok((Box::new(camera), detail))
     }

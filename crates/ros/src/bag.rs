@@ -601,6 +601,7 @@ fn empty_scan(goal: &LocalizeFruitGoal) -> CapturedScan {
         fruit_radius_mm: goal.fruit_radius_m * MM_PER_M,
         plan: ScanPlan { slides_mm: Vec::new(), unclamped_start_mm: 0.0, shifted: false },
         frames: Vec::new(),
+        exposure: None,
     }
 }
 

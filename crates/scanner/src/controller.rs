@@ -6,10 +6,14 @@
 //! 2. The seed's strategy plans the slide positions from it
 //!    ([`ScanStrategy::plan`]: the laser on the left half of the fruit,
 //!    then steps to the right, shifted into the stroke).
-//! 3. Per frame: move the slide and wait until it settles, switch the laser
-//!    on, capture; with [`ControllerConfig::capture_laser_off`], switch it
-//!    off and capture again at the same position.
-//! 4. The laser is switched off at the end, and whenever a step fails.
+//! 3. With [`ControllerConfig::metering`], once the slide stands at the
+//!    first frame's position, the target is metered with the laser off and
+//!    the camera's exposure set so that the fruit does not clip
+//!    ([`crate::metering`]); a bright scene also gets laser-off frames.
+//! 4. Per frame: move the slide and wait until it settles, switch the laser
+//!    on, capture; with [`ControllerConfig::capture_laser_off`] (or a bright
+//!    scene), switch it off and capture again at the same position.
+//! 5. The laser is switched off at the end, and whenever a step fails.
 //!
 //! The frames keep the positions the slide reported, not the plan's:
 //! localization triangulates with where the laser was.
@@ -20,17 +24,19 @@ use std::time::{Duration, SystemTime};
 use alacs_locate::{FrameImages, Localization, LocateOptions, Prior, locate};
 use alacs_model::io::OutputDir;
 use alacs_model::{
-    Camera, DEFAULT_FRUIT_RADIUS_MM, LaserModel, SCAN_FILE, Scan, ScanFrameSpec, ScanPlan,
-    ScanStrategy,
+    Camera, DEFAULT_FRUIT_RADIUS_MM, FrameExposure, LaserModel, SCAN_FILE, Scan, ScanFrameSpec,
+    ScanPlan, ScanStrategy,
 };
 use image::RgbImage;
 use nalgebra::{Isometry3, Point3};
 
 use crate::hardware::Rig;
+use crate::metering::{MeteredExposure, Metering, meter};
 use crate::{Error, Result, Step};
 
 /// Settings of [`ScanController`]. `Default`: the seed's strategy, the
-/// RGB-D and ALACS frames the same, no laser-off frames, a 40 mm radius prior.
+/// RGB-D and ALACS frames the same, no laser-off frames, a 40 mm radius
+/// prior, no metering (the camera's exposure as it is).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ControllerConfig {
     /// Frames, step and stroke of the scan (the seed paper's by default).
@@ -50,6 +56,9 @@ pub struct ControllerConfig {
     /// Largest difference between a commanded and a reported slide
     /// position, mm, before the scan stops.
     pub position_tolerance_mm: f64,
+    /// Meter the target and set the camera's exposure before the frames
+    /// (`None`: leave the camera's exposure and gain as they are).
+    pub metering: Option<Metering>,
 }
 
 impl Default for ControllerConfig {
@@ -62,6 +71,7 @@ impl Default for ControllerConfig {
             capture_timeout: Duration::from_secs(2),
             fruit_radius_mm: DEFAULT_FRUIT_RADIUS_MM,
             position_tolerance_mm: DEFAULT_POSITION_TOLERANCE_MM,
+            metering: None,
         }
     }
 }
@@ -108,6 +118,9 @@ pub struct CapturedScan {
     pub plan: ScanPlan,
     /// The frames, in plan order.
     pub frames: Vec<CapturedFrame>,
+    /// The camera's exposure over the frames, if known (the controller
+    /// knows it when it metered).
+    pub exposure: Option<FrameExposure>,
 }
 
 impl ScanController {
@@ -142,6 +155,9 @@ impl ScanController {
         }
         if config.move_timeout.is_zero() || config.capture_timeout.is_zero() {
             return invalid("timeouts must be longer than zero".into());
+        }
+        if let Some(metering) = &config.metering {
+            metering.validate()?;
         }
         let transform = config.alacs_from_rgbd.to_homogeneous();
         if !transform.iter().all(|v| v.is_finite()) {
@@ -180,9 +196,14 @@ impl ScanController {
         Ok(self.config.strategy.plan(&self.laser, &rough, self.config.fruit_radius_mm))
     }
 
-    /// How many images a scan captures.
+    /// How many images a scan captures at most: laser-on and laser-off
+    /// frames, and the metering frames. A metered scene that is not bright
+    /// takes no laser-off frames; the progress callback of
+    /// [`ScanController::run_with_progress`] has the count of each scan.
     pub fn image_count(&self) -> usize {
-        self.config.strategy.frames * (1 + usize::from(self.config.capture_laser_off))
+        let laser_off = self.config.capture_laser_off || self.config.metering.is_some();
+        self.config.strategy.frames * (1 + usize::from(laser_off))
+            + self.config.metering.as_ref().map_or(0, |m| m.max_frames)
     }
 
     /// Scans the fruit roughly at `rough_position_in_rgbd_mm` (the RGB-D
@@ -195,7 +216,9 @@ impl ScanController {
         self.run_with_progress(rig, rough_position_in_rgbd_mm, |_, _| {})
     }
 
-    /// [`ScanController::run`], calling `progress(done, total)` after each image.
+    /// [`ScanController::run`], calling `progress(done, total)` after each
+    /// image (metering frames first; `total` is known once metering is done
+    /// and counts them).
     pub fn run_with_progress(
         &self,
         rig: &mut Rig<'_>,
@@ -212,8 +235,9 @@ impl ScanController {
         {
             return Err(Error::OutOfStroke { step: Some(Step::Planning), target_mm, stroke_mm });
         }
-        let frames = match self.capture_frames(rig, &plan, &mut progress) {
-            Ok(frames) => frames,
+        let captured = self.capture_frames(rig, &plan, &rough_position_mm, &mut progress);
+        let (frames, exposure) = match captured {
+            Ok(captured) => captured,
             Err(error) => {
                 // Whatever failed, the laser goes off; the first error is the one reported.
                 let _ = rig.laser.set(false);
@@ -227,16 +251,35 @@ impl ScanController {
             fruit_radius_mm: self.config.fruit_radius_mm,
             plan,
             frames,
+            exposure: exposure
+                .map(|e| FrameExposure { exposure_us: e.exposure_us, gain_db: e.gain_db }),
         })
     }
 
+    /// Meters the target, if configured.
+    fn meter(
+        &self,
+        rig: &mut Rig<'_>,
+        rough_position_mm: &Point3<f64>,
+    ) -> Result<Option<MeteredExposure>> {
+        let Some(metering) = &self.config.metering else { return Ok(None) };
+        let radius_mm = self.config.fruit_radius_mm;
+        let timeout = self.config.capture_timeout;
+        meter(metering, rig, rough_position_mm, radius_mm, timeout).map(Some)
+    }
+
+    /// Moves, meters (at the first frame's position, once the slide is
+    /// there), and captures every frame.
     fn capture_frames(
         &self,
         rig: &mut Rig<'_>,
         plan: &ScanPlan,
+        rough_position_mm: &Point3<f64>,
         progress: &mut impl FnMut(usize, usize),
-    ) -> Result<Vec<CapturedFrame>> {
-        let total = plan.slides_mm.len() * (1 + usize::from(self.config.capture_laser_off));
+    ) -> Result<(Vec<CapturedFrame>, Option<MeteredExposure>)> {
+        let mut exposure = None;
+        let mut laser_off = self.config.capture_laser_off;
+        let mut total = plan.slides_mm.len() * (1 + usize::from(laser_off));
         let mut done = 0;
         let mut frames = Vec::with_capacity(plan.slides_mm.len());
         for (frame, &target_mm) in plan.slides_mm.iter().enumerate() {
@@ -252,11 +295,20 @@ impl ScanController {
                     tolerance_mm,
                 });
             }
+            if frame == 0 {
+                exposure = self.meter(rig, rough_position_mm)?;
+                if let Some(metered) = exposure {
+                    laser_off |= metered.bright;
+                    total = metered.frames + plan.slides_mm.len() * (1 + usize::from(laser_off));
+                    done = metered.frames;
+                    progress(done, total);
+                }
+            }
             let image = self.capture(rig, frame, true)?;
             let on_at = SystemTime::now();
             done += 1;
             progress(done, total);
-            let (image_laser_off, off_at) = if self.config.capture_laser_off {
+            let (image_laser_off, off_at) = if laser_off {
                 let off = self.capture(rig, frame, false)?;
                 done += 1;
                 progress(done, total);
@@ -272,7 +324,7 @@ impl ScanController {
                 captured_at: [Some(on_at), off_at],
             });
         }
-        Ok(frames)
+        Ok((frames, exposure))
     }
 
     /// Switches the laser on (`laser_on`) or off and captures frame `frame`.
@@ -352,6 +404,7 @@ impl CapturedScan {
                 .collect(),
             rough_position_in_rgbd_mm: Some(self.rough_position_in_rgbd_mm),
             plan_shifted_into_stroke: Some(self.plan.shifted),
+            exposure: self.exposure,
         }
     }
 

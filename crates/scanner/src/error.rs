@@ -54,6 +54,8 @@ pub enum Step {
         /// With the laser on or off.
         laser_on: bool,
     },
+    /// Metering the target with the laser off, before the first frame.
+    Metering,
     /// Switching the laser off after the last frame.
     Finish,
 }
@@ -75,6 +77,7 @@ impl fmt::Display for Step {
             Step::Capture { frame, laser_on } => {
                 write!(f, "frame {frame}, capturing with the laser {}", on_off(laser_on))
             }
+            Step::Metering => f.write_str("metering the target with the laser off"),
             Step::Finish => f.write_str("switching the laser off after the scan"),
         }
     }
@@ -138,6 +141,17 @@ pub enum Error {
         /// What the driver said.
         message: String,
     },
+    /// Metering found no exposure that shows the target unclipped and
+    /// above the noise within the camera's range.
+    #[error("metering failed after {frames} frames (last exposure {exposure_us:.0} us): {detail}")]
+    Metering {
+        /// Metering frames taken.
+        frames: usize,
+        /// The last exposure tried, microseconds.
+        exposure_us: f64,
+        /// Why.
+        detail: String,
+    },
     /// A configuration or rough position that cannot give a scan.
     #[error("invalid scan: {0}")]
     InvalidInput(String),
@@ -172,6 +186,7 @@ impl Error {
             Error::OutOfStroke { .. }
             | Error::Timeout { .. }
             | Error::PositionMismatch { .. }
+            | Error::Metering { .. }
             | Error::Device { .. } => JobFailed,
         }
     }

@@ -54,8 +54,10 @@ pub trait Slide {
 /// - frames are RGB8 in the resolution and orientation of the calibrated
 ///   camera.yaml, not undistorted or rectified (localization undistorts
 ///   them with camera.yaml, eq. (3));
-/// - exposure, gain and white balance stay fixed over a scan, so that
-///   laser-off differencing compares like with like;
+/// - exposure, gain and white balance stay fixed unless set through this
+///   trait (the controller sets exposure and gain only while metering,
+///   before the first frame), so that laser-off differencing compares like
+///   with like; no auto-exposure of the camera's own;
 /// - no frame within the timeout gives
 ///   [`Error::Timeout`](crate::Error::Timeout);
 /// - exposure and gain set through [`FrameCamera::set_exposure_us`] and

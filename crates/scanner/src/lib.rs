@@ -49,13 +49,16 @@
 mod controller;
 mod error;
 pub mod hardware;
+pub mod metering;
 #[cfg(feature = "sim")]
 mod sim_devices;
 
 pub use controller::{CapturedFrame, CapturedScan, ControllerConfig, ScanController};
 pub use error::{Device, Error, Result, Step};
 pub use hardware::{FrameCamera, LaserSwitch, Rig, ScanRig, Slide};
+pub use metering::{MeteredExposure, Metering};
 #[cfg(feature = "sim")]
 pub use sim_devices::{
-    Exposure, SimulatedCamera, SimulatedLaser, SimulatedRig, SimulatedRigOptions, SimulatedSlide,
+    ExposureSettings, SimulatedCamera, SimulatedLaser, SimulatedRig, SimulatedRigOptions,
+    SimulatedSlide,
 };

@@ -12,7 +12,7 @@ use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::Duration;
 
 use alacs_model::SLIDE_STROKE_MM;
-use alacs_sim::SimulatedScan;
+use alacs_sim::{Exposure, SimulatedScan};
 use image::RgbImage;
 
 use crate::hardware::{FrameCamera, LaserSwitch, Rig, ScanRig, Slide};
@@ -90,40 +90,27 @@ pub struct SimulatedSlide {
 }
 
 /// The simulated camera: renders the scene at the slide's position, with
-/// the laser as it is switched, at its exposure and gain ([`Exposure`]).
+/// the laser as it is switched, at its exposure and gain ([`ExposureSettings`]).
 #[derive(Debug)]
 pub struct SimulatedCamera {
     state: Shared,
     scan: Arc<SimulatedScan>,
     options: SimulatedRigOptions,
-    exposure: Exposure,
+    exposure: ExposureSettings,
 }
 
-/// A simulated camera's exposure time and gain. The simulator renders the
-/// scene as a camera exposed for [`Exposure::NOMINAL_US`] at 0 dB sees it;
-/// other settings scale every pixel linearly (time x 10^(gain/20)) and clip
-/// at 255, as a linear sensor does.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Exposure {
-    /// Exposure time, microseconds.
-    pub exposure_us: f64,
-    /// Analogue gain, dB.
-    pub gain_db: f64,
-}
+/// A simulated camera's exposure time and gain, set through the ranges a
+/// machine-vision camera takes. The simulator renders each frame at these
+/// settings ([`SimulatedScan::render_exposed`]): the light scales with the
+/// exposure time, the full well clips, the gain amplifies signal and noise.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ExposureSettings(pub Exposure);
 
-impl Default for Exposure {
-    fn default() -> Self {
-        Self { exposure_us: Self::NOMINAL_US, gain_db: 0.0 }
-    }
-}
-
-impl Exposure {
-    /// The exposure the simulator's renders stand for, microseconds.
-    pub const NOMINAL_US: f64 = 2000.0;
+impl ExposureSettings {
     /// The exposure times a simulated camera takes, microseconds.
     pub const EXPOSURE_RANGE_US: (f64, f64) = (1.0, 10.0e6);
     /// The gains a simulated camera takes, dB.
-    pub const GAIN_RANGE_DB: (f64, f64) = (0.0, 48.0);
+    pub const GAIN_RANGE_DB: (f64, f64) = (0.0, alacs_sim::MAX_GAIN_DB);
 
     /// Checks and sets the exposure time.
     pub fn set_exposure_us(&mut self, exposure_us: f64) -> Result<f64> {
@@ -135,7 +122,7 @@ impl Exposure {
                 message: format!("exposure {exposure_us} us is outside {low}-{high} us"),
             });
         }
-        self.exposure_us = exposure_us;
+        self.0.exposure_us = exposure_us;
         Ok(exposure_us)
     }
 
@@ -149,19 +136,8 @@ impl Exposure {
                 message: format!("gain {gain_db} dB is outside {low}-{high} dB"),
             });
         }
-        self.gain_db = gain_db;
+        self.0.gain_db = gain_db;
         Ok(gain_db)
-    }
-
-    /// The rendered `image` as this exposure and gain record it.
-    pub fn apply(&self, mut image: RgbImage) -> RgbImage {
-        let scale = self.exposure_us / Self::NOMINAL_US * 10f64.powf(self.gain_db / 20.0);
-        if scale != 1.0 {
-            for value in image.iter_mut() {
-                *value = (f64::from(*value) * scale).round().min(255.0) as u8;
-            }
-        }
-        image
     }
 }
 
@@ -215,7 +191,7 @@ impl SimulatedRig {
                 state: state.clone(),
                 scan: scan.clone(),
                 options,
-                exposure: Exposure::default(),
+                exposure: ExposureSettings::default(),
             },
             laser: SimulatedLaser { state: state.clone(), options },
             scan,
@@ -317,7 +293,7 @@ impl FrameCamera for SimulatedCamera {
             *counter += 1;
             (state.slide_mm, state.laser_on, index)
         };
-        Ok(self.exposure.apply(self.scan.render_at(slide_mm, laser_on, index)?))
+        Ok(self.scan.render_exposed(slide_mm, laser_on, index, self.exposure.0)?)
     }
 
     fn set_exposure_us(&mut self, exposure_us: f64) -> Result<f64> {

@@ -9,7 +9,7 @@ use std::time::Duration;
 use alacs_locate::{Localization, LocateOptions, Status};
 use alacs_model::{Camera, LaserModel};
 use alacs_scanner::{
-    CapturedScan, ControllerConfig, Device, Error, ScanController, SimulatedRig,
+    CapturedScan, ControllerConfig, Device, Error, Metering, ScanController, SimulatedRig,
     SimulatedRigOptions, Slide, Step,
 };
 use alacs_sim::{ScanOptions, SimulatedScan, simulate_scan};
@@ -167,4 +167,88 @@ fn measure_localization_error_at_half_scale() {
             None => println!("seed {seed:2} not found: {}", answer.reason),
         }
     }
+}
+
+/// A sunlit apple: at the simulator's reference exposure (1 ms) the apple
+/// with the laser on it clips. Metering brings the apple's bright end to
+/// about 100 DN with a shorter exposure, takes laser-off frames (a bright
+/// scene), and the scan localizes; in shade it keeps about the reference
+/// exposure and takes none.
+#[test]
+fn metering_shortens_the_exposure_in_sun_and_takes_laser_off_frames() {
+    let sunny = |sun: bool| {
+        let options = ScanOptions { scale: 0.5, seed: 3, sun, ..ScanOptions::default() };
+        Arc::new(simulate_scan(&Camera::blackfly_s_5mp(), &laser(), &options).unwrap())
+    };
+    for sun in [true, false] {
+        let scene = sunny(sun);
+        let mut rig = SimulatedRig::new(scene.clone(), SimulatedRigOptions::default()).unwrap();
+        let config = ControllerConfig {
+            metering: Some(Metering::new(scene.camera.clone())),
+            ..ControllerConfig::default()
+        };
+        let controller = ScanController::new(laser(), config).unwrap();
+        let mut totals = Vec::new();
+        let scan = controller
+            .run_with_progress(&mut rig.rig(), &scene.rough_position_mm, |done, total| {
+                totals.push((done, total));
+            })
+            .unwrap();
+        let exposure = scan.exposure.unwrap();
+        let (done, total) = *totals.last().unwrap();
+        assert_eq!(done, total);
+        let laser_off = scan.frames.iter().all(|f| f.image_laser_off.is_some());
+        if sun {
+            assert!(exposure.exposure_us < 600.0, "{exposure:?}");
+            assert!(laser_off);
+            // One or two metering frames (a clipped look quarters the
+            // exposure), then five frames with the laser on and five off.
+            assert!((11..=12).contains(&total), "{totals:?}");
+        } else {
+            assert!((600.0..2000.0).contains(&exposure.exposure_us), "{exposure:?}");
+            assert!(scan.frames.iter().all(|f| f.image_laser_off.is_none()));
+            assert_eq!(total, 1 + 5, "{totals:?}");
+        }
+        assert_eq!(exposure.gain_db, 0.0);
+        // The laser-off frame of the metered exposure: the apple is below clipping.
+        let image = scan.frames[2].image_laser_off.as_ref().unwrap_or(&scan.frames[2].image);
+        let centre = scene.camera.project(&scene.scene.fruit_centre).unwrap();
+        let radius_px =
+            0.5 * scene.camera.fx_px * scene.scene.fruit_radius_mm / centre_depth(&scene);
+        let clipped = disc_pixels(image, centre, radius_px).filter(|p| p.0[0] == 255).count();
+        let all = disc_pixels(image, centre, radius_px).count();
+        assert!(clipped * 100 < all, "{clipped} of {all} clipped, sun {sun}");
+        assert_localized(&scan, &scene);
+        let yaml = scan.scan_yaml();
+        assert!(yaml.contains("exposure_us"), "{yaml}");
+    }
+}
+
+fn centre_depth(scene: &SimulatedScan) -> f64 {
+    scene.scene.fruit_centre.z
+}
+
+/// The pixels of `image` within `radius_px` of `centre`.
+fn disc_pixels(
+    image: &image::RgbImage,
+    centre: nalgebra::Point2<f64>,
+    radius_px: f64,
+) -> impl Iterator<Item = &image::Rgb<u8>> {
+    image.enumerate_pixels().filter_map(move |(u, v, p)| {
+        let d = (f64::from(u) - centre.x).hypot(f64::from(v) - centre.y);
+        (d < radius_px).then_some(p)
+    })
+}
+
+/// At the reference exposure, the same sunlit apple clips where the laser
+/// crosses it: what metering is for.
+#[test]
+fn a_sunlit_apple_clips_at_the_reference_exposure() {
+    let options = ScanOptions { scale: 0.5, seed: 3, sun: true, ..ScanOptions::default() };
+    let scene = simulate_scan(&Camera::blackfly_s_5mp(), &laser(), &options).unwrap();
+    let image = scene.render_frame(2, true).unwrap();
+    let centre = scene.camera.project(&scene.scene.fruit_centre).unwrap();
+    let radius_px = 0.8 * scene.camera.fx_px * scene.scene.fruit_radius_mm / centre_depth(&scene);
+    let clipped = disc_pixels(&image, centre, radius_px).filter(|p| p.0[0] == 255).count();
+    assert!(clipped > 50, "{clipped} clipped red pixels");
 }

@@ -52,11 +52,12 @@ mod truth;
 pub use board::{BoardScene, Checkerboard};
 pub use error::{Error, MAX_SAMPLES, MAX_SCALE, MAX_SESSION_VIEWS, MAX_SLIDE_POSITIONS, Result};
 pub use orchard::{
-    CameraRayGrid, Hit, Kind, Material, Object, OrchardOptions, OrchardScene, Shape, orchard_scene,
-    value_noise,
+    CameraRayGrid, Hit, Kind, MAX_CLUSTER, Material, Object, OrchardOptions, OrchardScene, Shape,
+    orchard_scene, value_noise,
 };
 pub use render::{
-    LaserLight, LaserStripe, Lighting, MAX_SUPERSAMPLING, RayMap, RenderOptions, Scene, Sensor,
+    Exposure, IRRADIANCE_UNIT_W_PER_M2, LaserLight, LaserStripe, Lighting, MAX_GAIN_DB,
+    MAX_SUPERSAMPLING, REFERENCE_EXPOSURE_US, RayMap, RenderOptions, Scene, Sensor,
     SubpixelPattern, SurfaceHit, mix_seed,
 };
 pub use samples::{SampleOptions, SimulatedSamples, simulate_samples};

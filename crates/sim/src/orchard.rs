@@ -135,8 +135,13 @@ pub struct OrchardOptions {
     pub occlusion: f64,
     /// Leaves around the fruit that do not hide it (clutter).
     pub clutter_leaves: usize,
-    /// Branches crossing the scene.
+    /// Branches crossing the scene behind or beside the fruit.
     pub branches: usize,
+    /// Other apples touching the target, beside or behind it (a cluster of
+    /// 1 + `cluster` apples; 0-3).
+    pub cluster: usize,
+    /// Branches crossing in front of the fruit, across its silhouette.
+    pub front_branches: usize,
     /// Distance of the background foliage behind the fruit, mm.
     pub background_behind_mm: f64,
     /// Largest angle of the fruit's direction from the optical axis, degrees.
@@ -154,6 +159,8 @@ impl Default for OrchardOptions {
             occlusion: 0.0,
             clutter_leaves: 12,
             branches: 2,
+            cluster: 0,
+            front_branches: 0,
             background_behind_mm: 400.0,
             max_off_axis_deg: 6.0,
             seed: 0,
@@ -758,21 +765,7 @@ pub fn orchard_scene(options: &OrchardOptions) -> Result<OrchardScene> {
         let direction = Vector3::new(heading.cos(), heading.sin(), rng.random_range(-0.3..=0.3));
         let radius_mm = rng.random_range(6.0..=15.0);
         let texture_seed = rng.random();
-        // One straight branch as collinear pieces: the same surface, but
-        // small bounding spheres keep the camera-ray grid's cells short.
-        let start = through - direction * (BRANCH_PIECES as f64 / 2.0 * BRANCH_PIECE_MM);
-        for piece in 0..BRANCH_PIECES {
-            let from = start + direction * (piece as f64 * BRANCH_PIECE_MM);
-            objects.push(Object {
-                shape: Shape::Branch {
-                    start: from,
-                    end: from + direction * BRANCH_PIECE_MM,
-                    radius_mm,
-                },
-                kind: Kind::Branch,
-                texture_seed,
-            });
-        }
+        objects.extend(branch_pieces(&through, &direction, radius_mm, texture_seed));
     }
 
     // Clutter leaves around the fruit, placed so that they do not cover it.
@@ -812,8 +805,116 @@ pub fn orchard_scene(options: &OrchardOptions) -> Result<OrchardScene> {
             occlusion = after;
         }
     }
-    scene.occlusion = occlusion;
+    // The cluster and the branches in front draw from their own generator:
+    // the rest of the scene is that of the same seed without them.
+    let mut cluster_rng = ChaCha8Rng::seed_from_u64(options.seed ^ CLUSTER_SEED);
+    for _ in 0..options.cluster {
+        if let Some(neighbour) = touching_apple(&mut cluster_rng, &scene, options) {
+            scene.objects.push(neighbour);
+        }
+    }
+    for _ in 0..options.front_branches {
+        scene.objects.extend(front_branch(&mut cluster_rng, &fruit_centre, radius));
+    }
+    scene.occlusion = if options.cluster + options.front_branches > 0 {
+        scene.fruit_occlusion()
+    } else {
+        occlusion
+    };
     Ok(scene)
+}
+
+/// Seed offset of the cluster's and the front branches' generator.
+const CLUSTER_SEED: u64 = 0xC1A5_7E25;
+
+/// Most apples a cluster adds to the target.
+pub const MAX_CLUSTER: usize = 3;
+
+/// An apple touching the target (0-2 mm apart) or another apple of its
+/// cluster, beside or behind it (its centre no more than 17 deg in front of
+/// the target's side: a neighbour in front would only hide the target), not
+/// overlapping any apple; `None` when 100 draws found no place.
+fn touching_apple(
+    rng: &mut ChaCha8Rng,
+    scene: &OrchardScene,
+    options: &OrchardOptions,
+) -> Option<Object> {
+    let target = scene.fruit_centre;
+    let toward_camera = -target.coords.normalize();
+    let apples: Vec<(Point3<f64>, f64)> = scene
+        .objects
+        .iter()
+        .filter(|o| o.kind == Kind::Fruit)
+        .filter_map(|o| match o.shape {
+            Shape::Ellipsoid { centre, semi_axes_mm, .. } => Some((centre, semi_axes_mm.max())),
+            _ => None,
+        })
+        .collect();
+    for _ in 0..100 {
+        let radius = rng.random_range(options.radius_mm.0..=options.radius_mm.1);
+        let (touched, touched_radius) = apples[rng.random_range(0..apples.len())];
+        let direction = random_direction(rng).into_inner();
+        if direction.dot(&toward_camera) > 0.3 {
+            continue;
+        }
+        let gap = rng.random_range(0.0..=2.0);
+        let centre = touched + direction * (touched_radius + radius + gap);
+        let overlaps = apples.iter().any(|(c, r)| (centre - c).norm() < r + radius);
+        if overlaps || centre.z <= radius {
+            continue;
+        }
+        return Some(Object {
+            shape: Shape::Ellipsoid {
+                centre,
+                rotation: random_rotation(rng),
+                semi_axes_mm: Vector3::repeat(radius),
+            },
+            kind: Kind::Fruit,
+            texture_seed: rng.random(),
+        });
+    }
+    None
+}
+
+/// A branch 8-15 mm thick crossing in front of the fruit, 20-100 mm in
+/// front of its surface and through its silhouette.
+fn front_branch(rng: &mut ChaCha8Rng, fruit_centre: &Point3<f64>, radius: f64) -> Vec<Object> {
+    let toward_camera = -fruit_centre.coords.normalize();
+    let in_front = radius + rng.random_range(20.0..=100.0);
+    let offset = rng.random_range(-0.7..=0.7) * radius;
+    let heading: f64 = rng.random_range(0.0..std::f64::consts::PI);
+    let direction = Vector3::new(heading.cos(), heading.sin(), rng.random_range(-0.2..=0.2));
+    let across = Vector3::new(-heading.sin(), heading.cos(), 0.0);
+    let through = fruit_centre + toward_camera * in_front + across * offset;
+    let radius_mm = rng.random_range(4.0..=7.5);
+    let texture_seed = rng.random();
+    branch_pieces(&through, &direction, radius_mm, texture_seed)
+}
+
+/// One straight branch through `through` along `direction`, as collinear
+/// pieces: the same surface, but small bounding spheres keep the
+/// camera-ray grid's cells short.
+fn branch_pieces(
+    through: &Point3<f64>,
+    direction: &Vector3<f64>,
+    radius_mm: f64,
+    texture_seed: u64,
+) -> Vec<Object> {
+    let start = through - direction * (BRANCH_PIECES as f64 / 2.0 * BRANCH_PIECE_MM);
+    (0..BRANCH_PIECES)
+        .map(|piece| {
+            let from = start + direction * (piece as f64 * BRANCH_PIECE_MM);
+            Object {
+                shape: Shape::Branch {
+                    start: from,
+                    end: from + direction * BRANCH_PIECE_MM,
+                    radius_mm,
+                },
+                kind: Kind::Branch,
+                texture_seed,
+            }
+        })
+        .collect()
 }
 
 /// A leaf 30-120 mm in front of the fruit's front surface, its centre
@@ -857,7 +958,13 @@ fn random_rotation(rng: &mut ChaCha8Rng) -> Rotation3<f64> {
 
 /// A rotation by up to `max_angle_rad` about a random axis.
 fn random_rotation_limited(rng: &mut ChaCha8Rng, max_angle_rad: f64) -> Rotation3<f64> {
-    let axis = loop {
+    let axis = random_direction(rng);
+    Rotation3::from_axis_angle(&axis, rng.random_range(0.0..=max_angle_rad))
+}
+
+/// A uniformly random unit vector (rejection sampling in the unit ball).
+fn random_direction(rng: &mut ChaCha8Rng) -> Unit<Vector3<f64>> {
+    loop {
         let v = Vector3::new(
             rng.random_range(-1.0..=1.0),
             rng.random_range(-1.0..=1.0),
@@ -865,10 +972,9 @@ fn random_rotation_limited(rng: &mut ChaCha8Rng, max_angle_rad: f64) -> Rotation
         );
         let norm = v.norm();
         if norm > 1e-3 && norm <= 1.0 {
-            break Unit::new_normalize(v);
+            return Unit::new_normalize(v);
         }
-    };
-    Rotation3::from_axis_angle(&axis, rng.random_range(0.0..=max_angle_rad))
+    }
 }
 
 fn check_options(options: &OrchardOptions) -> Result<()> {
@@ -877,6 +983,15 @@ fn check_options(options: &OrchardOptions) -> Result<()> {
     check_positive_range("fruit radius range", options.radius_mm)?;
     if !(0.0..=0.5).contains(&options.max_ellipticity) {
         return invalid(format!("ellipticity {} must lie in 0..0.5", options.max_ellipticity));
+    }
+    if options.cluster > MAX_CLUSTER {
+        return invalid(format!(
+            "a cluster adds at most {MAX_CLUSTER} apples, not {}",
+            options.cluster
+        ));
+    }
+    if options.front_branches > 4 {
+        return invalid(format!("at most 4 branches in front, not {}", options.front_branches));
     }
     if !(0.0..=1.0).contains(&options.occlusion) {
         return invalid(format!("occlusion {} must lie in 0..1", options.occlusion));

@@ -1,16 +1,46 @@
 //! The renderer: one ray per sub-pixel through the real camera model, a
 //! Lambertian scene under ambient and directional light, the ALACS line
-//! laser with a Gaussian cross-section and shadows, and a sensor with shot
-//! and read noise and 8-bit quantization.
+//! laser with a Gaussian cross-section and shadows, and a sensor with an
+//! exposure time and gain, shot and read noise, a full well and 8-bit
+//! quantization.
 //!
 //! The rays come from a [`RayMap`], computed once per camera with
 //! [`Camera::undistort_pixel`] (eq. (3)) and reused for every view: the
 //! renderer never approximates the lens. A pixel's value is the mean
 //! radiance of its `s x s` sub-pixel rays (a box filter), then the sensor.
 //!
-//! Radiance is unitless and linear: a white surface (albedo 1) facing a
-//! light of strength 1 has radiance 1; [`Sensor::exposure_dn`] maps it to
-//! digital numbers. No gamma is applied (machine-vision cameras are linear).
+//! # Units: what the numbers stand for
+//!
+//! Radiance is linear and counted in one unit per colour channel: the
+//! radiance of a white Lambertian surface (albedo 1) under an irradiance of
+//! [`IRRADIANCE_UNIT_W_PER_M2`] = 100 W/m^2 in that channel's band. For the
+//! red channel (about 600-700 nm on a Bayer sensor) that is the scale of the
+//! sun: ASTM G173's direct normal solar spectrum carries about 1.3
+//! W/m^2/nm at 650 nm, some 130 W/m^2 over the red band. Light strengths
+//! ([`Lighting`]) and the laser's peak irradiance ([`LaserLight::power`])
+//! are in this unit; the orchard's sun is 1.3 (direct) + 0.35 (sky), its
+//! shade 0.6 (diffuse daylight) + 0.2.
+//!
+//! The laser's unit follows from its power and line geometry: a 100 mW,
+//! 650 nm line laser with a 40 deg fan spreads its power over a line 0.65 m
+//! long at 0.9 m, and a Gaussian cross-section of sigma 0.6 mm (1.5 px of
+//! the 5 MP camera at 0.9 m) puts P / (length sqrt(2 pi) sigma) = 100 W/m^2
+//! at the line's centre: power 1.0. The simulator holds the peak constant
+//! over the working range (a real line's falls as 1 / range, +-33 % over
+//! 0.6-1.2 m; the scanner meters each scan, so this does not change what
+//! it does).
+//!
+//! The sensor ([`Sensor`]) is linear (machine-vision cameras apply no
+//! gamma). At the reference exposure [`REFERENCE_EXPOSURE_US`] = 1 ms and 0 dB
+//! one radiance unit fills the pixel to [`Sensor::exposure_dn`] = 255 DN,
+//! its full well of 10,200 electrons: a 3.45 um pixel (Sony IMX264-like,
+//! the 5 MP camera) behind an f/8 lens sees E rho / (4 N^2) of a
+//! Lambertian surface's irradiance E, 0.39 W/m^2 at 100 W/m^2, about
+//! 1.5e7 photons/s at 650 nm, 9,000 electrons per ms at a quantum
+//! efficiency of 0.6. Light scales with the exposure time, the gain
+//! multiplies electrons into DN (and the noise with them); a pixel whose
+//! electrons exceed the full well reads 255 (clipped), as does any value
+//! the gain pushes past 255.
 
 use std::fmt;
 
@@ -266,7 +296,9 @@ impl RayMap {
     ) -> RgbImage {
         let (width, height) = (self.camera.width_px, self.camera.height_px);
         let per_pixel = self.supersampling * self.supersampling;
-        let scale_dn = sensor.exposure_dn / per_pixel as f64;
+        // Light in DN at 0 dB for this exposure time; the gain comes after the noise.
+        let scale_dn = sensor.exposure_dn * sensor.exposure.time_factor() / per_pixel as f64;
+        let gain = sensor.exposure.gain_factor();
         let noisy = sensor.gain_dn_per_electron > 0.0 || sensor.read_noise_dn > 0.0;
         let read_variance = sensor.read_noise_dn * sensor.read_noise_dn;
         let row_rays = width as usize * per_pixel;
@@ -293,16 +325,23 @@ impl RayMap {
             }
             sum
         };
-        // Shot noise (Poisson, Gaussian approximation) plus read noise, then 8 bits.
+        // The full well clips; below it shot noise (Poisson, Gaussian
+        // approximation) plus read noise, then the gain, then 8 bits. Every
+        // channel draws its normal, clipped or not, so that one pixel's
+        // clipping does not shift the next pixels' noise.
         let record = |light_dn: [f64; 3], out: &mut [u8], rng: &mut ChaCha8Rng| {
             for (value, signal_dn) in out.iter_mut().zip(light_dn) {
                 let mut signal_dn = signal_dn;
+                let normal: f64 = if noisy { StandardNormal.sample(rng) } else { 0.0 };
+                if signal_dn >= FULL_WELL_DN {
+                    *value = u8::MAX;
+                    continue;
+                }
                 if noisy {
                     let variance = sensor.gain_dn_per_electron * signal_dn.max(0.0) + read_variance;
-                    let normal: f64 = StandardNormal.sample(rng);
                     signal_dn += variance.sqrt() * normal;
                 }
-                *value = quantize(signal_dn);
+                *value = quantize(signal_dn * gain);
             }
         };
         let mut image = RgbImage::new(width, height);
@@ -695,11 +734,54 @@ impl LaserStripe {
     }
 }
 
-/// The sensor: linear radiance to 8-bit digital numbers (DN) with shot and
-/// read noise.
+/// The exposure the sensor's [`Sensor::exposure_dn`] is given for, microseconds
+/// (see the module's units).
+pub const REFERENCE_EXPOSURE_US: f64 = 1000.0;
+
+/// The irradiance one unit of [`Lighting`] and [`LaserLight::power`] stands
+/// for, W/m^2 in a colour channel's band (see the module's units).
+pub const IRRADIANCE_UNIT_W_PER_M2: f64 = 100.0;
+
+/// The full well in DN at 0 dB: the 8-bit range matches it, so a pixel
+/// reads 255 exactly when its electrons fill the well (and, above 0 dB,
+/// also when the gain pushes it there).
+const FULL_WELL_DN: f64 = 255.0;
+
+/// A camera's exposure time and analogue gain: what the scan controller
+/// sets through its camera (`FrameCamera::set_exposure_us`, `set_gain_db`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Exposure {
+    /// Exposure time, microseconds.
+    pub exposure_us: f64,
+    /// Analogue gain, dB (amplitude: 10^(dB / 20)).
+    pub gain_db: f64,
+}
+
+impl Default for Exposure {
+    /// The reference exposure, 0 dB.
+    fn default() -> Self {
+        Self { exposure_us: REFERENCE_EXPOSURE_US, gain_db: 0.0 }
+    }
+}
+
+impl Exposure {
+    /// The light collected, relative to the reference exposure.
+    pub fn time_factor(&self) -> f64 {
+        self.exposure_us / REFERENCE_EXPOSURE_US
+    }
+
+    /// The gain as a factor on DN.
+    pub fn gain_factor(&self) -> f64 {
+        10f64.powf(self.gain_db / 20.0)
+    }
+}
+
+/// The sensor: linear radiance to 8-bit digital numbers (DN) through an
+/// exposure time, a full well, shot and read noise and a gain.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sensor {
-    /// DN per unit of radiance (a white surface under unit light).
+    /// DN at 0 dB per unit of radiance (a white surface under unit light)
+    /// at the reference exposure [`REFERENCE_EXPOSURE_US`]; 255 DN is the full well.
     pub exposure_dn: f64,
     /// DN per photo-electron: shot noise has variance `gain * signal_dn`
     /// (Poisson statistics of the electrons, as a Gaussian). 0 turns it off.
@@ -709,19 +791,23 @@ pub struct Sensor {
     /// Standard deviation of the lens's Gaussian blur, pixels, applied to
     /// the light before the sensor's noise. 0 turns it off.
     pub blur_sigma_px: f64,
+    /// Exposure time and gain of the frame.
+    pub exposure: Exposure,
 }
 
 impl Default for Sensor {
     /// Exposure 255 DN per unit radiance (a white square, albedo 0.85, at
-    /// about 140 DN under the default light), 0.025 DN per electron (a 10,000-electron
-    /// full well over 255 DN: 2 DN shot noise at 160 DN) and 0.5 DN read
-    /// noise; no blur (the supersampled pixels are sharp).
+    /// about 140 DN under the default light), 0.025 DN per electron (a
+    /// 10,200-electron full well over 255 DN: 2 DN shot noise at 160 DN)
+    /// and 0.5 DN read noise (20 electrons); no blur (the supersampled
+    /// pixels are sharp); the reference exposure.
     fn default() -> Self {
         Self {
             exposure_dn: 255.0,
             gain_dn_per_electron: 0.025,
             read_noise_dn: 0.5,
             blur_sigma_px: 0.0,
+            exposure: Exposure::default(),
         }
     }
 }
@@ -732,6 +818,10 @@ impl Sensor {
         Sensor { gain_dn_per_electron: 0.0, read_noise_dn: 0.0, ..Sensor::default() }
     }
 }
+
+/// The largest analogue gain a simulated sensor takes, dB (machine-vision
+/// cameras reach 24-48 dB).
+pub const MAX_GAIN_DB: f64 = 48.0;
 
 /// Everything about how a view is rendered, apart from the scene and the laser model.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -780,6 +870,7 @@ impl RenderOptions {
             ("gain_dn_per_electron", self.sensor.gain_dn_per_electron),
             ("read_noise_dn", self.sensor.read_noise_dn),
             ("blur_sigma_px", self.sensor.blur_sigma_px),
+            ("exposure_us", self.sensor.exposure.exposure_us),
             ("speckle contrast", self.laser.speckle_contrast),
         ];
         let laser_rgb = self.laser.rgb.iter().map(|&c| ("laser colour", c));
@@ -789,6 +880,10 @@ impl RenderOptions {
             .find(|(_, value)| !(value.is_finite() && *value >= 0.0))
         {
             return invalid(format!("{name} must be finite and non-negative, got {value}"));
+        }
+        let gain_db = self.sensor.exposure.gain_db;
+        if !(gain_db.is_finite() && (0.0..=MAX_GAIN_DB).contains(&gain_db)) {
+            return invalid(format!("gain {gain_db} dB must lie within 0-{MAX_GAIN_DB} dB"));
         }
         if !(self.laser.stripe_sigma_px.is_finite() && self.laser.stripe_sigma_px > 0.0) {
             return invalid(format!(

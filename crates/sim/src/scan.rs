@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 
 use alacs_model::io::OutputDir;
 use alacs_model::{
-    Camera, LaserModel, Ray, SCAN_FILE, Scan, ScanFrameSpec, ScanPlan, ScanStrategy,
+    Camera, FrameExposure, LaserModel, Ray, SCAN_FILE, Scan, ScanFrameSpec, ScanPlan, ScanStrategy,
 };
 use image::RgbImage;
 use nalgebra::{Point3, Vector3};
@@ -25,10 +25,13 @@ use rand_distr::{Distribution, Normal};
 use serde_json::json;
 
 use crate::error::{check_scale, save_json};
-use crate::orchard::{CameraRayGrid, Hit, OrchardOptions, OrchardScene, orchard_scene};
+use crate::orchard::{
+    CameraRayGrid, Hit, Kind, OrchardOptions, OrchardScene, Shape, orchard_scene,
+};
 use crate::progress::ImageWriter;
 use crate::render::{
-    LaserLight, LaserStripe, Lighting, RayMap, RenderOptions, Scene, Sensor, SurfaceHit, mix_seed,
+    Exposure, LaserLight, LaserStripe, Lighting, RayMap, RenderOptions, Scene, Sensor, SurfaceHit,
+    mix_seed,
 };
 use crate::{Error, Result, camera_to_json, laser_to_json};
 
@@ -96,7 +99,9 @@ const MAX_SCENE_DRAWS: usize = 200;
 
 /// Laser power for scans: 2.5 times the calibration sessions' (a scan
 /// exposes for a fruit in daylight, so the line must stand out against it),
-/// peaking near 0.55 on a red apple, as bright as the apple itself in shade.
+/// 100 W/m^2 at the line's centre (a 100 mW line laser, see
+/// [`crate::render`]), peaking near 0.55 on a red apple, as bright as the
+/// apple itself in shade.
 const SCAN_LASER_POWER: f64 = 1.0;
 
 /// Rays per pixel along each axis for scans: 2 x 2 (n-rooks) resolves the
@@ -111,7 +116,9 @@ const SCAN_SPECKLE_CONTRAST: f64 = 0.3;
 /// focused on the fruit, with leaves and foliage at other depths.
 const SCAN_BLUR_SIGMA_PX: f64 = 0.5;
 
-/// Diffuse light in the shade of the canopy.
+/// Diffuse light in the shade of the canopy: 60 W/m^2 of diffuse daylight
+/// in the red band (an overcast sky, or the open side of a canopy) and a
+/// weak 20 W/m^2 from above (units: [`crate::render`]).
 fn shade_lighting() -> Lighting {
     Lighting {
         ambient: 0.6,
@@ -121,8 +128,12 @@ fn shade_lighting() -> Lighting {
     }
 }
 
-/// Direct sun from above and behind the camera: a sunlit red apple plus the
-/// laser saturates the red channel, the hard case for a red laser.
+/// Direct sun from above and behind the camera, 130 W/m^2 in the red band
+/// (the direct normal solar spectrum, see [`crate::render`]) plus 35 W/m^2
+/// of sky and canopy light: at the reference exposure a sunlit red apple
+/// alone nearly fills the red channel and with the laser it clips, the
+/// hard case for a red laser; a shorter exposure keeps both below the full
+/// well, the laser adding about 60 % to the apple's red.
 fn sun_lighting(rng: &mut ChaCha8Rng) -> Lighting {
     let heading: f64 = rng.random_range(-0.8..=0.8);
     let to_light = Vector3::new(heading.sin() * 0.6, -0.7, -0.5 - 0.3 * heading.cos()).normalize();
@@ -376,6 +387,21 @@ impl SimulatedScan {
         laser_on: bool,
         frame_index_for_noise: u64,
     ) -> Result<RgbImage> {
+        self.render_exposed(slide_mm, laser_on, frame_index_for_noise, self.render.sensor.exposure)
+    }
+
+    /// [`SimulatedScan::render_at`] with the camera's exposure time and
+    /// gain set to `exposure` (what a scan controller chose), instead of
+    /// the scan's own.
+    pub fn render_exposed(
+        &self,
+        slide_mm: f64,
+        laser_on: bool,
+        frame_index_for_noise: u64,
+        exposure: Exposure,
+    ) -> Result<RgbImage> {
+        let sensor = Sensor { exposure, ..self.render.sensor };
+        RenderOptions { sensor, ..self.render }.validate()?;
         if !slide_mm.is_finite() {
             return Err(Error::InvalidOptions(format!("slide travel {slide_mm} mm is not finite")));
         }
@@ -389,7 +415,7 @@ impl SimulatedScan {
             &GriddedScene { scene: &self.scene, grid: &self.grid },
             &self.lighting,
             laser_on.then_some(&stripe),
-            &self.render.sensor,
+            &sensor,
             mix_seed(self.seed, stream),
         ))
     }
@@ -417,6 +443,10 @@ impl SimulatedScan {
                 .collect(),
             rough_position_in_rgbd_mm: None,
             plan_shifted_into_stroke: Some(self.plan.shifted),
+            exposure: Some(FrameExposure {
+                exposure_us: self.render.sensor.exposure.exposure_us,
+                gain_db: self.render.sensor.exposure.gain_db,
+            }),
         };
         scan.to_yaml_string(&format!(
             "Simulated by alacs-sim (seed {}); ground truth in truth.json.",
@@ -437,8 +467,28 @@ impl SimulatedScan {
             "slides_mm": self.plan.slides_mm,
             "plan_shifted_into_stroke": self.plan.shifted,
             "sun": self.lighting.directional > 1.0,
+            "neighbours": self.neighbours_json(),
+            "exposure_us": self.render.sensor.exposure.exposure_us,
+            "gain_db": self.render.sensor.exposure.gain_db,
             "seed": self.seed,
         })
+    }
+
+    /// The other apples of the target's cluster, for truth.json.
+    fn neighbours_json(&self) -> Vec<serde_json::Value> {
+        self.scene
+            .objects
+            .iter()
+            .skip(1)
+            .filter(|o| o.kind == Kind::Fruit)
+            .filter_map(|o| match o.shape {
+                Shape::Ellipsoid { centre: c, semi_axes_mm, .. } => Some(json!({
+                    "position_mm": [c.x, c.y, c.z],
+                    "radius_mm": (semi_axes_mm.x * semi_axes_mm.y * semi_axes_mm.z).cbrt(),
+                })),
+                _ => None,
+            })
+            .collect()
     }
 
     /// How many images [`SimulatedScan::write`] renders and writes.

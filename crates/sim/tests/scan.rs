@@ -254,3 +254,48 @@ fn speckle_makes_the_stripe_grainy() {
     // Speckle redistributes the light: the total changes by far less than its amplitude.
     assert!((total(&grainy) / total(&plain) - 1.0).abs() < 0.2);
 }
+
+/// The sensor is linear in exposure time and gain and clips at its full
+/// well: half the exposure halves every unclipped pixel, +6.02 dB of gain
+/// doubles it back, and twice the exposure clips what was past half scale.
+#[test]
+fn the_sensor_scales_with_exposure_and_gain_and_clips_at_its_full_well() {
+    use alacs_sim::{Exposure, RenderOptions, Sensor};
+    let defaults = small(4, 0.0, true);
+    let sensor = Sensor { gain_dn_per_electron: 0.0, read_noise_dn: 0.0, ..defaults.render.sensor };
+    let options = ScanOptions { render: RenderOptions { sensor, ..defaults.render }, ..defaults };
+    let scan = simulate_scan(&Camera::blackfly_s_5mp(), &laser(), &options).unwrap();
+    let slide = scan.plan.slides_mm[2];
+    let at = |exposure_us: f64, gain_db: f64| {
+        scan.render_exposed(slide, true, 2, Exposure { exposure_us, gain_db }).unwrap()
+    };
+    let reference = at(1000.0, 0.0);
+    assert_eq!(reference, scan.render_frame(2, true).unwrap());
+    let half = at(500.0, 0.0);
+    let half_gained = at(500.0, 20.0 * 2f64.log10());
+    let double = at(2000.0, 0.0);
+    let (mut compared, mut clipped) = (0, 0);
+    for (k, &value) in reference.as_raw().iter().enumerate() {
+        let value = f64::from(value);
+        if (20.0..250.0).contains(&value) {
+            compared += 1;
+            assert!((f64::from(half.as_raw()[k]) - value / 2.0).abs() <= 1.0, "byte {k}");
+            assert!((f64::from(half_gained.as_raw()[k]) - value).abs() <= 2.0, "byte {k}");
+        }
+        if value >= 130.0 {
+            clipped += 1;
+            assert_eq!(double.as_raw()[k], 255, "byte {k}");
+        }
+        if value >= 255.0 {
+            assert!(half.as_raw()[k] >= 127, "byte {k}");
+        }
+    }
+    assert!(compared > 1000 && clipped > 100, "{compared} compared, {clipped} clipped");
+    // Invalid settings are refused, not rendered.
+    assert!(
+        scan.render_exposed(slide, true, 2, Exposure { exposure_us: -1.0, gain_db: 0.0 }).is_err()
+    );
+    assert!(
+        scan.render_exposed(slide, true, 2, Exposure { exposure_us: 1.0, gain_db: 99.0 }).is_err()
+    );
+}

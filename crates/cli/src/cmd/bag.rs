@@ -67,6 +67,7 @@ pub fn captured_from_folder(scan: &Scan) -> CmdResult<CapturedScan> {
             shifted: scan.plan_shifted_into_stroke.unwrap_or(false),
         },
         frames,
+        exposure: scan.exposure,
     })
 }
 

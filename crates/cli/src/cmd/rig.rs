@@ -4,7 +4,7 @@
 use std::sync::Arc;
 
 use alacs::rig::{CheckStep, RealRig, RigConfig, check_rig};
-use alacs::scanner::{ControllerConfig, ScanRig, SimulatedRig, SimulatedRigOptions};
+use alacs::scanner::{ControllerConfig, Metering, ScanRig, SimulatedRig, SimulatedRigOptions};
 use alacs::sim::{SimulatedScan, simulate_scan};
 use alacs::{Camera, LaserModel};
 use anyhow::anyhow;
@@ -125,6 +125,20 @@ pub fn open(args: &RigArgs, note: &mut dyn FnMut(&str)) -> CmdResult<OpenRig> {
         capture_laser_off: args.laser_off,
         ..ControllerConfig::default()
     };
+    // Metering, on unless turned off: the target metered with the laser off
+    // and the exposure set so the fruit does not clip.
+    let metering_on = !args.fixed_exposure && config.as_ref().is_none_or(|c| c.camera.metering);
+    if metering_on {
+        let mut metering = Metering::new(camera.clone());
+        if let Some(config) = &config {
+            let start_us = config.camera.exposure_us;
+            metering.start_exposure_us = start_us;
+            let (low, high) = metering.exposure_range_us;
+            metering.exposure_range_us = (low.min(start_us), high.max(start_us));
+            metering.bright_below_us = config.camera.bright_below_us;
+        }
+        controller.metering = Some(metering);
+    }
     if let Some(config) = &config {
         controller.move_timeout = config.slide.move_timeout();
         // A frame takes its exposure and a readout; 2 s at the least.

@@ -85,9 +85,11 @@ pub fn run(args: &ScanArgs) -> CmdResult {
     };
     output::start_progress(&bar, controller.image_count(), "scanning");
     let started = Instant::now();
-    let scanned = controller.run_with_progress(&mut devices.rig(), &rough_in_rgbd, |done, _| {
-        bar.set_position(done as u64);
-    });
+    let scanned =
+        controller.run_with_progress(&mut devices.rig(), &rough_in_rgbd, |done, total| {
+            bar.set_length(total as u64);
+            bar.set_position(done as u64);
+        });
     let scan = match scanned {
         Ok(scan) => scan,
         Err(error) => {

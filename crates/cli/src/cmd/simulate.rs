@@ -1,8 +1,8 @@
 //! `alacs simulate samples`, `alacs simulate session` and `alacs simulate scan`.
 
 use alacs::sim::{
-    LaserLight, OrchardOptions, RenderOptions, RgbdOptions, SampleOptions, ScanOptions, Sensor,
-    SessionOptions, simulate_samples, simulate_scan, simulate_session,
+    Exposure, LaserLight, OrchardOptions, RenderOptions, RgbdOptions, SampleOptions, ScanOptions,
+    Sensor, SessionOptions, simulate_samples, simulate_scan, simulate_session,
 };
 use alacs::{Camera, Fidelity, LaserModel};
 use anyhow::anyhow;
@@ -99,6 +99,8 @@ impl SceneArgs {
             orchard: OrchardOptions {
                 depth_mm: parse_range(&self.depth_mm, "--depth-mm")?,
                 occlusion: self.occlusion,
+                cluster: usize::from(self.cluster),
+                front_branches: usize::from(self.front_branches),
                 ..defaults.orchard.clone()
             },
             sun: self.sun,
@@ -211,9 +213,11 @@ pub fn session(args: &SimulateSessionArgs) -> CmdResult {
 pub fn scan(args: &SimulateScanArgs) -> CmdResult {
     let (camera, laser) = args.truth.camera_and_laser()?;
     let defaults = args.scene.options()?;
+    let mut render = args.render.options(defaults.render);
+    render.sensor.exposure = Exposure { exposure_us: args.exposure_us, gain_db: args.gain_db };
     let options = ScanOptions {
         laser_off: args.laser_off,
-        render: args.render.options(defaults.render),
+        render,
         jpeg_quality: args.jpeg,
         within_reach: !args.anywhere,
         ..defaults
