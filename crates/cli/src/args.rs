@@ -617,6 +617,10 @@ pub struct SimulateScanArgs {
     /// scene is redrawn until the seed's plan fits the stroke unshifted).
     #[arg(long)]
     pub anywhere: bool,
+    /// Name every apple of the cluster (`--cluster N`) in scan.yaml's
+    /// `targets`, each with a rough position, and sweep them all.
+    #[arg(long)]
+    pub all_targets: bool,
     /// Write JPEG frames of this quality (1-100) instead of PNG.
     #[arg(long, value_name = "Q", value_parser = clap::value_parser!(u8).range(1..=100))]
     pub jpeg: Option<u8>,

@@ -5,7 +5,7 @@ use std::fmt::Write as _;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use alacs::LaserCalibration;
-use alacs::locate::{Localization, LocalizeOutput, Status};
+use alacs::locate::{Localization, LocalizeOutput, Prior, Status, TargetsOutput};
 use alacs::model::Fidelity;
 use serde_json::Value;
 
@@ -126,6 +126,30 @@ pub fn localization_json(answer: &Localization) -> Value {
     // Serializing fails only for maps with keys that are not strings; the
     // object has none.
     serde_json::to_value(LocalizeOutput::from(answer)).unwrap_or(Value::Null)
+}
+
+/// The `localize --json` object of a scan naming several fruit.
+pub fn targets_json(answers: &[Localization], priors: &[Prior]) -> Value {
+    serde_json::to_value(TargetsOutput::new(answers, priors)).unwrap_or(Value::Null)
+}
+
+/// A readable summary per fruit of a scan naming several.
+pub fn targets_summary(answers: &[Localization], priors: &[Prior]) -> String {
+    let found = answers.iter().filter(|a| a.status == Status::Ok).count();
+    let mut out = format!("{found} of {} fruit found\n", answers.len());
+    for (k, (answer, prior)) in answers.iter().zip(priors).enumerate() {
+        let r = &prior.rough_position_mm;
+        let _ = writeln!(
+            out,
+            "\ntarget {k} (rough position ({:.1}, {:.1}, {:.1}) mm, radius prior {:.1} mm): {}",
+            r.x,
+            r.y,
+            r.z,
+            prior.fruit_radius_mm,
+            localization_summary(answer)
+        );
+    }
+    out
 }
 
 /// A readable summary of a localization.

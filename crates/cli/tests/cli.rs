@@ -723,3 +723,58 @@ fn session_init_lists_the_folders_images_and_refuses_to_overwrite() {
     assert_eq!(bad.status.code(), Some(2));
     assert!(stderr(&bad).contains("--board"), "{}", stderr(&bad));
 }
+
+/// A scan naming several fruit (scan.yaml's `targets`: a cluster of three
+/// from `simulate scan --all-targets`, one sweep over all): `localize`
+/// answers each in scan.yaml's order, within 15 mm of that fruit and
+/// nearer it than any other, or `not_found`; `--points` writes a cloud per
+/// fruit.
+#[test]
+fn localize_answers_each_fruit_a_scan_names() {
+    let dir = scratch("targets");
+    let scan = dir.join("scan");
+    let template = "simulate scan --seed 3 --cluster 2 --all-targets --scale 0.4 --out {} --json";
+    stdout_json(&alacs(&cmdline(template, &[&scan])));
+    let truth: Value =
+        serde_json::from_str(&std::fs::read_to_string(scan.join("truth.json")).unwrap()).unwrap();
+    let fruit: Vec<[f64; 3]> = truth["targets"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| std::array::from_fn(|i| t["position_mm"][i].as_f64().unwrap()))
+        .collect();
+    assert_eq!(fruit.len(), 3, "{truth}");
+    let scan_yaml = std::fs::read_to_string(scan.join("scan.yaml")).unwrap();
+    assert!(scan_yaml.contains("targets:"), "{scan_yaml}");
+    let cloud = dir.join("cloud.ply");
+    let (camera, laser) = (scan.join("camera.yaml"), scan.join("laser.yaml"));
+    let args =
+        with(localize(&scan, &camera, &laser), &["--json", "--points", arg(&cloud).as_str()]);
+    let json = stdout_json(&alacs(&args));
+    assert_eq!(json["n_targets"], 3, "{json}");
+    let distance = |p: &Value, q: &[f64; 3]| {
+        (0..3).map(|i| (p[i].as_f64().unwrap() - q[i]).powi(2)).sum::<f64>().sqrt()
+    };
+    let mut found = 0;
+    for (k, answer) in json["targets"].as_array().unwrap().iter().enumerate() {
+        assert_eq!(answer["target"], k);
+        assert!(dir.join(format!("cloud.target{k}.ply")).is_file());
+        if answer["status"] != "ok" {
+            assert!(!answer["reason"].as_str().unwrap().is_empty());
+            continue;
+        }
+        found += 1;
+        let error = distance(&answer["position_mm"], &fruit[k]);
+        eprintln!("target {k}: {error:.2} mm ({})", answer["reason"]);
+        assert!(error < 15.0, "target {k}: {error:.1} mm off: {answer}");
+        for (j, other) in fruit.iter().enumerate().filter(|(j, _)| *j != k) {
+            assert!(
+                distance(&answer["position_mm"], other) > error,
+                "target {k} answered fruit {j}"
+            );
+        }
+    }
+    assert_eq!(json["n_found"], found);
+    // A regression guard, not a rate.
+    assert!(found >= 2, "{json}");
+}

@@ -75,9 +75,20 @@ pub fn read_scan_images(scan: &Scan, progress: impl Fn(usize, usize) + Sync) -> 
         .collect()
 }
 
-/// The prior of a scan's scan.yaml.
+/// The prior of a scan's scan.yaml (its first fruit's).
 fn prior_of(scan: &Scan) -> Prior {
     Prior { rough_position_mm: scan.rough_position_mm, fruit_radius_mm: scan.fruit_radius_mm }
+}
+
+/// The priors of every fruit a scan's scan.yaml names, in its order.
+pub fn priors_of(scan: &Scan) -> Vec<Prior> {
+    scan.targets()
+        .iter()
+        .map(|t| Prior {
+            rough_position_mm: t.rough_position_mm,
+            fruit_radius_mm: t.fruit_radius_mm,
+        })
+        .collect()
 }
 
 /// Names `path` (a frame's image) in an input error.
@@ -125,7 +136,8 @@ fn in_folder(scan: &Scan, error: Error) -> Error {
 /// with its frames in memory, decoding at most [`MAX_FRAMES_IN_FLIGHT`]
 /// frames at a time and dropping their images once processed. Refuses
 /// more than [`MAX_SCAN_FRAMES`] frames. `progress(done, total)` after
-/// each frame read.
+/// each frame read. The first fruit of a scan naming several
+/// ([`locate_scan_targets`] answers each).
 pub fn locate_scan(
     scan: &Scan,
     camera: &Camera,
@@ -133,22 +145,55 @@ pub fn locate_scan(
     options: &LocateOptions,
     progress: impl Fn(usize, usize) + Sync,
 ) -> Result<Localization> {
+    let mut answers = locate_priors(scan, &[prior_of(scan)], camera, laser, options, progress)?;
+    answers.pop().ok_or_else(|| Error::InvalidInput("no fruit to locate".into()))
+}
+
+/// [`locate_scan`] for every fruit the scan names (scan.yaml's `targets`),
+/// in its order: each frame is decoded once and searched around each
+/// fruit's rough position, and each fruit is concluded on its own, so the
+/// answer for one is the answer a scan naming only it would get.
+pub fn locate_scan_targets(
+    scan: &Scan,
+    camera: &Camera,
+    laser: &LaserModel,
+    options: &LocateOptions,
+    progress: impl Fn(usize, usize) + Sync,
+) -> Result<Vec<Localization>> {
+    locate_priors(scan, &priors_of(scan), camera, laser, options, progress)
+}
+
+fn locate_priors(
+    scan: &Scan,
+    priors: &[Prior],
+    camera: &Camera,
+    laser: &LaserModel,
+    options: &LocateOptions,
+    progress: impl Fn(usize, usize) + Sync,
+) -> Result<Vec<Localization>> {
     check_frame_count(scan)?;
-    let prior = prior_of(scan);
     camera.validate()?;
     laser.validate()?;
-    check_prior(scan.frames.len(), &prior).map_err(|e| in_folder(scan, e))?;
+    for prior in priors {
+        check_prior(scan.frames.len(), prior).map_err(|e| in_folder(scan, e))?;
+    }
     check_options(options).map_err(|e| in_folder(scan, e))?;
-    let search = SearchBall::new(&prior, options);
-    let context = FrameContext { camera, laser, prior: &prior, search: &search, options };
+    let searches: Vec<SearchBall> = priors.iter().map(|p| SearchBall::new(p, options)).collect();
+    let contexts: Vec<FrameContext> = priors
+        .iter()
+        .zip(&searches)
+        .map(|(prior, search)| FrameContext { camera, laser, prior, search, options })
+        .collect();
     let total = scan.frames.len();
     let done = AtomicUsize::new(0);
     let chunk = rayon::current_num_threads().clamp(1, MAX_FRAMES_IN_FLIGHT);
-    let mut results: Vec<FrameResult> = Vec::with_capacity(total);
+    // Per fruit, per frame.
+    let mut results: Vec<Vec<FrameResult>> =
+        priors.iter().map(|_| Vec::with_capacity(total)).collect();
     // The per-pixel minimum of the frames' views: all the outline needs.
     let mut least: Option<RgbImage> = None;
     for (first, specs) in scan.frames.chunks(chunk).enumerate().map(|(k, c)| (k * chunk, c)) {
-        let processed: Vec<(FrameResult, (RgbImage, Option<RgbImage>))> = specs
+        let processed: Vec<(Vec<FrameResult>, (RgbImage, Option<RgbImage>))> = specs
             .par_iter()
             .enumerate()
             .map(|(j, spec)| {
@@ -162,19 +207,28 @@ pub fn locate_scan(
                 };
                 check_frame(camera, index, &frame)
                     .map_err(|e| in_file(&scan.path_of(&spec.image), e))?;
-                let result = context.frame(index, &frame)?;
-                Ok((result, (on, off)))
+                let per_fruit = contexts
+                    .iter()
+                    .map(|context| context.frame(index, &frame))
+                    .collect::<Result<Vec<_>>>()?;
+                Ok((per_fruit, (on, off)))
             })
             .collect::<Result<_>>()?;
-        for (result, (on, off)) in processed {
-            results.push(result);
+        for (per_fruit, (on, off)) in processed {
+            for (fruit, result) in results.iter_mut().zip(per_fruit) {
+                fruit.push(result);
+            }
             if options.use_outline {
                 darken(&mut least, off.unwrap_or(on));
             }
         }
     }
     let views: Vec<&RgbImage> = least.iter().collect();
-    Ok(conclude(results, &context, &views))
+    Ok(results
+        .into_iter()
+        .zip(&contexts)
+        .map(|(r, context)| conclude(r, context, &views))
+        .collect())
 }
 
 /// Folds `view` into the per-pixel minimum `least` (the views share their

@@ -34,11 +34,14 @@ pub mod uncertainty;
 pub use error::{Error, Result};
 pub use folder::{
     MAX_FRAMES_IN_FLIGHT, MAX_SCAN_FRAMES, ScanImages, check_camera_fits, locate_scan,
-    locate_scan_images, read_scan_images,
+    locate_scan_images, locate_scan_targets, priors_of, read_scan_images,
 };
 pub use locate::locate;
-pub use output::{CandidateOutput, FrameOutput, FusedOutput, LocalizeOutput, OutlineOutput};
-pub use points::{CloudFormat, write_points};
+pub use output::{
+    CandidateOutput, FrameOutput, FusedOutput, LocalizeOutput, OutlineOutput, TargetOutput,
+    TargetsOutput,
+};
+pub use points::{CloudFormat, target_cloud_path, write_points};
 pub use types::{
     Candidate, FrameImages, FrameResult, FusedFit, Localization, LocateOptions, Method, Prior,
     Status,

@@ -4,7 +4,53 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::{Candidate, FrameResult, FusedFit, Localization, Method, Status};
+use crate::{Candidate, FrameResult, FusedFit, Localization, Method, Prior, Status};
+
+/// FORMATS.md's `localize --json` object for a scan naming several fruit
+/// (scan.yaml's `targets`): one answer per fruit, in scan.yaml's order.
+/// Build it with [`TargetsOutput::new`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TargetsOutput {
+    /// One per fruit, in scan.yaml's order.
+    pub targets: Vec<TargetOutput>,
+    /// Fruit named.
+    pub n_targets: usize,
+    /// Fruit whose status is `ok`.
+    pub n_found: usize,
+}
+
+/// One fruit of [`TargetsOutput`]: its prior, then the localize object.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TargetOutput {
+    /// 0-based index into scan.yaml's `targets`.
+    pub target: usize,
+    /// The rough position localization started from, mm.
+    pub rough_position_mm: [f64; 3],
+    /// The radius prior, mm.
+    pub fruit_radius_mm: f64,
+    /// The answer, as for a scan of this fruit alone.
+    #[serde(flatten)]
+    pub answer: LocalizeOutput,
+}
+
+impl TargetsOutput {
+    /// The object for `answers`, one per prior of `priors`.
+    pub fn new(answers: &[Localization], priors: &[Prior]) -> Self {
+        let targets: Vec<TargetOutput> = answers
+            .iter()
+            .zip(priors)
+            .enumerate()
+            .map(|(target, (answer, prior))| TargetOutput {
+                target,
+                rough_position_mm: xyz(&prior.rough_position_mm),
+                fruit_radius_mm: prior.fruit_radius_mm,
+                answer: LocalizeOutput::from(answer),
+            })
+            .collect();
+        let n_found = targets.iter().filter(|t| t.answer.status == Status::Ok).count();
+        TargetsOutput { n_targets: targets.len(), n_found, targets }
+    }
+}
 
 /// FORMATS.md's `localize --json` object: the answer, the method, the
 /// holistic selection, the fused fit and each frame's stripe and fruit

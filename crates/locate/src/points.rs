@@ -5,7 +5,7 @@
 //! binary PCD v0.7 (PCL, Open3D); written atomically.
 
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use crate::types::Localization;
 use crate::{Error, Result};
@@ -79,6 +79,18 @@ fn comments(localization: &Localization) -> Vec<String> {
 /// A header comment stays on its line.
 fn one_line(text: &str) -> String {
     text.replace(['\n', '\r'], " ")
+}
+
+/// Where `--points FILE` puts the cloud of fruit `k` of a scan naming
+/// several: `FILE` with `.targetK` before its extension (`cloud.ply` ->
+/// `cloud.target0.ply`, `cloud.target1.ply`, ...).
+pub fn target_cloud_path(path: &Path, k: usize) -> PathBuf {
+    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let name = match path.extension() {
+        Some(ext) => format!("{stem}.target{k}.{}", ext.to_string_lossy()),
+        None => format!("{stem}.target{k}"),
+    };
+    path.with_file_name(name)
 }
 
 /// Writes the scan's laser points of `localization` to `path` (.ply or .pcd).

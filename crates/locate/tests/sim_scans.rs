@@ -115,17 +115,7 @@ fn clusters_give_the_target_never_a_neighbour() {
             ..ScanOptions::default()
         });
         let scan = &sim.scan;
-        let neighbours: Vec<Point3<f64>> = scan
-            .scene
-            .objects
-            .iter()
-            .skip(1)
-            .filter(|o| o.kind == alacs_sim::Kind::Fruit)
-            .filter_map(|o| match o.shape {
-                alacs_sim::Shape::Ellipsoid { centre, .. } => Some(centre),
-                _ => None,
-            })
-            .collect();
+        let neighbours: Vec<Point3<f64>> = scan.scene.neighbours().iter().map(|n| n.0).collect();
         assert!(!neighbours.is_empty(), "seed {seed}: no cluster");
         let answer = run(&sim);
         if answer.status == Status::Ok {

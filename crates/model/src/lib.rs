@@ -55,7 +55,7 @@ pub use samples::{
 };
 pub use scan::{
     DEFAULT_FRUIT_RADIUS_MM, FRUIT_RADIUS_RANGE_MM, FrameExposure, MAX_ABS_SLIDE_MM,
-    MAX_ROUGH_DISTANCE_MM, SCAN_FILE, Scan, ScanFrameSpec,
+    MAX_ROUGH_DISTANCE_MM, MAX_SCAN_TARGETS, SCAN_FILE, Scan, ScanFrameSpec, ScanTarget,
 };
-pub use scan_plan::{ScanPlan, ScanStrategy};
+pub use scan_plan::{SHARED_FRAME_MM, ScanPlan, ScanStrategy};
 pub use session::{BoardSpec, SESSION_FILE, Session, SessionView};

@@ -10,6 +10,9 @@
 //!     image_laser_off: frame0_off.png   # optional
 //! ```
 //!
+//! Several fruit in one scan: `targets` instead of `rough_position_mm`,
+//! each with its `rough_position_mm` and optional `fruit_radius_mm`.
+//!
 //! Image paths are relative to the folder that holds scan.yaml. Unknown keys
 //! are ignored. This module is the one reader and writer of scan.yaml: the
 //! scan controller and the simulator write their scan folders with
@@ -42,6 +45,23 @@ pub const MAX_ABS_SLIDE_MM: f64 = 10_000.0;
 /// reach of any RGB-D camera.
 pub const MAX_ROUGH_DISTANCE_MM: f64 = 100_000.0;
 
+/// Most fruit one scan.yaml may name in `targets`: a cluster and its
+/// neighbours within one 200 mm sweep, with room to spare. Each is
+/// localized from every frame.
+pub const MAX_SCAN_TARGETS: usize = 16;
+
+/// One fruit a scan looks for: what the RGB-D camera said about it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScanTarget {
+    /// The rough fruit centre in the ALACS camera frame, mm.
+    pub rough_position_mm: Point3<f64>,
+    /// The fruit radius prior, mm.
+    pub fruit_radius_mm: f64,
+    /// The rough position as the RGB-D camera gave it, in its own frame
+    /// (extra key written by the scan controller).
+    pub rough_position_in_rgbd_mm: Option<Point3<f64>>,
+}
+
 /// One frame of a scan.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ScanFrameSpec {
@@ -70,6 +90,10 @@ pub struct Scan {
     /// The rough position as the RGB-D camera gave it, in its own frame
     /// (extra key written by the scan controller).
     pub rough_position_in_rgbd_mm: Option<Point3<f64>>,
+    /// The fruit after the first when scan.yaml names several (`targets`);
+    /// the first is `rough_position_mm`, `fruit_radius_mm` and
+    /// `rough_position_in_rgbd_mm` above. Empty for a scan of one fruit.
+    pub more_targets: Vec<ScanTarget>,
     /// Whether the scan plan was shifted to fit the slide's stroke (extra
     /// key written by the scan controller and the simulator).
     pub plan_shifted_into_stroke: Option<bool>,
@@ -96,11 +120,14 @@ const MAX_GAIN_DB: f64 = 60.0;
 
 #[derive(Deserialize, Serialize)]
 struct ScanFile {
-    rough_position_mm: Vec<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    rough_position_mm: Option<Vec<f64>>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     rough_position_in_rgbd_mm: Option<Vec<f64>>,
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     fruit_radius_mm: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    targets: Option<Vec<TargetFile>>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     plan_shifted_into_stroke: Option<bool>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -108,6 +135,25 @@ struct ScanFile {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     gain_db: Option<f64>,
     frames: Vec<FrameFile>,
+}
+
+#[derive(Deserialize, Serialize)]
+struct TargetFile {
+    rough_position_mm: Vec<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    fruit_radius_mm: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    rough_position_in_rgbd_mm: Option<Vec<f64>>,
+}
+
+impl TargetFile {
+    fn of(target: &ScanTarget) -> Self {
+        TargetFile {
+            rough_position_mm: xyz(&target.rough_position_mm),
+            fruit_radius_mm: Some(target.fruit_radius_mm),
+            rough_position_in_rgbd_mm: target.rough_position_in_rgbd_mm.as_ref().map(xyz),
+        }
+    }
 }
 
 #[derive(Deserialize, Serialize)]
@@ -135,10 +181,19 @@ impl Scan {
     /// scan.yaml's text for this scan, after `header` (comment lines
     /// without the `#`, may be empty).
     pub fn to_yaml_string(&self, header: &str) -> String {
+        // One fruit keeps the original form; several are a `targets` list.
+        let (first, targets) = if self.more_targets.is_empty() {
+            (Some(TargetFile::of(&self.target())), None)
+        } else {
+            (None, Some(self.targets().iter().map(TargetFile::of).collect()))
+        };
         let file = ScanFile {
-            rough_position_mm: xyz(&self.rough_position_mm),
-            rough_position_in_rgbd_mm: self.rough_position_in_rgbd_mm.as_ref().map(xyz),
-            fruit_radius_mm: Some(self.fruit_radius_mm),
+            rough_position_mm: first.as_ref().map(|t| t.rough_position_mm.clone()),
+            rough_position_in_rgbd_mm: first
+                .as_ref()
+                .and_then(|t| t.rough_position_in_rgbd_mm.clone()),
+            fruit_radius_mm: first.as_ref().and_then(|t| t.fruit_radius_mm),
+            targets,
             plan_shifted_into_stroke: self.plan_shifted_into_stroke,
             exposure_us: self.exposure.map(|e| e.exposure_us),
             gain_db: self.exposure.map(|e| e.gain_db),
@@ -187,19 +242,75 @@ impl Scan {
                 if in_front { ", with z > 0 (in front of the camera)" } else { "" }
             ))),
         };
-        let rough_position_mm = point("rough_position_mm", &file.rough_position_mm, true)?;
-        let rough_position_in_rgbd_mm = file
-            .rough_position_in_rgbd_mm
-            .as_deref()
-            .map(|v| point("rough_position_in_rgbd_mm", v, false))
-            .transpose()?;
-        let fruit_radius_mm = file.fruit_radius_mm.unwrap_or(DEFAULT_FRUIT_RADIUS_MM);
         let (r_lo, r_hi) = FRUIT_RADIUS_RANGE_MM;
-        if !(r_lo..=r_hi).contains(&fruit_radius_mm) {
-            return Err(parse_error(format!(
-                "`fruit_radius_mm` is {fruit_radius_mm}; a fruit radius prior must lie within {r_lo}-{r_hi} mm"
-            )));
-        }
+        let radius = |key: &str, value: Option<f64>| {
+            let fruit_radius_mm = value.unwrap_or(DEFAULT_FRUIT_RADIUS_MM);
+            if (r_lo..=r_hi).contains(&fruit_radius_mm) {
+                Ok(fruit_radius_mm)
+            } else {
+                Err(parse_error(format!(
+                    "`{key}` is {fruit_radius_mm}; a fruit radius prior must lie within {r_lo}-{r_hi} mm"
+                )))
+            }
+        };
+        let top_radius_mm = radius("fruit_radius_mm", file.fruit_radius_mm)?;
+        let target = |key: &str, t: &TargetFile, default_radius_mm: f64| {
+            Ok(ScanTarget {
+                rough_position_mm: point(
+                    &format!("{key}rough_position_mm"),
+                    &t.rough_position_mm,
+                    true,
+                )?,
+                fruit_radius_mm: match t.fruit_radius_mm {
+                    Some(r) => radius(&format!("{key}fruit_radius_mm"), Some(r))?,
+                    None => default_radius_mm,
+                },
+                rough_position_in_rgbd_mm: t
+                    .rough_position_in_rgbd_mm
+                    .as_deref()
+                    .map(|v| point(&format!("{key}rough_position_in_rgbd_mm"), v, false))
+                    .transpose()?,
+            })
+        };
+        let mut targets = match (file.rough_position_mm, file.targets) {
+            (Some(_), Some(_)) => {
+                return Err(parse_error(
+                    "both `rough_position_mm` and `targets`: one fruit or a list, not both".into(),
+                ));
+            }
+            (None, None) => {
+                return Err(parse_error(
+                    "no `rough_position_mm` (or `targets`, a list of fruit): where is the fruit?"
+                        .into(),
+                ));
+            }
+            (Some(rough_position_mm), None) => {
+                let first = TargetFile {
+                    rough_position_mm,
+                    fruit_radius_mm: None,
+                    rough_position_in_rgbd_mm: file.rough_position_in_rgbd_mm,
+                };
+                vec![target("", &first, top_radius_mm)?]
+            }
+            (None, Some(list)) => {
+                if list.is_empty() || list.len() > MAX_SCAN_TARGETS {
+                    return Err(parse_error(format!(
+                        "`targets` names {} fruit; a scan has 1-{MAX_SCAN_TARGETS}",
+                        list.len()
+                    )));
+                }
+                if file.rough_position_in_rgbd_mm.is_some() {
+                    return Err(parse_error(
+                        "`rough_position_in_rgbd_mm` belongs in each of `targets`".into(),
+                    ));
+                }
+                list.iter()
+                    .enumerate()
+                    .map(|(k, t)| target(&format!("targets[{k}]."), t, top_radius_mm))
+                    .collect::<Result<Vec<_>>>()?
+            }
+        };
+        let first = targets.remove(0);
         let exposure = match (file.exposure_us, file.gain_db) {
             (None, None) => None,
             (None, Some(_)) => {
@@ -249,13 +360,28 @@ impl Scan {
         }
         Ok(Scan {
             dir: dir.to_path_buf(),
-            rough_position_mm,
-            fruit_radius_mm,
+            rough_position_mm: first.rough_position_mm,
+            fruit_radius_mm: first.fruit_radius_mm,
             frames,
-            rough_position_in_rgbd_mm,
+            rough_position_in_rgbd_mm: first.rough_position_in_rgbd_mm,
+            more_targets: targets,
             plan_shifted_into_stroke: file.plan_shifted_into_stroke,
             exposure,
         })
+    }
+
+    /// The first fruit (the only one of a scan of one fruit).
+    pub fn target(&self) -> ScanTarget {
+        ScanTarget {
+            rough_position_mm: self.rough_position_mm,
+            fruit_radius_mm: self.fruit_radius_mm,
+            rough_position_in_rgbd_mm: self.rough_position_in_rgbd_mm,
+        }
+    }
+
+    /// Every fruit the scan looks for, in scan.yaml's order.
+    pub fn targets(&self) -> Vec<ScanTarget> {
+        std::iter::once(self.target()).chain(self.more_targets.iter().copied()).collect()
     }
 
     /// The full path of an image named in the scan.
@@ -301,6 +427,67 @@ mod tests {
         let text = scan.to_yaml_string("written by a test\nsecond line");
         assert!(text.starts_with("# written by a test\n# second line\n"), "{text}");
         assert_eq!(parse(&text).unwrap(), scan);
+    }
+
+    #[test]
+    fn a_scan_of_several_fruit_reads_and_round_trips() {
+        let text = "fruit_radius_mm: 35\ntargets:\n  - rough_position_mm: [10, -5, 800]\n  - rough_position_mm: [90, 0, 820]\n    fruit_radius_mm: 42\nframes: [{image: a.png, slide_mm: 0}]\n";
+        let scan = parse(text).unwrap();
+        assert_eq!(scan.rough_position_mm, Point3::new(10.0, -5.0, 800.0));
+        assert_eq!(scan.fruit_radius_mm, 35.0, "the top-level prior is each target's default");
+        let targets = scan.targets();
+        assert_eq!(targets.len(), 2);
+        assert_eq!(targets[1].rough_position_mm, Point3::new(90.0, 0.0, 820.0));
+        assert_eq!(targets[1].fruit_radius_mm, 42.0);
+        let written = scan.to_yaml_string("");
+        assert!(
+            written.contains("targets:") && !written.contains("\nrough_position_mm"),
+            "{written}"
+        );
+        assert_eq!(parse(&written).unwrap(), scan);
+        // One fruit is written in the original form.
+        let one = parse("rough_position_mm: [1, 2, 3]\nframes: [{image: a, slide_mm: 0}]").unwrap();
+        assert!(!one.to_yaml_string("").contains("targets"));
+        assert_eq!(one.targets(), vec![one.target()]);
+    }
+
+    #[test]
+    fn bad_target_lists_are_refused_naming_the_key() {
+        let frames = "frames: [{image: a, slide_mm: 0}]";
+        let many: String = (0..=MAX_SCAN_TARGETS)
+            .map(|k| format!("  - rough_position_mm: [{k}, 0, 800]\n"))
+            .collect();
+        for (text, key) in [
+            (
+                format!(
+                    "rough_position_mm: [1, 2, 3]\ntargets: [{{rough_position_mm: [1, 2, 3]}}]\n{frames}"
+                ),
+                "targets",
+            ),
+            (format!("targets: []\n{frames}"), "targets"),
+            (format!("targets:\n{many}{frames}"), "17 fruit"),
+            (
+                format!(
+                    "targets: [{{rough_position_mm: [1, 2, 3]}}, {{rough_position_mm: [1, 2, -3]}}]\n{frames}"
+                ),
+                "targets[1].rough_position_mm",
+            ),
+            (
+                format!(
+                    "targets: [{{rough_position_mm: [1, 2, 3], fruit_radius_mm: 900}}]\n{frames}"
+                ),
+                "targets[0].fruit_radius_mm",
+            ),
+            (
+                format!(
+                    "rough_position_in_rgbd_mm: [1, 2, 3]\ntargets: [{{rough_position_mm: [1, 2, 3]}}]\n{frames}"
+                ),
+                "rough_position_in_rgbd_mm",
+            ),
+        ] {
+            let message = parse(&text).unwrap_err().to_string();
+            assert!(message.contains(key), "{message} should name {key}");
+        }
     }
 
     #[test]

@@ -10,10 +10,21 @@
 //! to +x (right in the image) by d / cos(alpha) at a given depth, so five
 //! frames sweep about 42 mm: from the left half across the centre of an
 //! 80 mm apple. The sweep is shifted, not cut, to stay within the stroke.
+//!
+//! Several fruit ([`ScanStrategy::plan_sweep`]): each fruit's five frames
+//! as above, all in one sweep in ascending slide order, a frame shared
+//! where two fruit's frames fall within [`SHARED_FRAME_MM`] of each other.
 
 use nalgebra::{Point3, Vector3};
 
 use crate::{LaserModel, SLIDE_STROKE_MM};
+
+/// Two planned frames of different fruit closer than this are taken once,
+/// at the lower position: a quarter of the seed's 10 mm step, so each fruit
+/// still gets its stripes about 10 mm apart, none moved by more than 2.5 mm
+/// (localization triangulates with the slide position the frame was taken
+/// at, so a moved frame costs no accuracy).
+pub const SHARED_FRAME_MM: f64 = 2.5;
 
 /// The strategy's settings; `Default` is the seed paper's.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -68,5 +79,31 @@ impl ScanStrategy {
             .map(|k| (first_mm + self.step_mm * k as f64).min(self.stroke_mm))
             .collect();
         ScanPlan { slides_mm, unclamped_start_mm: start_mm, shifted: first_mm != start_mm }
+    }
+
+    /// One sweep for several fruit (rough centres and radius priors): each
+    /// fruit's [`ScanStrategy::plan`], merged in ascending slide order, a
+    /// frame within [`SHARED_FRAME_MM`] of the previous one taken once.
+    /// `unclamped_start_mm` is the first fruit's, `shifted` whether any
+    /// fruit's plan was shifted. With one fruit it is that fruit's plan.
+    pub fn plan_sweep(&self, laser: &LaserModel, fruit: &[(Point3<f64>, f64)]) -> ScanPlan {
+        let mut plans: Vec<ScanPlan> =
+            fruit.iter().map(|(centre, radius_mm)| self.plan(laser, centre, *radius_mm)).collect();
+        if plans.len() == 1 {
+            return plans.remove(0);
+        }
+        let mut all: Vec<f64> = plans.iter().flat_map(|p| p.slides_mm.iter().copied()).collect();
+        all.sort_by(f64::total_cmp);
+        let mut slides_mm: Vec<f64> = Vec::with_capacity(all.len());
+        for d in all {
+            if slides_mm.last().is_none_or(|last| d - last >= SHARED_FRAME_MM) {
+                slides_mm.push(d);
+            }
+        }
+        ScanPlan {
+            slides_mm,
+            unclamped_start_mm: plans.first().map_or(f64::NAN, |p| p.unclamped_start_mm),
+            shifted: plans.iter().any(|p| p.shifted),
+        }
     }
 }

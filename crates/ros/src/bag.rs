@@ -599,6 +599,7 @@ fn empty_scan(goal: &LocalizeFruitGoal) -> CapturedScan {
         rough_position_in_rgbd_mm: rough,
         rough_position_mm: rough,
         fruit_radius_mm: goal.fruit_radius_m * MM_PER_M,
+        more_targets: Vec::new(),
         plan: ScanPlan { slides_mm: Vec::new(), unclamped_start_mm: 0.0, shifted: false },
         frames: Vec::new(),
         exposure: None,

@@ -5,10 +5,13 @@
 //!    ALACS camera's ([`ControllerConfig::alacs_from_rgbd`]).
 //! 2. The seed's strategy plans the slide positions from it
 //!    ([`ScanStrategy::plan`]: the laser on the left half of the fruit,
-//!    then steps to the right, shifted into the stroke).
+//!    then steps to the right, shifted into the stroke). Several fruit
+//!    ([`ScanController::run_targets_with_progress`]) are covered in one
+//!    sweep ([`ScanStrategy::plan_sweep`]), each with its own five frames.
 //! 3. With [`ControllerConfig::metering`], once the slide stands at the
 //!    first frame's position, the target is metered with the laser off and
-//!    the camera's exposure set so that the fruit does not clip
+//!    the camera's exposure set so that the fruit (the brightest of several)
+//!    does not clip
 //!    ([`crate::metering`]); a bright scene also gets laser-off frames.
 //! 4. Per frame: move the slide and wait until it settles, switch the laser
 //!    on, capture; with [`ControllerConfig::capture_laser_off`] (or a bright
@@ -24,8 +27,8 @@ use std::time::{Duration, SystemTime};
 use alacs_locate::{FrameImages, Localization, LocateOptions, Prior, locate};
 use alacs_model::io::OutputDir;
 use alacs_model::{
-    Camera, DEFAULT_FRUIT_RADIUS_MM, FrameExposure, LaserModel, SCAN_FILE, Scan, ScanFrameSpec,
-    ScanPlan, ScanStrategy,
+    Camera, DEFAULT_FRUIT_RADIUS_MM, FrameExposure, LaserModel, MAX_SCAN_TARGETS, SCAN_FILE, Scan,
+    ScanFrameSpec, ScanPlan, ScanStrategy, ScanTarget,
 };
 use image::RgbImage;
 use nalgebra::{Isometry3, Point3};
@@ -114,6 +117,10 @@ pub struct CapturedScan {
     pub rough_position_mm: Point3<f64>,
     /// The fruit radius prior, mm.
     pub fruit_radius_mm: f64,
+    /// The fruit after the first of a scan of several
+    /// ([`ScanController::run_targets_with_progress`]), in their order;
+    /// empty for one fruit.
+    pub more_targets: Vec<ScanTarget>,
     /// The plan the scan followed.
     pub plan: ScanPlan,
     /// The frames, in plan order.
@@ -223,11 +230,39 @@ impl ScanController {
         &self,
         rig: &mut Rig<'_>,
         rough_position_in_rgbd_mm: &Point3<f64>,
+        progress: impl FnMut(usize, usize),
+    ) -> Result<CapturedScan> {
+        self.run_targets_with_progress(
+            rig,
+            std::slice::from_ref(rough_position_in_rgbd_mm),
+            progress,
+        )
+    }
+
+    /// Scans several fruit (rough positions in the RGB-D camera's frame,
+    /// 1 to [`MAX_SCAN_TARGETS`]) in one sweep ([`ScanStrategy::plan_sweep`]):
+    /// each fruit gets its own five frames, frames that fall together are
+    /// taken once, and metering keeps the brightest fruit below clipping.
+    /// One fruit is [`ScanController::run_with_progress`].
+    pub fn run_targets_with_progress(
+        &self,
+        rig: &mut Rig<'_>,
+        rough_positions_in_rgbd_mm: &[Point3<f64>],
         mut progress: impl FnMut(usize, usize),
     ) -> Result<CapturedScan> {
-        let rough_position_mm = self.rough_in_alacs(rough_position_in_rgbd_mm)?;
-        let plan =
-            self.config.strategy.plan(&self.laser, &rough_position_mm, self.config.fruit_radius_mm);
+        let n = rough_positions_in_rgbd_mm.len();
+        if !(1..=MAX_SCAN_TARGETS).contains(&n) {
+            return Err(Error::InvalidInput(format!(
+                "{n} rough positions: a scan covers 1-{MAX_SCAN_TARGETS} fruit"
+            )));
+        }
+        let roughs_mm = rough_positions_in_rgbd_mm
+            .iter()
+            .map(|r| self.rough_in_alacs(r))
+            .collect::<Result<Vec<_>>>()?;
+        let radius_mm = self.config.fruit_radius_mm;
+        let fruit: Vec<(Point3<f64>, f64)> = roughs_mm.iter().map(|&r| (r, radius_mm)).collect();
+        let plan = self.config.strategy.plan_sweep(&self.laser, &fruit);
         // The plan fits the strategy's stroke; the slide's may be shorter.
         let stroke_mm = rig.slide.stroke_mm();
         if let Some(&target_mm) =
@@ -235,7 +270,7 @@ impl ScanController {
         {
             return Err(Error::OutOfStroke { step: Some(Step::Planning), target_mm, stroke_mm });
         }
-        let captured = self.capture_frames(rig, &plan, &rough_position_mm, &mut progress);
+        let captured = self.capture_frames(rig, &plan, &fruit, &mut progress);
         let (frames, exposure) = match captured {
             Ok(captured) => captured,
             Err(error) => {
@@ -245,10 +280,21 @@ impl ScanController {
             }
         };
         rig.laser.set(false).map_err(|e| e.at(Step::Finish))?;
+        let more_targets = roughs_mm
+            .iter()
+            .zip(rough_positions_in_rgbd_mm)
+            .skip(1)
+            .map(|(&rough_position_mm, &in_rgbd)| ScanTarget {
+                rough_position_mm,
+                fruit_radius_mm: radius_mm,
+                rough_position_in_rgbd_mm: Some(in_rgbd),
+            })
+            .collect();
         Ok(CapturedScan {
-            rough_position_in_rgbd_mm: *rough_position_in_rgbd_mm,
-            rough_position_mm,
-            fruit_radius_mm: self.config.fruit_radius_mm,
+            rough_position_in_rgbd_mm: rough_positions_in_rgbd_mm[0],
+            rough_position_mm: roughs_mm[0],
+            fruit_radius_mm: radius_mm,
+            more_targets,
             plan,
             frames,
             exposure: exposure
@@ -256,16 +302,14 @@ impl ScanController {
         })
     }
 
-    /// Meters the target, if configured.
+    /// Meters the targets, if configured.
     fn meter(
         &self,
         rig: &mut Rig<'_>,
-        rough_position_mm: &Point3<f64>,
+        fruit: &[(Point3<f64>, f64)],
     ) -> Result<Option<MeteredExposure>> {
         let Some(metering) = &self.config.metering else { return Ok(None) };
-        let radius_mm = self.config.fruit_radius_mm;
-        let timeout = self.config.capture_timeout;
-        meter(metering, rig, rough_position_mm, radius_mm, timeout).map(Some)
+        meter(metering, rig, fruit, self.config.capture_timeout).map(Some)
     }
 
     /// Moves, meters (at the first frame's position, once the slide is
@@ -274,12 +318,13 @@ impl ScanController {
         &self,
         rig: &mut Rig<'_>,
         plan: &ScanPlan,
-        rough_position_mm: &Point3<f64>,
+        fruit: &[(Point3<f64>, f64)],
         progress: &mut impl FnMut(usize, usize),
     ) -> Result<(Vec<CapturedFrame>, Option<MeteredExposure>)> {
         let mut exposure = None;
         let mut laser_off = self.config.capture_laser_off;
-        let mut total = plan.slides_mm.len() * (1 + usize::from(laser_off));
+        let images = |laser_off: bool| plan.slides_mm.len() * (1 + usize::from(laser_off));
+        let mut total = images(laser_off);
         let mut done = 0;
         let mut frames = Vec::with_capacity(plan.slides_mm.len());
         for (frame, &target_mm) in plan.slides_mm.iter().enumerate() {
@@ -296,10 +341,10 @@ impl ScanController {
                 });
             }
             if frame == 0 {
-                exposure = self.meter(rig, rough_position_mm)?;
+                exposure = self.meter(rig, fruit)?;
                 if let Some(metered) = exposure {
                     laser_off |= metered.bright;
-                    total = metered.frames + plan.slides_mm.len() * (1 + usize::from(laser_off));
+                    total = metered.frames + images(laser_off);
                     done = metered.frames;
                     progress(done, total);
                 }
@@ -355,9 +400,34 @@ impl CapturedScan {
     }
 
     /// What localization knows before it looks: the rough position (ALACS
-    /// frame) and the radius prior.
+    /// frame) and the radius prior (of the first fruit of several).
     pub fn prior(&self) -> Prior {
         Prior { rough_position_mm: self.rough_position_mm, fruit_radius_mm: self.fruit_radius_mm }
+    }
+
+    /// The prior of every fruit scanned, in order.
+    pub fn priors(&self) -> Vec<Prior> {
+        std::iter::once(self.prior())
+            .chain(self.more_targets.iter().map(|t| Prior {
+                rough_position_mm: t.rough_position_mm,
+                fruit_radius_mm: t.fruit_radius_mm,
+            }))
+            .collect()
+    }
+
+    /// Locates every fruit scanned ([`CapturedScan::priors`]), each as a
+    /// scan of it alone would.
+    pub fn localize_targets(
+        &self,
+        camera: &Camera,
+        laser: &LaserModel,
+        options: &LocateOptions,
+    ) -> Result<Vec<Localization>> {
+        let frames = self.frame_images();
+        self.priors()
+            .iter()
+            .map(|prior| Ok(locate(camera, laser, prior, &frames, options)?))
+            .collect()
     }
 
     /// Locates the fruit in the frames with the calibrated `camera` and `laser`.
@@ -403,6 +473,7 @@ impl CapturedScan {
                 })
                 .collect(),
             rough_position_in_rgbd_mm: Some(self.rough_position_in_rgbd_mm),
+            more_targets: self.more_targets.clone(),
             plan_shifted_into_stroke: Some(self.plan.shifted),
             exposure: self.exposure,
         }

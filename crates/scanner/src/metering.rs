@@ -179,64 +179,64 @@ fn target_level(
     Ok(Level { p95_dn: f64::from(*p95) })
 }
 
-/// Meters the target at `rough_mm` (ALACS camera frame) with the laser off
-/// and leaves the camera at the chosen exposure and gain.
+/// Meters the targets (rough centres in the ALACS camera frame and radius
+/// priors) with the laser off and leaves the camera at the chosen exposure
+/// and gain. Several targets are metered in the same frames; the brightest
+/// decides, so that none clips.
 pub(crate) fn meter(
     metering: &Metering,
     rig: &mut Rig<'_>,
-    rough_mm: &Point3<f64>,
-    radius_mm: f64,
+    targets: &[(Point3<f64>, f64)],
     capture_timeout: Duration,
 ) -> Result<MeteredExposure> {
     let at = |e: Error| e.at(Step::Metering);
     rig.laser.set(false).map_err(at)?;
     let (low, high) = metering.exposure_range_us;
+    // The exposure time and gain for a light-gathering product t g (us):
+    // the time first, the gain past the longest time.
+    let split = |wanted_us: f64| {
+        if wanted_us <= high {
+            (wanted_us.max(low), 0.0)
+        } else {
+            (high, (20.0 * (wanted_us / high).log10()).min(metering.max_gain_db))
+        }
+    };
     let mut gain_db = rig.camera.set_gain_db(0.0).map_err(at)?;
     let mut exposure_us = rig.camera.set_exposure_us(metering.start_exposure_us).map_err(at)?;
     for frame in 1..=metering.max_frames {
         let image = rig.camera.capture(capture_timeout).map_err(at)?;
-        let level = target_level(&image, &metering.camera, rough_mm, radius_mm)?;
-        let gain = 10f64.powf(gain_db / 20.0);
-        // The level the target would have at exposure t and gain g.
-        let (next_us, next_gain_db) = if level.p95_dn >= CLIPPED_DN {
-            (exposure_us / 4.0, gain_db)
-        } else if level.p95_dn < DARK_DN {
-            (exposure_us * 16.0, gain_db)
+        let mut level_dn = 0.0f64;
+        for (rough_mm, radius_mm) in targets {
+            level_dn =
+                level_dn.max(target_level(&image, &metering.camera, rough_mm, *radius_mm)?.p95_dn);
+        }
+        let product_us = exposure_us * 10f64.powf(gain_db / 20.0);
+        // Clipped: a quarter of the light; dark: 16 times; otherwise one
+        // linear step to the target level (a linear sensor: the level
+        // scales with t g).
+        let clipped = level_dn >= CLIPPED_DN;
+        let dark = level_dn < DARK_DN;
+        let (next_us, next_gain_db) = split(if clipped {
+            product_us / 4.0
+        } else if dark {
+            product_us * 16.0
         } else {
-            // Linear: the level scales with t g.
-            let wanted = exposure_us * gain * metering.target_dn / level.p95_dn;
-            if wanted <= high {
-                (wanted, 0.0)
-            } else {
-                let gain_db = (20.0 * (wanted / high).log10()).min(metering.max_gain_db);
-                (high, gain_db)
-            }
-        };
-        let next_us = next_us.clamp(low, high);
+            product_us * metering.target_dn / level_dn
+        });
         let unchanged = (next_us - exposure_us).abs() <= 1e-9 * exposure_us
             && (next_gain_db - gain_db).abs() < 1e-9;
-        let metered_at = exposure_us * gain;
-        let scaled_level =
-            |t: f64, g_db: f64| level.p95_dn * t * 10f64.powf(g_db / 20.0) / metered_at;
-        if unchanged {
-            // At a limit, or already there.
-            return Ok(MeteredExposure {
-                exposure_us,
-                gain_db,
-                target_level_dn: level.p95_dn,
-                frames: frame,
-                bright: exposure_us < metering.bright_below_us,
-            });
+        if !unchanged {
+            exposure_us = rig.camera.set_exposure_us(next_us).map_err(at)?;
+            gain_db = rig.camera.set_gain_db(next_gain_db).map_err(at)?;
         }
-        exposure_us = rig.camera.set_exposure_us(next_us).map_err(at)?;
-        gain_db = rig.camera.set_gain_db(next_gain_db).map_err(at)?;
-        let measured = (DARK_DN..CLIPPED_DN).contains(&level.p95_dn);
-        if measured {
-            // One unclipped look fixes a linear sensor's exposure.
+        // At a limit (or already there), or one unclipped look, which
+        // fixes a linear sensor's exposure.
+        if unchanged || !(clipped || dark) {
+            let scale = exposure_us * 10f64.powf(gain_db / 20.0) / product_us;
             return Ok(MeteredExposure {
                 exposure_us,
                 gain_db,
-                target_level_dn: scaled_level(exposure_us, gain_db),
+                target_level_dn: level_dn * scale,
                 frames: frame,
                 bright: exposure_us < metering.bright_below_us,
             });

@@ -649,6 +649,22 @@ impl Object {
 }
 
 impl OrchardScene {
+    /// The other apples of the target's cluster ([`OrchardOptions::cluster`]):
+    /// each one's centre and equal-volume radius, mm; empty without a cluster.
+    pub fn neighbours(&self) -> Vec<(Point3<f64>, f64)> {
+        self.objects
+            .iter()
+            .skip(1)
+            .filter(|o| o.kind == Kind::Fruit)
+            .filter_map(|o| match o.shape {
+                Shape::Ellipsoid { centre, semi_axes_mm, .. } => {
+                    Some((centre, (semi_axes_mm.x * semi_axes_mm.y * semi_axes_mm.z).cbrt()))
+                }
+                _ => None,
+            })
+            .collect()
+    }
+
     /// The nearest hit along `ray` beyond `t_min`.
     pub fn first_hit(&self, ray: &Ray, t_min: f64) -> Option<Hit> {
         self.first_hit_among(ray, t_min, 0..self.objects.len())

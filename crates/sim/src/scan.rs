@@ -16,6 +16,7 @@ use std::path::{Path, PathBuf};
 use alacs_model::io::OutputDir;
 use alacs_model::{
     Camera, FrameExposure, LaserModel, Ray, SCAN_FILE, Scan, ScanFrameSpec, ScanPlan, ScanStrategy,
+    ScanTarget,
 };
 use image::RgbImage;
 use nalgebra::{Point3, Vector3};
@@ -25,9 +26,7 @@ use rand_distr::{Distribution, Normal};
 use serde_json::json;
 
 use crate::error::{check_scale, save_json};
-use crate::orchard::{
-    CameraRayGrid, Hit, Kind, OrchardOptions, OrchardScene, Shape, orchard_scene,
-};
+use crate::orchard::{CameraRayGrid, Hit, OrchardOptions, OrchardScene, orchard_scene};
 use crate::progress::ImageWriter;
 use crate::render::{
     Exposure, LaserLight, LaserStripe, Lighting, RayMap, RenderOptions, Scene, Sensor, SurfaceHit,
@@ -63,6 +62,11 @@ pub struct ScanOptions {
     /// into the stroke (the laser may then never cross the fruit). A
     /// harvester brings its scanner within reach of the fruit it picks.
     pub within_reach: bool,
+    /// Name the cluster's other apples ([`OrchardOptions::cluster`]) in
+    /// scan.yaml's `targets` too, each with a rough position of its own,
+    /// and sweep them all ([`ScanStrategy::plan_sweep`]). The scene and
+    /// lighting of a seed do not change.
+    pub neighbours_as_targets: bool,
     /// Seed: same seed, same scene and same bytes.
     pub seed: u64,
 }
@@ -89,6 +93,7 @@ impl Default for ScanOptions {
             },
             jpeg_quality: None,
             within_reach: true,
+            neighbours_as_targets: false,
             seed: 0,
         }
     }
@@ -162,6 +167,9 @@ pub struct SimulatedScan {
     pub scene: OrchardScene,
     /// The rough fruit position the scan started from (camera frame, mm).
     pub rough_position_mm: Point3<f64>,
+    /// With [`ScanOptions::neighbours_as_targets`], the rough positions of
+    /// the cluster's other apples, in [`OrchardScene::neighbours`]' order.
+    pub more_targets: Vec<Point3<f64>>,
     /// The slide plan.
     pub plan: ScanPlan,
     /// The frames.
@@ -283,16 +291,7 @@ pub fn simulate_scan(
     let (scene, rough_position_mm, plan) = loop {
         let scene =
             orchard_scene(&OrchardOptions { seed: rng.random(), ..options.orchard.clone() })?;
-        // The rough position: RGB-D-like error along and across the line of sight.
-        let truth = scene.fruit_centre;
-        let line_of_sight = truth.coords.normalize();
-        let along =
-            rng.random_range(-options.rough_depth_error..=options.rough_depth_error) * truth.z;
-        let lateral = Normal::new(0.0, options.rough_lateral_sigma_mm)
-            .map_err(|e| Error::InvalidOptions(format!("rough lateral error: {e}")))?;
-        let across = Vector3::new(lateral.sample(&mut rng), lateral.sample(&mut rng), 0.0);
-        let across = across - line_of_sight * across.dot(&line_of_sight);
-        let rough_position_mm = truth + line_of_sight * along + across;
+        let rough_position_mm = rough_position(&scene.fruit_centre, options, &mut rng)?;
         // The scanner knows the radius prior, not the fruit's true radius.
         let plan = options.strategy.plan(laser, &rough_position_mm, FRUIT_RADIUS_PRIOR_MM);
         draws += 1;
@@ -306,6 +305,21 @@ pub fn simulate_scan(
             )));
         }
     };
+    // The neighbours' rough positions from a generator of their own: the
+    // lighting drawn next is the seed's either way.
+    let mut more_targets = Vec::new();
+    let mut plan = plan;
+    if options.neighbours_as_targets {
+        let mut neighbour_rng = ChaCha8Rng::seed_from_u64(options.seed ^ NEIGHBOUR_ROUGH_SEED);
+        for (centre, _) in scene.neighbours() {
+            more_targets.push(rough_position(&centre, options, &mut neighbour_rng)?);
+        }
+        let fruit: Vec<(Point3<f64>, f64)> = std::iter::once(rough_position_mm)
+            .chain(more_targets.iter().copied())
+            .map(|p| (p, FRUIT_RADIUS_PRIOR_MM))
+            .collect();
+        plan = options.strategy.plan_sweep(laser, &fruit);
+    }
     let extension = if options.jpeg_quality.is_some() { "jpg" } else { "png" };
     let frames = plan
         .slides_mm
@@ -325,6 +339,7 @@ pub fn simulate_scan(
         laser: *laser,
         scene,
         rough_position_mm,
+        more_targets,
         plan,
         frames,
         lighting,
@@ -334,6 +349,26 @@ pub fn simulate_scan(
         jpeg_quality: options.jpeg_quality,
         seed: options.seed,
     })
+}
+
+/// Seeds the generator of the neighbours' rough positions (with the scan's seed).
+const NEIGHBOUR_ROUGH_SEED: u64 = 0x6e65_6967_6862_6f75;
+
+/// A rough position for a fruit centred at `truth`: the RGB-D camera's
+/// error, uniform along the line of sight (a fraction of the depth) and
+/// normal across it.
+fn rough_position(
+    truth: &Point3<f64>,
+    options: &ScanOptions,
+    rng: &mut ChaCha8Rng,
+) -> Result<Point3<f64>> {
+    let line_of_sight = truth.coords.normalize();
+    let along = rng.random_range(-options.rough_depth_error..=options.rough_depth_error) * truth.z;
+    let lateral = Normal::new(0.0, options.rough_lateral_sigma_mm)
+        .map_err(|e| Error::InvalidOptions(format!("rough lateral error: {e}")))?;
+    let across = Vector3::new(lateral.sample(rng), lateral.sample(rng), 0.0);
+    let across = across - line_of_sight * across.dot(&line_of_sight);
+    Ok(truth + line_of_sight * along + across)
 }
 
 fn check_options(options: &ScanOptions) -> Result<()> {
@@ -442,6 +477,15 @@ impl SimulatedScan {
                 })
                 .collect(),
             rough_position_in_rgbd_mm: None,
+            more_targets: self
+                .more_targets
+                .iter()
+                .map(|&rough_position_mm| ScanTarget {
+                    rough_position_mm,
+                    fruit_radius_mm: FRUIT_RADIUS_PRIOR_MM,
+                    rough_position_in_rgbd_mm: None,
+                })
+                .collect(),
             plan_shifted_into_stroke: Some(self.plan.shifted),
             exposure: Some(FrameExposure {
                 exposure_us: self.render.sensor.exposure.exposure_us,
@@ -467,26 +511,30 @@ impl SimulatedScan {
             "slides_mm": self.plan.slides_mm,
             "plan_shifted_into_stroke": self.plan.shifted,
             "sun": self.lighting.directional > 1.0,
-            "neighbours": self.neighbours_json(),
+            "neighbours": self.scene.neighbours().iter().map(|(c, r)| json!({
+                "position_mm": [c.x, c.y, c.z], "radius_mm": r,
+            })).collect::<Vec<_>>(),
             "exposure_us": self.render.sensor.exposure.exposure_us,
             "gain_db": self.render.sensor.exposure.gain_db,
+            "targets": self.targets_json(),
             "seed": self.seed,
         })
     }
 
-    /// The other apples of the target's cluster, for truth.json.
-    fn neighbours_json(&self) -> Vec<serde_json::Value> {
-        self.scene
-            .objects
-            .iter()
-            .skip(1)
-            .filter(|o| o.kind == Kind::Fruit)
-            .filter_map(|o| match o.shape {
-                Shape::Ellipsoid { centre: c, semi_axes_mm, .. } => Some(json!({
-                    "position_mm": [c.x, c.y, c.z],
-                    "radius_mm": (semi_axes_mm.x * semi_axes_mm.y * semi_axes_mm.z).cbrt(),
-                })),
-                _ => None,
+    /// truth.json's `targets`: per fruit of scan.yaml's `targets` (the
+    /// target, then the neighbours named with it), its true centre and
+    /// radius and its rough position; `null` for a scan of one fruit.
+    fn targets_json(&self) -> serde_json::Value {
+        if self.more_targets.is_empty() {
+            return serde_json::Value::Null;
+        }
+        let truth = std::iter::once((self.scene.fruit_centre, self.scene.fruit_radius_mm))
+            .chain(self.scene.neighbours());
+        let rough = std::iter::once(&self.rough_position_mm).chain(&self.more_targets);
+        truth
+            .zip(rough)
+            .map(|((c, r), p)| {
+                json!({"position_mm": [c.x, c.y, c.z], "radius_mm": r, "rough_position_mm": [p.x, p.y, p.z]})
             })
             .collect()
     }

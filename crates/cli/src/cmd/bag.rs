@@ -11,7 +11,7 @@ use alacs::scanner::{CapturedFrame, CapturedScan};
 use serde_json::json;
 
 use crate::args::{BagExportArgs, BagImportArgs};
-use crate::failure::CmdResult;
+use crate::failure::{CmdResult, Failure};
 use crate::output;
 
 /// Runs `alacs bag export`.
@@ -44,6 +44,14 @@ pub fn export(args: &BagExportArgs) -> CmdResult {
 /// The scan of a folder, its images read, as the scan controller would
 /// have captured it.
 pub fn captured_from_folder(scan: &Scan) -> CmdResult<CapturedScan> {
+    if !scan.more_targets.is_empty() {
+        // The action goal, and so a recorded scan, holds one rough position.
+        return Err(Failure::bad_input(anyhow::anyhow!(
+            "{}: names {} fruit (`targets`); a recording holds one fruit per scan (the goal's rough position)",
+            scan.dir.join(alacs::model::SCAN_FILE).display(),
+            1 + scan.more_targets.len()
+        )));
+    }
     let images = read_scan_images(scan, |_, _| {})?;
     let frames: Vec<CapturedFrame> = scan
         .frames
@@ -61,6 +69,7 @@ pub fn captured_from_folder(scan: &Scan) -> CmdResult<CapturedScan> {
         rough_position_in_rgbd_mm: scan.rough_position_in_rgbd_mm.unwrap_or(scan.rough_position_mm),
         rough_position_mm: scan.rough_position_mm,
         fruit_radius_mm: scan.fruit_radius_mm,
+        more_targets: Vec::new(),
         plan: ScanPlan {
             slides_mm: frames.iter().map(|f| f.planned_slide_mm).collect(),
             unclamped_start_mm: frames.first().map_or(0.0, |f| f.planned_slide_mm),

@@ -1,6 +1,6 @@
 //! `alacs localize`: the fruit's centre from a scan folder.
 
-use alacs::locate::{LocateOptions, locate_scan};
+use alacs::locate::{LocateOptions, locate_scan_targets, priors_of, target_cloud_path};
 use alacs::ros::bag::read_scan;
 use alacs::{Camera, LaserModel, Scan};
 
@@ -15,7 +15,7 @@ pub fn run(args: &LocalizeArgs) -> CmdResult {
         alacs::locate::CloudFormat::from_path(path)?;
     }
     let options = LocateOptions { method: args.method.method(), ..LocateOptions::default() };
-    let answer = match (&args.scan, &args.bag) {
+    let (answers, priors) = match (&args.scan, &args.bag) {
         (Some(dir), _) => {
             let scan = Scan::read(dir)?;
             let camera = Camera::from_yaml_file(&args.camera)?;
@@ -24,9 +24,9 @@ pub fn run(args: &LocalizeArgs) -> CmdResult {
                 .map_err(|e| Failure::from(e).with_context(&args.camera))?;
             let bar = output::progress_bar(args.json, "frames");
             output::start_progress(&bar, scan.frames.len(), "frames read");
-            let answer = locate_scan(&scan, &camera, &laser, &options, |_, _| bar.inc(1));
+            let answers = locate_scan_targets(&scan, &camera, &laser, &options, |_, _| bar.inc(1));
             bar.finish_and_clear();
-            answer?
+            (answers?, priors_of(&scan))
         }
         (None, Some(bag)) => {
             let camera = Camera::from_yaml_file(&args.camera)?;
@@ -38,19 +38,33 @@ pub fn run(args: &LocalizeArgs) -> CmdResult {
                 .localize(&camera, &laser, &options)
                 .map_err(|e| Failure::from(e).with_context(bag));
             bar.finish_and_clear();
-            answer?
+            (vec![answer?], vec![scan.prior()])
         }
         (None, None) => {
             return Err(Failure::bad_input(anyhow::anyhow!("--scan DIR or --bag FILE.mcap")));
         }
     };
+    if let [answer] = answers.as_slice() {
+        // One fruit: the contract's localize object.
+        if let Some(path) = &args.points {
+            alacs::locate::write_points(path, answer)?;
+        }
+        if args.json {
+            output::print_json(&output::localization_json(answer))?;
+        } else {
+            output::print_text(&output::localization_summary(answer))?;
+        }
+        return Ok(());
+    }
     if let Some(path) = &args.points {
-        alacs::locate::write_points(path, &answer)?;
+        for (k, answer) in answers.iter().enumerate() {
+            alacs::locate::write_points(&target_cloud_path(path, k), answer)?;
+        }
     }
     if args.json {
-        output::print_json(&output::localization_json(&answer))?;
+        output::print_json(&output::targets_json(&answers, &priors))?;
     } else {
-        output::print_text(&output::localization_summary(&answer))?;
+        output::print_text(&output::targets_summary(&answers, &priors))?;
     }
     Ok(())
 }

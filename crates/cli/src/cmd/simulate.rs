@@ -211,6 +211,11 @@ pub fn session(args: &SimulateSessionArgs) -> CmdResult {
 
 /// Runs `alacs simulate scan`.
 pub fn scan(args: &SimulateScanArgs) -> CmdResult {
+    if args.all_targets && args.scene.cluster == 0 {
+        return Err(Failure::bad_input(anyhow::anyhow!(
+            "--all-targets names the cluster's other apples: give --cluster N (1-3)"
+        )));
+    }
     let (camera, laser) = args.truth.camera_and_laser()?;
     let defaults = args.scene.options()?;
     let mut render = args.render.options(defaults.render);
@@ -220,6 +225,7 @@ pub fn scan(args: &SimulateScanArgs) -> CmdResult {
         render,
         jpeg_quality: args.jpeg,
         within_reach: !args.anywhere,
+        neighbours_as_targets: args.all_targets,
         ..defaults
     };
     let bar = output::progress_bar(args.json, "building the scene and the camera's rays");

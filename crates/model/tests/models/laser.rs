@@ -338,3 +338,26 @@ fn scan_plans_shift_into_the_stroke() {
     assert_eq!(plan.slides_mm[0], 0.0);
     assert_eq!(*plan.slides_mm.last().unwrap(), 200.0);
 }
+
+#[test]
+fn a_sweep_for_several_fruit_covers_each_with_its_own_five_frames() {
+    use alacs_model::{SHARED_FRAME_MM, ScanStrategy};
+    let laser = paper_laser();
+    let strategy = ScanStrategy::default();
+    let left = nalgebra::Point3::new(-60.0, 0.0, 900.0);
+    let right = nalgebra::Point3::new(20.0, 10.0, 880.0);
+    // Almost the left fruit's position: its frames fall on the left fruit's.
+    let beside_left = nalgebra::Point3::new(-59.0, 5.0, 901.0);
+    let sweep = strategy.plan_sweep(&laser, &[(left, 40.0), (right, 40.0), (beside_left, 40.0)]);
+    assert!(sweep.slides_mm.windows(2).all(|w| w[1] - w[0] >= SHARED_FRAME_MM), "{sweep:?}");
+    assert_eq!(sweep.slides_mm.len(), 10, "{sweep:?}");
+    for fruit in [left, right, beside_left] {
+        // Every frame of the fruit's own plan is in the sweep, within the shared tolerance.
+        for d in strategy.plan(&laser, &fruit, 40.0).slides_mm {
+            assert!(sweep.slides_mm.iter().any(|s| (s - d).abs() < SHARED_FRAME_MM), "{d}");
+        }
+    }
+    assert_eq!(sweep.unclamped_start_mm, strategy.plan(&laser, &left, 40.0).unclamped_start_mm);
+    // One fruit: its own plan.
+    assert_eq!(strategy.plan_sweep(&laser, &[(right, 40.0)]), strategy.plan(&laser, &right, 40.0));
+}
