@@ -56,8 +56,8 @@ pub use orchard::{
     orchard_scene, value_noise,
 };
 pub use render::{
-    Exposure, IRRADIANCE_UNIT_W_PER_M2, LaserLight, LaserStripe, Lighting, MAX_GAIN_DB,
-    MAX_SUPERSAMPLING, REFERENCE_EXPOSURE_US, RayMap, RenderOptions, Scene, Sensor,
+    AmbientCache, Exposure, IRRADIANCE_UNIT_W_PER_M2, LaserLight, LaserStripe, Lighting,
+    MAX_GAIN_DB, MAX_SUPERSAMPLING, REFERENCE_EXPOSURE_US, RayMap, RenderOptions, Scene, Sensor,
     SubpixelPattern, SurfaceHit, mix_seed,
 };
 pub use samples::{SampleOptions, SimulatedSamples, simulate_samples};

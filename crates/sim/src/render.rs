@@ -294,6 +294,38 @@ impl RayMap {
         sensor: &Sensor,
         noise_seed: u64,
     ) -> RgbImage {
+        self.render_with(scene, lighting, laser, sensor, noise_seed, None)
+    }
+
+    /// [`RayMap::render`] for the frames of one scene, byte for byte: the
+    /// light without the laser is kept in `cache` from the first render,
+    /// and later renders (the laser at another slide position, or off)
+    /// shade again only the pixels the laser may reach: those with a
+    /// sub-pixel hit within the stripe's cutoff of its plane. The cache is
+    /// rebuilt when the lighting, the exposure, or the laser plane's
+    /// direction or width changes; it must not be shared between scenes or
+    /// ray maps.
+    pub fn render_cached(
+        &self,
+        cache: &mut AmbientCache,
+        scene: &impl Scene,
+        lighting: &Lighting,
+        laser: Option<&LaserStripe>,
+        sensor: &Sensor,
+        noise_seed: u64,
+    ) -> RgbImage {
+        self.render_with(scene, lighting, laser, sensor, noise_seed, Some(cache))
+    }
+
+    fn render_with(
+        &self,
+        scene: &impl Scene,
+        lighting: &Lighting,
+        laser: Option<&LaserStripe>,
+        sensor: &Sensor,
+        noise_seed: u64,
+        cache: Option<&mut AmbientCache>,
+    ) -> RgbImage {
         let (width, height) = (self.camera.width_px, self.camera.height_px);
         let per_pixel = self.supersampling * self.supersampling;
         // Light in DN at 0 dB for this exposure time; the gain comes after the noise.
@@ -302,28 +334,93 @@ impl RayMap {
         let noisy = sensor.gain_dn_per_electron > 0.0 || sensor.read_noise_dn > 0.0;
         let read_variance = sensor.read_noise_dn * sensor.read_noise_dn;
         let row_rays = width as usize * per_pixel;
-        // The light on a pixel, in DN before noise: the mean of its sub-pixel rays.
-        // `hits` is scratch space for the pixel's s x s hits.
-        let pixel_light = |rays: &[[f32; 2]], hits: &mut [Option<SurfaceHit>]| {
+        // The light on a pixel, in DN before noise: the mean of its sub-pixel
+        // rays, lit by `laser`. `hits` is scratch space for the pixel's s x s
+        // hits. With `reach`, also the laser plane offsets that could light
+        // one of the hits ([`AmbientCache`]).
+        let pixel_light = |rays: &[[f32; 2]],
+                           hits: &mut [Option<SurfaceHit>],
+                           laser: Option<&LaserStripe>,
+                           reach: Option<(&Reach, &mut [f32; 2])>| {
             let mut sum = [0.0; 3];
-            let mut add = |radiance: [f64; 3]| {
+            let (mut low, mut high) = (f64::INFINITY, f64::NEG_INFINITY);
+            let mut add = |x_n: f64, y_n: f64, hit: Option<&SurfaceHit>| {
+                if let (Some((reach, _)), Some(hit)) = (&reach, hit) {
+                    if x_n.is_finite() && y_n.is_finite() {
+                        (low, high) = reach.widen(low, high, hit);
+                    }
+                }
+                let radiance = shade(lighting, laser, scene, x_n, y_n, hit);
                 for (channel, value) in sum.iter_mut().zip(radiance) {
                     *channel += value * scale_dn;
                 }
             };
             if scene.intersect_camera_pixel(rays, hits) {
                 for (&[x, y], hit) in rays.iter().zip(hits.iter()) {
-                    add(shade(lighting, laser, scene, f64::from(x), f64::from(y), hit.as_ref()));
+                    add(f64::from(x), f64::from(y), hit.as_ref());
                 }
             } else {
                 for &[x, y] in rays {
                     let (x_n, y_n) = (f64::from(x), f64::from(y));
                     let finite = x_n.is_finite() && y_n.is_finite();
                     let hit = if finite { scene.intersect_camera_ray(x_n, y_n) } else { None };
-                    add(shade(lighting, laser, scene, x_n, y_n, hit.as_ref()));
+                    add(x_n, y_n, hit.as_ref());
                 }
             }
+            if let Some((_, out)) = reach {
+                *out = Reach::rounded_out(low, high);
+            }
             sum
+        };
+        // Per row of the cache: whether it is being built, the light
+        // without the laser, the offsets that reach each pixel.
+        let reach = laser.map(Reach::of);
+        let n_pixels = width as usize * height as usize;
+        // The key of a cache being built is set once it is full.
+        let mut built: Option<(&mut Option<CacheKey>, CacheKey)> = None;
+        let cache_rows: Vec<Option<CacheRow>> = match cache {
+            Some(cache) => {
+                let building = cache.prepare(lighting, scale_dn, reach.as_ref(), n_pixels);
+                let AmbientCache { key, ambient, offsets } = cache;
+                if let Some(new_key) = building {
+                    built = Some((key, new_key));
+                }
+                let w = width as usize;
+                ambient
+                    .chunks_mut(w)
+                    .zip(offsets.chunks_mut(w))
+                    .map(|(ambient, offsets)| Some((building.is_some(), ambient, offsets)))
+                    .collect()
+            }
+            None => (0..height).map(|_| None).collect(),
+        };
+        // Row `v`'s light into `out`.
+        let row_light = |v: usize,
+                         hits: &mut [Option<SurfaceHit>],
+                         cached: Option<CacheRow>,
+                         out: &mut [[f64; 3]]| {
+            let rays = &self.rays[v * row_rays..(v + 1) * row_rays];
+            let pixels = rays.chunks_exact(per_pixel).zip(out.iter_mut());
+            let Some((building, ambient, offsets)) = cached else {
+                for (pixel, light) in pixels {
+                    *light = pixel_light(pixel, hits, laser, None);
+                }
+                return;
+            };
+            for ((pixel, light), (ambient, offsets)) in
+                pixels.zip(ambient.iter_mut().zip(offsets.iter_mut()))
+            {
+                if building {
+                    *ambient =
+                        pixel_light(pixel, hits, None, reach.as_ref().map(|r| (r, &mut *offsets)));
+                }
+                *light = match laser {
+                    Some(stripe) if Reach::may_light(offsets, stripe) => {
+                        pixel_light(pixel, hits, laser, None)
+                    }
+                    _ => *ambient,
+                };
+            }
         };
         // The full well clips; below it shot noise (Poisson, Gaussian
         // approximation) plus read noise, then the gain, then 8 bits. Every
@@ -345,26 +442,25 @@ impl RayMap {
             }
         };
         let mut image = RgbImage::new(width, height);
-        let rows = image.par_chunks_mut(width as usize * 3).enumerate();
+        let width = width as usize;
         if sensor.blur_sigma_px > 0.0 {
             // The lens blurs the light before the sensor records it: light
             // first, then the blur, then the noise. The blur is separable:
             // each row is shaded and blurred along itself, then each output
             // row is blurred down the columns, noised and quantized.
-            let width = width as usize;
             let kernel = GaussianKernel::new(sensor.blur_sigma_px);
             let mut light = vec![[0.0f32; 3]; width * height as usize];
-            light.par_chunks_mut(width).enumerate().for_each_init(
-                || (vec![None; per_pixel], vec![[0.0f32; 3]; width]),
-                |(hits, sharp), (v, out)| {
-                    let rays = &self.rays[v * row_rays..(v + 1) * row_rays];
-                    for (pixel, light) in rays.chunks_exact(per_pixel).zip(sharp.iter_mut()) {
-                        *light = pixel_light(pixel, hits).map(|c| c as f32);
+            light.par_chunks_mut(width).zip(cache_rows).enumerate().for_each_init(
+                || (vec![None; per_pixel], vec![[0.0f64; 3]; width], vec![[0.0f32; 3]; width]),
+                |(hits, row, sharp), (v, (out, cached))| {
+                    row_light(v, hits, cached, row);
+                    for (s, l) in sharp.iter_mut().zip(row.iter()) {
+                        *s = l.map(|c| c as f32);
                     }
                     kernel.blur_row(sharp, out);
                 },
             );
-            rows.for_each_init(
+            image.par_chunks_mut(width * 3).enumerate().for_each_init(
                 || vec![[0.0f32; 3]; width],
                 |blurred, (v, row)| {
                     kernel.blur_column_rows(&light, width, v, blurred);
@@ -376,16 +472,136 @@ impl RayMap {
             );
         } else {
             // No blur: shade and record each row in one pass.
-            rows.for_each(|(v, row)| {
-                let mut rng = ChaCha8Rng::seed_from_u64(mix_seed(noise_seed, v as u64));
-                let rays = &self.rays[v * row_rays..(v + 1) * row_rays];
-                let mut hits = vec![None; per_pixel];
-                for (pixel, out) in rays.chunks_exact(per_pixel).zip(row.chunks_exact_mut(3)) {
-                    record(pixel_light(pixel, &mut hits), out, &mut rng);
-                }
-            });
+            image.par_chunks_mut(width * 3).zip(cache_rows).enumerate().for_each_init(
+                || (vec![None; per_pixel], vec![[0.0f64; 3]; width]),
+                |(hits, light), (v, (row, cached))| {
+                    let mut rng = ChaCha8Rng::seed_from_u64(mix_seed(noise_seed, v as u64));
+                    row_light(v, hits, cached, light);
+                    for (pixel, out) in light.iter().zip(row.chunks_exact_mut(3)) {
+                        record(*pixel, out, &mut rng);
+                    }
+                },
+            );
+        }
+        if let Some((key, new_key)) = built {
+            *key = Some(new_key);
         }
         image
+    }
+}
+
+/// One image row of an [`AmbientCache`]: whether it is being built, the
+/// light without the laser, and the laser plane offsets that reach each pixel.
+type CacheRow<'a> = (bool, &'a mut [[f64; 3]], &'a mut [[f32; 2]]);
+
+/// The light of a scene without the laser, per pixel, kept between the
+/// renders of one scene's frames ([`RayMap::render_cached`]), and for each
+/// pixel the range of laser plane offsets that could light one of its
+/// sub-pixel hits. Only valid for the lighting, exposure and laser plane
+/// direction it was built with; it rebuilds itself when they change.
+#[derive(Default)]
+pub struct AmbientCache {
+    key: Option<CacheKey>,
+    ambient: Vec<[f64; 3]>,
+    offsets: Vec<[f32; 2]>,
+}
+
+impl fmt::Debug for AmbientCache {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("AmbientCache")
+            .field("key", &self.key)
+            .field("pixels", &self.ambient.len())
+            .finish()
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct CacheKey {
+    lighting: Lighting,
+    scale_dn: f64,
+    /// The laser plane's unit normal and the stripe's half width per mm
+    /// of depth the offsets were found for (`None`: built without a laser).
+    reach: Option<Reach>,
+}
+
+impl AmbientCache {
+    /// Readies the cache for a render: `Some(key)` when this render must
+    /// fill it, the key to set once it is full (until then it has none).
+    fn prepare(
+        &mut self,
+        lighting: &Lighting,
+        scale_dn: f64,
+        reach: Option<&Reach>,
+        n_pixels: usize,
+    ) -> Option<CacheKey> {
+        let same_light =
+            self.key.is_some_and(|k| k.lighting == *lighting && k.scale_dn == scale_dn)
+                && self.ambient.len() == n_pixels;
+        // A render without the laser needs only the light; one with it needs
+        // the offsets found for its plane's direction and width.
+        let usable = same_light
+            && match reach {
+                None => true,
+                Some(reach) => self.key.and_then(|k| k.reach) == Some(*reach),
+            };
+        if usable {
+            return None;
+        }
+        self.key = None;
+        self.ambient.clear();
+        self.ambient.resize(n_pixels, [0.0; 3]);
+        self.offsets.clear();
+        self.offsets.resize(n_pixels, [f32::NEG_INFINITY, f32::INFINITY]);
+        Some(CacheKey { lighting: *lighting, scale_dn, reach: reach.copied() })
+    }
+}
+
+/// What decides whether a laser plane may light a surface point: the
+/// plane's unit normal n and the stripe's cutoff half width per mm of
+/// depth. [`LaserStripe::irradiance`] is zero unless |n . p - offset| <
+/// cutoff sigma(z), so a plane lights p only with its offset within
+/// n . p +- cutoff sigma(z).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Reach {
+    normal: Vector3<f64>,
+    half_width_per_depth: f64,
+}
+
+/// Margin added to each side of a pixel's offset range, mm: far more than
+/// the rounding of its arithmetic and of f32 storage (6e-5 mm at 1 m).
+const REACH_MARGIN_MM: f64 = 0.01;
+
+impl Reach {
+    fn of(stripe: &LaserStripe) -> Reach {
+        Reach {
+            normal: stripe.plane.normal,
+            half_width_per_depth: STRIPE_CUTOFF_SIGMAS * stripe.sigma_per_depth,
+        }
+    }
+
+    /// The range (low, high) widened to hold the offsets that light `hit`
+    /// (everything, where that is not finite).
+    fn widen(&self, low: f64, high: f64, hit: &SurfaceHit) -> (f64, f64) {
+        let centre = self.normal.dot(&hit.point.coords);
+        let half = self.half_width_per_depth * hit.point.z.abs();
+        if centre.is_finite() && half.is_finite() {
+            (low.min(centre - half), high.max(centre + half))
+        } else {
+            (f64::NEG_INFINITY, f64::INFINITY)
+        }
+    }
+
+    /// The range as stored, rounded outwards by [`REACH_MARGIN_MM`] and more.
+    fn rounded_out(low: f64, high: f64) -> [f32; 2] {
+        let margin = |v: f64| REACH_MARGIN_MM + 1e-6 * v.abs();
+        [(low - margin(low)) as f32, (high + margin(high)) as f32]
+    }
+
+    /// Whether `stripe`'s plane may light a pixel whose range is `offsets`.
+    fn may_light(offsets: &[f32; 2], stripe: &LaserStripe) -> bool {
+        let offset = stripe.plane.offset_mm;
+        // NaN offsets light nothing (as in `LaserStripe::irradiance`).
+        f64::from(offsets[0]) < offset && offset < f64::from(offsets[1])
     }
 }
 

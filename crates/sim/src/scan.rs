@@ -12,6 +12,7 @@
 //! ([`ScanOptions::within_reach`]).
 
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 
 use alacs_model::io::OutputDir;
 use alacs_model::{
@@ -29,8 +30,8 @@ use crate::error::{check_scale, save_json};
 use crate::orchard::{CameraRayGrid, Hit, OrchardOptions, OrchardScene, orchard_scene};
 use crate::progress::ImageWriter;
 use crate::render::{
-    Exposure, LaserLight, LaserStripe, Lighting, RayMap, RenderOptions, Scene, Sensor, SurfaceHit,
-    mix_seed,
+    AmbientCache, Exposure, LaserLight, LaserStripe, Lighting, RayMap, RenderOptions, Scene,
+    Sensor, SurfaceHit, mix_seed,
 };
 use crate::{Error, Result, camera_to_json, laser_to_json};
 
@@ -179,6 +180,8 @@ pub struct SimulatedScan {
     render: RenderOptions,
     ray_map: RayMap,
     grid: CameraRayGrid,
+    /// The light without the laser, shared by the frames' renders.
+    cache: Mutex<AmbientCache>,
     jpeg_quality: Option<u8>,
     seed: u64,
 }
@@ -346,6 +349,7 @@ pub fn simulate_scan(
         render: options.render,
         ray_map,
         grid,
+        cache: Mutex::new(AmbientCache::default()),
         jpeg_quality: options.jpeg_quality,
         seed: options.seed,
     })
@@ -446,7 +450,10 @@ impl SimulatedScan {
         } else {
             LASER_OFF_STREAM.wrapping_add(frame_index_for_noise)
         };
-        Ok(self.ray_map.render(
+        // A cache a panicking render left half full has no key: rebuilt.
+        let mut cache = self.cache.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        Ok(self.ray_map.render_cached(
+            &mut cache,
             &GriddedScene { scene: &self.scene, grid: &self.grid },
             &self.lighting,
             laser_on.then_some(&stripe),
@@ -601,4 +608,68 @@ pub fn simulate_rendered_scan(
     let images =
         (0..scan.frames.len()).map(|i| scan.render_frame(i, true)).collect::<Result<_>>()?;
     Ok(RenderedScan { scan, images })
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    /// The frames of a scan rendered with the cache of the light without
+    /// the laser ([`RayMap::render_cached`]) are the uncached renders, byte
+    /// for byte, in any order, with the laser on and off and across an
+    /// exposure change: sun, leaves, a cluster and branches in front.
+    #[test]
+    fn cached_frames_are_the_uncached_frames_byte_for_byte() {
+        let options = ScanOptions {
+            orchard: OrchardOptions {
+                occlusion: 0.3,
+                cluster: 2,
+                front_branches: 1,
+                ..OrchardOptions::default()
+            },
+            sun: true,
+            scale: 0.2,
+            seed: 11,
+            ..ScanOptions::default()
+        };
+        let scan =
+            simulate_scan(&Camera::blackfly_s_5mp(), &LaserModel::seed_paper(), &options).unwrap();
+        let uncached = |slide_mm: f64, laser_on: bool, stream: u64, exposure: Exposure| {
+            let sensor = Sensor { exposure, ..scan.render.sensor };
+            let stripe =
+                LaserStripe::new(&scan.laser, slide_mm, &scan.render.laser, scan.camera.fx_px);
+            let stream = if laser_on { stream } else { LASER_OFF_STREAM.wrapping_add(stream) };
+            scan.ray_map.render(
+                &GriddedScene { scene: &scan.scene, grid: &scan.grid },
+                &scan.lighting,
+                laser_on.then_some(&stripe),
+                &sensor,
+                mix_seed(scan.seed, stream),
+            )
+        };
+        let reference = scan.render.sensor.exposure;
+        let short = Exposure { exposure_us: 250.0, gain_db: 3.0 };
+        let slides = &scan.plan.slides_mm;
+        let order = [
+            (4, true, reference),
+            (0, true, reference),
+            (2, false, reference),
+            (1, true, short),
+            (3, true, short),
+            (1, false, short),
+            (0, true, reference),
+        ];
+        for (k, laser_on, exposure) in order {
+            let cached = scan.render_exposed(slides[k], laser_on, k as u64, exposure).unwrap();
+            assert!(
+                cached == uncached(slides[k], laser_on, k as u64, exposure),
+                "frame {k}, laser {laser_on}, {exposure:?}"
+            );
+        }
+        // The laser lights pixels at all, and only a few need shading again.
+        let lit = scan.render_frame(2, true).unwrap();
+        let dark = scan.render_frame(2, false).unwrap();
+        assert!(lit != dark);
+    }
 }
