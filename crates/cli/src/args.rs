@@ -268,6 +268,10 @@ pub struct ReportScanArgs {
     /// How the final position is chosen.
     #[arg(long, value_enum, default_value_t = LocalizeMethodArg::Fused)]
     pub method: LocalizeMethodArg,
+    /// Which fruit of a scan naming several (scan.yaml's `targets`, from 0)
+    /// the report is about.
+    #[arg(long, value_name = "K", default_value_t = 0)]
+    pub target: usize,
     /// Folder for the report (created): index.html and images/.
     #[arg(long, value_name = "DIR", default_value = "report")]
     pub out: PathBuf,

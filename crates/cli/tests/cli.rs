@@ -777,4 +777,13 @@ fn localize_answers_each_fruit_a_scan_names() {
     assert_eq!(json["n_found"], found);
     // A regression guard, not a rate.
     assert!(found >= 2, "{json}");
+    // The scan report is about one fruit: --target picks it, and one beyond them is refused.
+    let report = dir.join("report");
+    let args = with(report_scan(&scan, &camera, &laser, &report), &["--target", "1", "--json"]);
+    let page = stdout_json(&alacs(&args));
+    assert_eq!(page["localization"]["position_mm"], json["targets"][1]["position_mm"]);
+    let args = with(report_scan(&scan, &camera, &laser, &report), &["--target", "3", "--force"]);
+    let output = alacs(&args);
+    assert_eq!(output.status.code(), Some(2));
+    assert!(stderr(&output).contains("3 fruit"), "{}", stderr(&output));
 }

@@ -247,10 +247,12 @@ fn darken(least: &mut Option<RgbImage>, view: RgbImage) {
 }
 
 /// [`locate`] on a scan's images already read ([`read_scan_images`]), with
-/// the prior and slide positions of its scan.yaml.
+/// the slide positions of its scan.yaml, for the fruit of `prior` (one of
+/// [`priors_of`] the scan).
 pub fn locate_scan_images(
     scan: &Scan,
     images: &[(RgbImage, Option<RgbImage>)],
+    prior: &Prior,
     camera: &Camera,
     laser: &LaserModel,
     options: &LocateOptions,
@@ -265,7 +267,7 @@ pub fn locate_scan_images(
             slide_mm: frame.slide_mm,
         })
         .collect();
-    locate(camera, laser, &prior_of(scan), &frames, options).map_err(|e| in_folder(scan, e))
+    locate(camera, laser, prior, &frames, options).map_err(|e| in_folder(scan, e))
 }
 
 #[cfg(test)]

@@ -7,7 +7,7 @@ use alacs::eval::{
     OutputKind, ScanReport, ScanReportFrame, calibration_report, open_output,
     write_calibration_html, write_scan_html,
 };
-use alacs::locate::{LocateOptions, Prior, locate_scan_images, read_scan_images};
+use alacs::locate::{LocateOptions, locate_scan_images, priors_of, read_scan_images};
 use alacs::{Camera, LaserModel, Scan, Session};
 use serde_json::{Value, json};
 
@@ -81,6 +81,15 @@ pub fn calibration(args: &ReportCalibrationArgs) -> CmdResult {
 /// Runs `alacs report scan`.
 pub fn scan(args: &ReportScanArgs) -> CmdResult {
     let scan = Scan::read(&args.scan)?;
+    let priors = priors_of(&scan);
+    let Some(prior) = priors.get(args.target).copied() else {
+        return Err(Failure::bad_input(anyhow::anyhow!(
+            "--target {}: {} names {} fruit (from 0)",
+            args.target,
+            args.scan.join(alacs::model::SCAN_FILE).display(),
+            priors.len()
+        )));
+    };
     let camera = Camera::from_yaml_file(&args.camera)?;
     alacs::locate::check_camera_fits(&scan, &camera)
         .map_err(|e| Failure::from(e).with_context(&args.camera))?;
@@ -92,9 +101,7 @@ pub fn scan(args: &ReportScanArgs) -> CmdResult {
     bar.finish_and_clear();
     let images = images?;
     let options = LocateOptions { method: args.method.method(), ..LocateOptions::default() };
-    let answer = locate_scan_images(&scan, &images, &camera, &laser, &options)?;
-    let prior =
-        Prior { rough_position_mm: scan.rough_position_mm, fruit_radius_mm: scan.fruit_radius_mm };
+    let answer = locate_scan_images(&scan, &images, &prior, &camera, &laser, &options)?;
     let names: Vec<String> = scan.frames.iter().map(|f| f.image.display().to_string()).collect();
     let report_frames: Vec<ScanReportFrame> = names
         .iter()
