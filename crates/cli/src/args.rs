@@ -560,6 +560,11 @@ pub struct SceneArgs {
     /// Branches crossing in front of the fruit, 0-4.
     #[arg(long, value_name = "N", default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=4))]
     pub front_branches: u8,
+    /// Every apple of the cluster (`--cluster N`) is a target, each with a
+    /// rough position of the simulated RGB-D camera, all in one sweep
+    /// (scan.yaml's `targets`).
+    #[arg(long)]
+    pub all_targets: bool,
     /// Fruit distance range MIN,MAX in mm.
     #[arg(long, value_name = "MIN,MAX", default_value = "600,1200")]
     pub depth_mm: String,
@@ -621,10 +626,6 @@ pub struct SimulateScanArgs {
     /// scene is redrawn until the seed's plan fits the stroke unshifted).
     #[arg(long)]
     pub anywhere: bool,
-    /// Name every apple of the cluster (`--cluster N`) in scan.yaml's
-    /// `targets`, each with a rough position, and sweep them all.
-    #[arg(long)]
-    pub all_targets: bool,
     /// Write JPEG frames of this quality (1-100) instead of PNG.
     #[arg(long, value_name = "Q", value_parser = clap::value_parser!(u8).range(1..=100))]
     pub jpeg: Option<u8>,
@@ -772,8 +773,9 @@ pub struct ScanArgs {
     /// The rough position in the RGB-D camera's frame, mm (what its
     /// detector gave). Default with a simulated camera: the simulated
     /// RGB-D camera's; required otherwise.
+    /// Repeat it for several fruit: one sweep covers them all.
     #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
-    pub rough_mm: Option<String>,
+    pub rough_mm: Vec<String>,
     /// Write the scan folder (scan.yaml, frames, camera.yaml, laser.yaml)
     /// here, and truth.json when the camera is simulated.
     #[arg(long, value_name = "DIR")]
@@ -787,7 +789,8 @@ pub struct ScanArgs {
     #[arg(long)]
     pub force: bool,
     /// Print one JSON object on standard output: docs/FORMATS.md's localize object
-    /// plus "truth", "error_mm" and "error_3d_mm".
+    /// plus "truth", "error_mm" and "error_3d_mm" (for several fruit, each
+    /// of "targets").
     #[arg(long)]
     pub json: bool,
 }

@@ -787,3 +787,35 @@ fn localize_answers_each_fruit_a_scan_names() {
     assert_eq!(output.status.code(), Some(2));
     assert!(stderr(&output).contains("3 fruit"), "{}", stderr(&output));
 }
+
+/// `alacs scan --sim --cluster 2 --all-targets`: one sweep over the three
+/// apples of a cluster, each answered with its truth and error; the scan
+/// folder names them all; a recording, which holds one fruit per scan, is
+/// refused before the rig moves.
+#[test]
+fn scan_sim_all_targets_sweeps_a_cluster_once_and_answers_each() {
+    let dir = scratch("scan_targets");
+    let out = dir.join("scan");
+    let template = "scan --sim --scale 0.4 --seed 3 --cluster 2 --all-targets --out {} --json";
+    let json = stdout_json(&alacs(&cmdline(template, &[&out])));
+    assert_eq!(json["n_targets"], 3, "{json}");
+    let slides = json["slides_mm"].as_array().unwrap().len();
+    assert!((6..=15).contains(&slides), "{json}");
+    let mut found = 0;
+    for target in json["targets"].as_array().unwrap() {
+        assert!(target["truth"]["position_mm"].is_array(), "{target}");
+        if target["status"] == "ok" {
+            let error = target["error_3d_mm"].as_f64().unwrap();
+            assert!(error < 15.0, "{target}");
+            found += 1;
+        }
+    }
+    assert!(found >= 2, "{json}");
+    assert!(std::fs::read_to_string(out.join("scan.yaml")).unwrap().contains("targets:"));
+    let bag = dir.join("scan.mcap");
+    let template = "scan --sim --scale 0.4 --seed 3 --cluster 2 --all-targets --record {}";
+    let output = alacs(&cmdline(template, &[&bag]));
+    assert_eq!(output.status.code(), Some(2), "{}", stderr(&output));
+    assert!(stderr(&output).contains("one fruit per scan"), "{}", stderr(&output));
+    assert!(!bag.exists());
+}

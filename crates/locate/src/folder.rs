@@ -31,7 +31,10 @@ pub const MAX_FRAMES_IN_FLIGHT: usize = 4;
 
 /// The images of a scan's frames, in frame order: the laser-on image and
 /// the laser-off one where the frame has it.
-pub type ScanImages = Vec<(RgbImage, Option<RgbImage>)>;
+pub type ScanImages = Vec<FrameImagePair>;
+
+/// A frame's laser-on image and its laser-off image, if any.
+type FrameImagePair = (RgbImage, Option<RgbImage>);
 
 /// Refuses a scan of more than [`MAX_SCAN_FRAMES`] frames, naming its file.
 fn check_frame_count(scan: &Scan) -> Result<()> {
@@ -193,7 +196,8 @@ fn locate_priors(
     // The per-pixel minimum of the frames' views: all the outline needs.
     let mut least: Option<RgbImage> = None;
     for (first, specs) in scan.frames.chunks(chunk).enumerate().map(|(k, c)| (k * chunk, c)) {
-        let processed: Vec<(Vec<FrameResult>, (RgbImage, Option<RgbImage>))> = specs
+        // Per frame: each fruit's result, and the frame's images.
+        let processed: Vec<(Vec<FrameResult>, FrameImagePair)> = specs
             .par_iter()
             .enumerate()
             .map(|(j, spec)| {

@@ -345,10 +345,11 @@ impl RayMap {
             let mut sum = [0.0; 3];
             let (mut low, mut high) = (f64::INFINITY, f64::NEG_INFINITY);
             let mut add = |x_n: f64, y_n: f64, hit: Option<&SurfaceHit>| {
-                if let (Some((reach, _)), Some(hit)) = (&reach, hit) {
-                    if x_n.is_finite() && y_n.is_finite() {
-                        (low, high) = reach.widen(low, high, hit);
-                    }
+                if let (Some((reach, _)), Some(hit)) = (&reach, hit)
+                    && x_n.is_finite()
+                    && y_n.is_finite()
+                {
+                    (low, high) = reach.widen(low, high, hit);
                 }
                 let radiance = shade(lighting, laser, scene, x_n, y_n, hit);
                 for (channel, value) in sum.iter_mut().zip(radiance) {

@@ -13,6 +13,7 @@
 use std::time::Instant;
 
 use alacs::locate::{Localization, LocateOptions, Status};
+use alacs::model::MAX_SCAN_TARGETS;
 use alacs::model::io::OutputDir;
 use alacs::ros::Frames;
 use alacs::ros::bag::BagWriter;
@@ -52,22 +53,41 @@ pub fn parse_pose(text: &str) -> CmdResult<Isometry3<f64>> {
 /// Runs `alacs scan`.
 pub fn run(args: &ScanArgs) -> CmdResult {
     let bar = output::progress_bar(args.json, "opening the rig");
-    let rough_in_rgbd = args.rough_mm.as_deref().map(parse_rough).transpose()?;
+    let given =
+        args.rough_mm.iter().map(|text| parse_rough(text)).collect::<CmdResult<Vec<_>>>()?;
+    if given.len() > MAX_SCAN_TARGETS {
+        return Err(Failure::bad_input(anyhow!(
+            "{} --rough-mm: a scan covers 1-{MAX_SCAN_TARGETS} fruit",
+            given.len()
+        )));
+    }
     let OpenRig { mut devices, sim, camera, laser, alacs_from_rgbd, controller: config } =
         rig::open(&args.rig, &mut |line| bar.suspend(|| eprintln!("{line}")))?;
     // The RGB-D camera's rough position: given, or the simulated RGB-D
     // camera's (mounted at `alacs_from_rgbd`, it reports the position in its
     // own frame; the controller carries it back).
-    let rough_in_rgbd = match (rough_in_rgbd, &sim) {
-        (Some(rough), _) => rough,
-        (None, Some(sim)) => alacs_from_rgbd.inverse() * sim.rough_position_mm,
-        (None, None) => {
+    // With --all-targets, every apple of the simulated cluster.
+    let from_sim = given.is_empty();
+    let roughs_in_rgbd: Vec<Point3<f64>> = match (from_sim, &sim) {
+        (false, _) => given,
+        (true, Some(sim)) => std::iter::once(&sim.rough_position_mm)
+            .chain(&sim.more_targets)
+            .map(|rough| alacs_from_rgbd.inverse() * rough)
+            .collect(),
+        (true, None) => {
             return Err(Failure::bad_input(anyhow!(
                 "--rough-mm X,Y,Z is needed: the rough position of the fruit in the RGB-D \
                  camera's frame"
             )));
         }
     };
+    if roughs_in_rgbd.len() > 1 && args.record.is_some() {
+        return Err(Failure::bad_input(anyhow!(
+            "--record holds one fruit per scan (the action goal's rough position), and this \
+             scan covers {}: scan them one at a time, or leave out --record",
+            roughs_in_rgbd.len()
+        )));
+    }
     let controller = ScanController::new(laser, config)?;
     // Where the scan goes is checked before the rig moves: a scan of real
     // hardware must not be lost to an output that cannot be written.
@@ -86,7 +106,7 @@ pub fn run(args: &ScanArgs) -> CmdResult {
     output::start_progress(&bar, controller.image_count(), "scanning");
     let started = Instant::now();
     let scanned =
-        controller.run_with_progress(&mut devices.rig(), &rough_in_rgbd, |done, total| {
+        controller.run_targets_with_progress(&mut devices.rig(), &roughs_in_rgbd, |done, total| {
             bar.set_length(total as u64);
             bar.set_position(done as u64);
         });
@@ -106,7 +126,8 @@ pub fn run(args: &ScanArgs) -> CmdResult {
     // connection closes here.
     drop(devices);
     bar.set_message("localizing");
-    let answer = scan.localize(&camera, &laser, &LocateOptions::default()).map_err(|error| {
+    let answers = scan.localize_targets(&camera, &laser, &LocateOptions::default());
+    let answer = answers.map_err(|error| {
         let mut failure = Failure::from(error);
         if let Some(path) = &args.rig.camera {
             failure.error = failure.error.context(format!("localizing with {}", path.display()));
@@ -116,7 +137,7 @@ pub fn run(args: &ScanArgs) -> CmdResult {
     // The scan is kept whatever localization said.
     if let Some(mut bag) = recording.take() {
         bar.set_message("recording");
-        bag.write_scan(&scan, Some(&camera), answer.as_ref().ok())?;
+        bag.write_scan(&scan, Some(&camera), answer.as_ref().ok().and_then(|a| a.first()))?;
         bag.finish()?;
     }
     if let (Some(out), Some(dir)) = (folder.as_mut(), &args.out) {
@@ -127,35 +148,142 @@ pub fn run(args: &ScanArgs) -> CmdResult {
     if let Some(out) = folder.take() {
         out.finish()?;
     }
-    let answer = answer?;
+    let mut answers = answer?;
     bar.finish_and_clear();
+    if answers.len() > 1 {
+        let truths = sim.as_deref().filter(|_| from_sim).map(truths_of);
+        return print_targets(&scan, &answers, truths.as_deref(), rig_time_s, &camera, args);
+    }
+    let Some(answer) = answers.pop() else {
+        return Err(Failure::job_failed(anyhow!("localization gave no answer")));
+    };
 
     let truth = sim.as_ref().map(|sim| (sim.scene.fruit_centre, sim.scene.fruit_radius_mm));
     let error = answer.position_mm.zip(truth).map(|(p, (t, _))| p - t);
     if args.json {
         let mut value = output::localization_json(&answer);
         if let Value::Object(map) = &mut value {
-            let extra = json!({
-                "truth": truth.map(|(t, r)| json!({"position_mm": point(&t), "radius_mm": r})),
-                "error_mm": error.map(|e| [e.x, e.y, e.z]),
-                "error_3d_mm": error.map(|e| e.norm()),
-                "rough_position_mm": point(&scan.rough_position_mm),
-                "rough_position_in_rgbd_mm": point(&scan.rough_position_in_rgbd_mm),
-                "slides_mm": scan.slides_mm(),
-                "plan_shifted_into_stroke": scan.plan.shifted,
-                "rig_time_s": rig_time_s,
-                "image_width": camera.width_px,
-                "image_height": camera.height_px,
-                "out": args.out.as_ref().map(|d| d.display().to_string()),
-                "record": args.record.as_ref().map(|d| d.display().to_string()),
-            });
-            if let Value::Object(extra) = extra {
-                map.extend(extra);
-            }
+            map.extend(truth_keys(truth, error));
+            map.insert("rough_position_mm".into(), json!(point(&scan.rough_position_mm)));
+            map.insert(
+                "rough_position_in_rgbd_mm".into(),
+                json!(point(&scan.rough_position_in_rgbd_mm)),
+            );
+            map.extend(scan_keys(&scan, rig_time_s, &camera, args));
         }
         output::print_json(&value)?;
     } else {
         out!("{}", summary(&scan, sim.as_deref(), &answer, rig_time_s, args));
+    }
+    Ok(())
+}
+
+/// `alacs scan --json`'s keys of a fruit's truth: `truth`, `error_mm` and
+/// `error_3d_mm` (`null` without a truth or an answer).
+fn truth_keys(
+    truth: Option<(Point3<f64>, f64)>,
+    error: Option<nalgebra::Vector3<f64>>,
+) -> serde_json::Map<String, Value> {
+    let mut keys = serde_json::Map::new();
+    keys.insert(
+        "truth".into(),
+        json!(truth.map(|(t, r)| json!({"position_mm": point(&t), "radius_mm": r}))),
+    );
+    keys.insert("error_mm".into(), json!(error.map(|e| [e.x, e.y, e.z])));
+    keys.insert("error_3d_mm".into(), json!(error.map(|e| e.norm())));
+    keys
+}
+
+/// `alacs scan --json`'s keys of the scan itself: slides, rig time,
+/// image size and where it was written.
+fn scan_keys(
+    scan: &CapturedScan,
+    rig_time_s: f64,
+    camera: &Camera,
+    args: &ScanArgs,
+) -> serde_json::Map<String, Value> {
+    let path = |p: &Option<std::path::PathBuf>| p.as_ref().map(|d| d.display().to_string());
+    let mut keys = serde_json::Map::new();
+    keys.insert("slides_mm".into(), json!(scan.slides_mm()));
+    keys.insert("plan_shifted_into_stroke".into(), json!(scan.plan.shifted));
+    keys.insert("rig_time_s".into(), json!(rig_time_s));
+    keys.insert("image_width".into(), json!(camera.width_px));
+    keys.insert("image_height".into(), json!(camera.height_px));
+    keys.insert("out".into(), json!(path(&args.out)));
+    keys.insert("record".into(), json!(path(&args.record)));
+    keys
+}
+
+/// The true centre and radius of each fruit a simulated scan names: the
+/// target, then the neighbours named with it.
+fn truths_of(sim: &SimulatedScan) -> Vec<(Point3<f64>, f64)> {
+    std::iter::once((sim.scene.fruit_centre, sim.scene.fruit_radius_mm))
+        .chain(sim.scene.neighbours())
+        .collect()
+}
+
+/// The answer for a scan of several fruit: FORMATS.md's several-fruit
+/// localize object (`TargetsOutput`), each fruit with its truth and error
+/// when they are known, and the scan's extra keys.
+fn print_targets(
+    scan: &CapturedScan,
+    answers: &[Localization],
+    truths: Option<&[(Point3<f64>, f64)]>,
+    rig_time_s: f64,
+    camera: &Camera,
+    args: &ScanArgs,
+) -> CmdResult {
+    let truth = |k: usize| truths.and_then(|t| t.get(k)).copied();
+    let error = |k: usize| {
+        let answer = answers.get(k)?;
+        answer
+            .position_mm
+            .filter(|_| answer.status == Status::Ok)
+            .zip(truth(k))
+            .map(|(p, (t, _))| p - t)
+    };
+    if args.json {
+        let mut value = output::targets_json(answers, &scan.priors());
+        if let Value::Object(map) = &mut value {
+            if let Some(Value::Array(targets)) = map.get_mut("targets") {
+                for (k, target) in targets.iter_mut().enumerate() {
+                    if let Value::Object(target) = target {
+                        target.extend(truth_keys(truth(k), error(k)));
+                    }
+                }
+            }
+            map.extend(scan_keys(scan, rig_time_s, camera, args));
+        }
+        output::print_json(&value)?;
+    } else {
+        let slides: Vec<String> = scan.slides_mm().iter().map(|d| format!("{d:.1}")).collect();
+        out!(
+            "scanned {} fruit in one sweep: {} frames at slides {} mm, {:.2} s of rig time\n",
+            answers.len(),
+            scan.frames.len(),
+            slides.join(", "),
+            rig_time_s
+        );
+        out!("{}", output::targets_summary(answers, &scan.priors()));
+        for k in 0..answers.len() {
+            if let (Some((t, _)), Some(e)) = (truth(k), error(k)) {
+                out!(
+                    "target {k}: truth ({:.1}, {:.1}, {:.1}) mm, error {:.2} mm in 3-D\n",
+                    t.x,
+                    t.y,
+                    t.z,
+                    e.norm()
+                );
+            }
+        }
+        if let Some(dir) = &args.out {
+            out!(
+                "wrote {} (scan.yaml naming {} fruit, {} frames)\n",
+                dir.display(),
+                answers.len(),
+                scan.image_count()
+            );
+        }
     }
     Ok(())
 }

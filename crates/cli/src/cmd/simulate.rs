@@ -94,6 +94,11 @@ impl RenderArgs {
 impl SceneArgs {
     /// The simulator's scan options for this scene (defaults elsewhere).
     pub fn options(&self) -> CmdResult<ScanOptions> {
+        if self.all_targets && self.cluster == 0 {
+            return Err(Failure::bad_input(anyhow!(
+                "--all-targets names the cluster's other apples: give --cluster N (1-3)"
+            )));
+        }
         let defaults = ScanOptions::default();
         Ok(ScanOptions {
             orchard: OrchardOptions {
@@ -105,6 +110,7 @@ impl SceneArgs {
             },
             sun: self.sun,
             scale: self.scale,
+            neighbours_as_targets: self.all_targets,
             seed: self.seed,
             ..defaults
         })
@@ -211,11 +217,6 @@ pub fn session(args: &SimulateSessionArgs) -> CmdResult {
 
 /// Runs `alacs simulate scan`.
 pub fn scan(args: &SimulateScanArgs) -> CmdResult {
-    if args.all_targets && args.scene.cluster == 0 {
-        return Err(Failure::bad_input(anyhow::anyhow!(
-            "--all-targets names the cluster's other apples: give --cluster N (1-3)"
-        )));
-    }
     let (camera, laser) = args.truth.camera_and_laser()?;
     let defaults = args.scene.options()?;
     let mut render = args.render.options(defaults.render);
@@ -225,7 +226,6 @@ pub fn scan(args: &SimulateScanArgs) -> CmdResult {
         render,
         jpeg_quality: args.jpeg,
         within_reach: !args.anywhere,
-        neighbours_as_targets: args.all_targets,
         ..defaults
     };
     let bar = output::progress_bar(args.json, "building the scene and the camera's rays");
