@@ -118,6 +118,7 @@ fn main() {
     let out = |name: &str| arg(&d.join(name));
 
     let (report64, eval2m, session_x2) = (out("report64"), out("eval2m"), out("session_x2"));
+    let scan_x2 = out("scan_x2");
     fn localize_args<'a>(scan: &'a str, camera: &'a str, laser: &'a str) -> Vec<&'a str> {
         vec!["localize", "--scan", scan, "--camera", camera, "--laser", laser]
     }
@@ -155,6 +156,10 @@ fn main() {
         (
             "simulate session --scale 2 (MAX_SCALE: 20 MP), 1 view",
             vec!["simulate", "session", "--scale", "2", "--views", "1", "--out", &session_x2],
+        ),
+        (
+            "simulate scan --scale 2 (MAX_SCALE: 20 MP), 5 frames",
+            vec!["simulate", "scan", "--scale", "2", "--out", &scan_x2],
         ),
     ];
     println!("| case | exit | time (s) | peak RSS (MiB) |");
