@@ -80,18 +80,12 @@ pub fn read_scan_images(scan: &Scan, progress: impl Fn(usize, usize) + Sync) -> 
 
 /// The prior of a scan's scan.yaml (its first fruit's).
 fn prior_of(scan: &Scan) -> Prior {
-    Prior { rough_position_mm: scan.rough_position_mm, fruit_radius_mm: scan.fruit_radius_mm }
+    Prior::from(&scan.target())
 }
 
 /// The priors of every fruit a scan's scan.yaml names, in its order.
 pub fn priors_of(scan: &Scan) -> Vec<Prior> {
-    scan.targets()
-        .iter()
-        .map(|t| Prior {
-            rough_position_mm: t.rough_position_mm,
-            fruit_radius_mm: t.fruit_radius_mm,
-        })
-        .collect()
+    scan.targets().iter().map(Prior::from).collect()
 }
 
 /// Names `path` (a frame's image) in an input error.

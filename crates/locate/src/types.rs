@@ -116,6 +116,16 @@ pub struct Prior {
     pub fruit_radius_mm: f64,
 }
 
+impl From<&alacs_model::ScanTarget> for Prior {
+    /// What scan.yaml says of one fruit.
+    fn from(target: &alacs_model::ScanTarget) -> Self {
+        Prior {
+            rough_position_mm: target.rough_position_mm,
+            fruit_radius_mm: target.fruit_radius_mm,
+        }
+    }
+}
+
 /// One frame's position candidate.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Candidate {

@@ -407,12 +407,7 @@ impl CapturedScan {
 
     /// The prior of every fruit scanned, in order.
     pub fn priors(&self) -> Vec<Prior> {
-        std::iter::once(self.prior())
-            .chain(self.more_targets.iter().map(|t| Prior {
-                rough_position_mm: t.rough_position_mm,
-                fruit_radius_mm: t.fruit_radius_mm,
-            }))
-            .collect()
+        std::iter::once(self.prior()).chain(self.more_targets.iter().map(Prior::from)).collect()
     }
 
     /// Locates every fruit scanned ([`CapturedScan::priors`]), each as a

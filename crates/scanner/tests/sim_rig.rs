@@ -268,9 +268,7 @@ fn one_sweep_covers_every_fruit_of_a_cluster_and_each_is_localized() {
         ..ScanOptions::default()
     };
     let scene = Arc::new(simulate_scan(&Camera::blackfly_s_5mp(), &laser(), &options).unwrap());
-    let roughs: Vec<_> = std::iter::once(scene.rough_position_mm)
-        .chain(scene.more_targets.iter().copied())
-        .collect();
+    let roughs = scene.rough_positions();
     assert_eq!(roughs.len(), 3);
     let mut rig = SimulatedRig::new(scene.clone(), SimulatedRigOptions::default()).unwrap();
     let config = ControllerConfig {
@@ -283,9 +281,7 @@ fn one_sweep_covers_every_fruit_of_a_cluster_and_each_is_localized() {
     assert!((6..=15).contains(&scan.frames.len()), "{:?}", scan.slides_mm());
     assert!(!rig.laser_on());
     assert!(scan.scan_yaml().contains("targets:"));
-    let truth: Vec<_> = std::iter::once(scene.scene.fruit_centre)
-        .chain(scene.scene.neighbours().iter().map(|n| n.0))
-        .collect();
+    let truth: Vec<_> = scene.scene.apples().iter().map(|a| a.0).collect();
     let answers = scan.localize_targets(&scene.camera, &scene.laser, &LocateOptions::default());
     let mut found = 0;
     for (k, answer) in answers.unwrap().iter().enumerate() {

@@ -665,6 +665,14 @@ impl OrchardScene {
             .collect()
     }
 
+    /// The target, then [`OrchardScene::neighbours`]: each apple's centre
+    /// and equal-volume radius, mm.
+    pub fn apples(&self) -> Vec<(Point3<f64>, f64)> {
+        std::iter::once((self.fruit_centre, self.fruit_radius_mm))
+            .chain(self.neighbours())
+            .collect()
+    }
+
     /// The nearest hit along `ray` beyond `t_min`.
     pub fn first_hit(&self, ray: &Ray, t_min: f64) -> Option<Hit> {
         self.first_hit_among(ray, t_min, 0..self.objects.len())

@@ -535,15 +535,21 @@ impl SimulatedScan {
         if self.more_targets.is_empty() {
             return serde_json::Value::Null;
         }
-        let truth = std::iter::once((self.scene.fruit_centre, self.scene.fruit_radius_mm))
-            .chain(self.scene.neighbours());
-        let rough = std::iter::once(&self.rough_position_mm).chain(&self.more_targets);
-        truth
-            .zip(rough)
+        self.scene
+            .apples()
+            .into_iter()
+            .zip(self.rough_positions())
             .map(|((c, r), p)| {
                 json!({"position_mm": [c.x, c.y, c.z], "radius_mm": r, "rough_position_mm": [p.x, p.y, p.z]})
             })
             .collect()
+    }
+
+    /// The rough position of every fruit scan.yaml names: the target's,
+    /// then [`SimulatedScan::more_targets`] (the same order as
+    /// [`OrchardScene::apples`]).
+    pub fn rough_positions(&self) -> Vec<Point3<f64>> {
+        std::iter::once(self.rough_position_mm).chain(self.more_targets.iter().copied()).collect()
     }
 
     /// How many images [`SimulatedScan::write`] renders and writes.

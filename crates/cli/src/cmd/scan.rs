@@ -70,10 +70,9 @@ pub fn run(args: &ScanArgs) -> CmdResult {
     let from_sim = given.is_empty();
     let roughs_in_rgbd: Vec<Point3<f64>> = match (from_sim, &sim) {
         (false, _) => given,
-        (true, Some(sim)) => std::iter::once(&sim.rough_position_mm)
-            .chain(&sim.more_targets)
-            .map(|rough| alacs_from_rgbd.inverse() * rough)
-            .collect(),
+        (true, Some(sim)) => {
+            sim.rough_positions().iter().map(|rough| alacs_from_rgbd.inverse() * rough).collect()
+        }
         (true, None) => {
             return Err(Failure::bad_input(anyhow!(
                 "--rough-mm X,Y,Z is needed: the rough position of the fruit in the RGB-D \
@@ -151,7 +150,7 @@ pub fn run(args: &ScanArgs) -> CmdResult {
     let mut answers = answer?;
     bar.finish_and_clear();
     if answers.len() > 1 {
-        let truths = sim.as_deref().filter(|_| from_sim).map(truths_of);
+        let truths = sim.as_deref().filter(|_| from_sim).map(|sim| sim.scene.apples());
         return print_targets(&scan, &answers, truths.as_deref(), rig_time_s, &camera, args);
     }
     let Some(answer) = answers.pop() else {
@@ -212,14 +211,6 @@ fn scan_keys(
     keys.insert("out".into(), json!(path(&args.out)));
     keys.insert("record".into(), json!(path(&args.record)));
     keys
-}
-
-/// The true centre and radius of each fruit a simulated scan names: the
-/// target, then the neighbours named with it.
-fn truths_of(sim: &SimulatedScan) -> Vec<(Point3<f64>, f64)> {
-    std::iter::once((sim.scene.fruit_centre, sim.scene.fruit_radius_mm))
-        .chain(sim.scene.neighbours())
-        .collect()
 }
 
 /// The answer for a scan of several fruit: FORMATS.md's several-fruit
