@@ -1,9 +1,10 @@
 //! Nonlinear least-squares refinement of the laser parameters, eq. (9), by
-//! Levenberg-Marquardt (the `levenberg-marquardt` crate, a MINPACK port).
+//! Levenberg-Marquardt on the normal equations (two or three parameters,
+//! up to millions of samples).
 
-use alacs_model::{Fidelity, LaserModel};
-use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
-use nalgebra::{DMatrix, DVector, Dyn};
+use alacs_model::{Fidelity, LaserModel, PreparedLaser};
+use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
+use rayon::prelude::*;
 
 use crate::{Error, LaserSample, Result};
 
@@ -45,9 +46,9 @@ pub(crate) struct Refined {
 /// residual (so the step is rejected) instead of a division by ~0.
 const MIN_DENOMINATOR: f64 = 1e-6;
 
-/// The part of a [`LeastSquaresProblem`] over dynamic vectors that every
-/// problem of this crate shares: the storage types, and the parameters kept
-/// in the problem's field `params` (a `DVector<f64>`).
+/// The part of a [`levenberg_marquardt::LeastSquaresProblem`] over dynamic
+/// vectors that every problem of this crate shares: the storage types, and
+/// the parameters kept in the problem's field `params` (a `DVector<f64>`).
 macro_rules! dynamic_problem_params {
     () => {
         type ResidualStorage = nalgebra::Owned<f64, nalgebra::Dyn>;
@@ -65,62 +66,157 @@ macro_rules! dynamic_problem_params {
 }
 pub(crate) use dynamic_problem_params;
 
+/// Samples per block of the one-pass sums: blocks are summed in parallel
+/// and then in their order, so a fit is the same on any number of threads.
+const BLOCK: usize = 8192;
+
+/// Most Levenberg-Marquardt iterations (each one pass over the samples; a
+/// fit from the linear solution normally converges in 3-6).
+const MAX_ITERATIONS: usize = 100;
+
+/// A step is done when the sum of squares falls by less than this fraction.
+const RELATIVE_COST_TOLERANCE: f64 = 1e-14;
+
+/// A step is done when no parameter moves by more than this fraction of its
+/// scale (`1 / sqrt(diag(J^T J))`, the parameter change that moves the
+/// residuals by one unit).
+const SCALED_STEP_TOLERANCE: f64 = 1e-10;
+
+/// The parameter vector: alpha (rad), L0 (mm) and, for the high-fidelity
+/// model, beta (rad).
+type Params = [f64; 3];
+
+/// One pass over the samples at some parameters: the sum of squared
+/// residuals and the normal equations' J^T J and J^T r (p x p and p used).
+#[derive(Debug, Clone, Copy, Default)]
+struct Sums {
+    cost: f64,
+    jtj: Matrix3<f64>,
+    jtr: Vector3<f64>,
+    /// A sample's ray misses the laser plane: the gradient is undefined there.
+    invalid: bool,
+}
+
+impl Sums {
+    fn add(mut self, other: &Sums) -> Sums {
+        self.cost += other.cost;
+        self.jtj += other.jtj;
+        self.jtr += other.jtr;
+        self.invalid |= other.invalid;
+        self
+    }
+}
+
+/// The least-squares problem of eq. (9) over the samples `indices`.
 struct Problem<'a> {
-    samples: Vec<&'a LaserSample>,
+    samples: &'a [LaserSample],
+    indices: &'a [usize],
     fidelity: Fidelity,
     residual: Residual,
-    params: DVector<f64>,
 }
 
 impl Problem<'_> {
-    fn laser(&self) -> LaserModel {
-        let beta = if self.fidelity == Fidelity::High { self.params[2] } else { 0.0 };
-        LaserModel::new(self.fidelity, self.params[0], beta, self.params[1])
-    }
-}
-
-impl LeastSquaresProblem<f64, Dyn, Dyn> for Problem<'_> {
-    dynamic_problem_params!();
-
-    fn residuals(&self) -> Option<DVector<f64>> {
-        let laser = self.laser().prepare();
-        Some(DVector::from_iterator(
-            self.samples.len(),
-            self.samples.iter().map(|s| match self.residual {
-                Residual::Depth => {
-                    let d = laser.denominator(&s.normalized()).max(MIN_DENOMINATOR);
-                    s.z_mm - laser.model.laser_distance_mm(s.slide_mm) / d
-                }
-                Residual::PlaneDistance => {
-                    laser.signed_distance_mm(&s.point_in_camera(), s.slide_mm)
-                }
-            }),
-        ))
+    /// Number of fitted parameters.
+    fn p(&self) -> usize {
+        if self.fidelity == Fidelity::High { 3 } else { 2 }
     }
 
-    fn jacobian(&self) -> Option<DMatrix<f64>> {
-        let laser = self.laser().prepare();
-        let p = self.params.len();
-        let mut jac = DMatrix::zeros(self.samples.len(), p);
-        for (i, s) in self.samples.iter().enumerate() {
-            let gradient = match self.residual {
+    fn laser(&self, params: &Params) -> LaserModel {
+        let beta = if self.fidelity == Fidelity::High { params[2] } else { 0.0 };
+        LaserModel::new(self.fidelity, params[0], beta, params[1])
+    }
+
+    /// Residual and its gradient for one sample (`None` for the gradient
+    /// where the ray misses the plane).
+    fn residual_and_gradient(
+        &self,
+        laser: &PreparedLaser,
+        s: &LaserSample,
+    ) -> (f64, Option<Vector3<f64>>) {
+        match self.residual {
+            Residual::Depth => {
+                let normalized = s.normalized();
+                let d = laser.denominator(&normalized).max(MIN_DENOMINATOR);
+                let r = s.z_mm - laser.model.laser_distance_mm(s.slide_mm) / d;
                 // r = z - z_hat: dr/dp = -dz_hat/dp.
-                Residual::Depth => {
-                    -laser.depth_gradient_params(&s.normalized(), s.slide_mm).ok()?
-                }
-                Residual::PlaneDistance => {
-                    laser.signed_distance_gradient_params(&s.point_in_camera(), s.slide_mm)
-                }
-            };
-            for j in 0..p {
-                jac[(i, j)] = gradient[j];
+                (r, laser.depth_gradient_params(&normalized, s.slide_mm).ok().map(|g| -g))
+            }
+            Residual::PlaneDistance => {
+                let point = s.point_in_camera();
+                (
+                    laser.signed_distance_mm(&point, s.slide_mm),
+                    Some(laser.signed_distance_gradient_params(&point, s.slide_mm)),
+                )
             }
         }
-        Some(jac)
+    }
+
+    /// The sums over `block` under `laser`, in order on this thread.
+    fn block_sums(&self, laser: &PreparedLaser, block: &[usize]) -> Sums {
+        let low = self.fidelity == Fidelity::Low;
+        let mut sums = Sums::default();
+        for &i in block {
+            let (r, gradient) = self.residual_and_gradient(laser, &self.samples[i]);
+            sums.cost += r * r;
+            match gradient {
+                Some(mut g) => {
+                    if low {
+                        g[2] = 0.0;
+                    }
+                    sums.jtj += g * g.transpose();
+                    sums.jtr += g * r;
+                }
+                None => sums.invalid = true,
+            }
+        }
+        sums
+    }
+
+    /// The sums of one pass at `params`.
+    fn sums(&self, params: &Params) -> Sums {
+        let laser = self.laser(params).prepare();
+        let blocks: Vec<Sums> =
+            self.indices.par_chunks(BLOCK).map(|block| self.block_sums(&laser, block)).collect();
+        blocks.iter().fold(Sums::default(), |total, b| total.add(b))
     }
 }
 
-/// Refines `initial` on the samples `indices` by minimizing `residual`.
+/// The normal equations of `laser`'s residuals over `indices`: J^T J
+/// (p x p) and J^T r (p), p = 2 for the low-fidelity model, else 3 (alpha
+/// in rad, L0 in mm, beta in rad), summed in order on this thread. `None`
+/// where a sample's ray misses the laser plane.
+pub(crate) fn normal_equations(
+    samples: &[LaserSample],
+    indices: &[usize],
+    laser: &LaserModel,
+    residual: Residual,
+) -> Option<(DMatrix<f64>, DVector<f64>)> {
+    let problem = Problem { samples, indices, fidelity: laser.fidelity, residual };
+    let p = problem.p();
+    let sums = problem.block_sums(&laser.prepare(), indices);
+    (!sums.invalid)
+        .then(|| (sums.jtj.view((0, 0), (p, p)).into_owned(), sums.jtr.rows(0, p).into_owned()))
+}
+
+/// Solves `(A + lambda diag(A)) x = -b` over the first `p` parameters
+/// (Marquardt's scaling), or `None` where it is singular.
+fn damped_step(sums: &Sums, p: usize, lambda: f64) -> Option<Vector3<f64>> {
+    let a = sums.jtj.view((0, 0), (p, p)).into_owned();
+    let mut damped = a.clone();
+    for k in 0..p {
+        damped[(k, k)] += lambda * a[(k, k)];
+    }
+    let x = damped.cholesky()?.solve(&(-sums.jtr.rows(0, p).into_owned()));
+    let mut step = Vector3::zeros();
+    step.rows_mut(0, p).copy_from(&x);
+    step.iter().all(|v| v.is_finite()).then_some(step)
+}
+
+/// Refines `initial` on the samples `indices` by minimizing `residual`:
+/// Levenberg-Marquardt on the normal equations. With two or three
+/// parameters and up to millions of samples, each iteration is one pass
+/// that sums J^T J and J^T r (no N x p Jacobian is stored, and the pass runs
+/// in parallel), and the step is a 3 x 3 solve.
 pub(crate) fn refine(
     samples: &[LaserSample],
     indices: &[usize],
@@ -128,34 +224,63 @@ pub(crate) fn refine(
     residual: Residual,
 ) -> Result<Refined> {
     let fidelity = initial.fidelity;
-    let mut params = vec![initial.alpha_rad, initial.l0_mm];
-    if fidelity == Fidelity::High {
-        params.push(initial.beta_rad);
-    }
-    let problem = Problem {
-        samples: indices.iter().map(|&i| &samples[i]).collect(),
-        fidelity,
-        residual,
-        params: DVector::from_vec(params),
-    };
-    let (problem, report) = LevenbergMarquardt::new().minimize(problem);
-    let laser = problem.laser();
-    if laser.validate().is_err() || !report.objective_function.is_finite() {
-        return Err(Error::FitFailed(format!(
-            "Levenberg-Marquardt ended at alpha {:.3} deg, L0 {:.3} mm, beta {:.3} deg ({:?})",
+    let problem = Problem { samples, indices, fidelity, residual };
+    let p = problem.p();
+    let beta = if fidelity == Fidelity::High { initial.beta_rad } else { 0.0 };
+    let mut params: Params = [initial.alpha_rad, initial.l0_mm, beta];
+    let mut current = problem.sums(&params);
+    let failed = |params: &Params, why: &str| {
+        let laser = problem.laser(params);
+        Error::FitFailed(format!(
+            "Levenberg-Marquardt ended at alpha {:.3} deg, L0 {:.3} mm, beta {:.3} deg ({why})",
             laser.alpha_deg(),
             laser.l0_mm,
             laser.beta_deg(),
-            report.termination
-        )));
+        ))
+    };
+    if current.invalid || !current.cost.is_finite() {
+        return Err(failed(&params, "a sample's ray misses the starting laser plane"));
     }
-    let covariance = problem.jacobian().and_then(|jac| {
-        let (n, p) = jac.shape();
-        if n <= p {
-            return None;
+    let mut lambda = 1e-3;
+    for _ in 0..MAX_ITERATIONS {
+        let Some(step) = damped_step(&current, p, lambda) else {
+            lambda *= 10.0;
+            if lambda > 1e16 {
+                break;
+            }
+            continue;
+        };
+        let scaled_step =
+            (0..p).map(|k| step[k].abs() * current.jtj[(k, k)].sqrt()).fold(0.0, f64::max);
+        if scaled_step <= SCALED_STEP_TOLERANCE {
+            break;
         }
-        let sigma2 = 2.0 * report.objective_function / (n - p) as f64;
-        (jac.transpose() * &jac).try_inverse().map(|inv| inv * sigma2)
+        let trial_params: Params = std::array::from_fn(|k| params[k] + step[k]);
+        let trial = problem.sums(&trial_params);
+        if trial.invalid || !(trial.cost.is_finite() && trial.cost <= current.cost) {
+            lambda *= 10.0;
+            if lambda > 1e16 {
+                break;
+            }
+            continue;
+        }
+        let decrease = current.cost - trial.cost;
+        params = trial_params;
+        current = trial;
+        lambda = (lambda / 10.0).max(1e-12);
+        if decrease <= RELATIVE_COST_TOLERANCE * current.cost.max(f64::MIN_POSITIVE) {
+            break;
+        }
+    }
+    let laser = problem.laser(&params);
+    if laser.validate().is_err() || !current.cost.is_finite() {
+        return Err(failed(&params, "not a valid laser"));
+    }
+    let n = indices.len();
+    let covariance = (n > p).then(|| {
+        let sigma2 = current.cost / (n - p) as f64;
+        let a = current.jtj.view((0, 0), (p, p)).into_owned();
+        a.try_inverse().map(|inv| DMatrix::from_fn(p, p, |i, j| inv[(i, j)] * sigma2))
     });
-    Ok(Refined { laser, covariance })
+    Ok(Refined { laser, covariance: covariance.flatten() })
 }
