@@ -6,7 +6,9 @@ use std::path::Path;
 use alacs_board::{board_gray, detect_checkerboard};
 use alacs_model::{BoardSpec, Camera, LaserModel};
 use alacs_sim::{SessionOptions, simulate_session};
-use alacs_vision::{Region, StripeOptions, extract_stripe, laser_score, read_image};
+use alacs_vision::{
+    Region, StripeOptions, extract_stripe, extract_stripe_rgb, laser_score, read_image,
+};
 use criterion::{Criterion, criterion_group, criterion_main};
 
 fn detection(c: &mut Criterion) {
@@ -33,6 +35,11 @@ fn detection(c: &mut Criterion) {
     });
     let region = Region::full(view.width(), view.height());
     group.bench_function("stripe_5mp_full_frame", |b| {
+        b.iter(|| extract_stripe_rgb(&view, None, &region, &StripeOptions::default()).unwrap())
+    });
+    // The score image first, then the peaks (f32, one thread): the way
+    // before the integer, parallel pass.
+    group.bench_function("stripe_5mp_full_frame_score_image", |b| {
         b.iter(|| {
             let score = laser_score(&view, None).unwrap();
             extract_stripe(&score, &region, &StripeOptions::default())

@@ -175,6 +175,11 @@ impl Problem<'_> {
     /// The sums of one pass at `params`.
     fn sums(&self, params: &Params) -> Sums {
         let laser = self.laser(params).prepare();
+        if self.indices.len() <= BLOCK {
+            // One block: no threads to wake (a bootstrap refits small sets
+            // hundreds of times).
+            return self.block_sums(&laser, self.indices);
+        }
         let blocks: Vec<Sums> =
             self.indices.par_chunks(BLOCK).map(|block| self.block_sums(&laser, block)).collect();
         blocks.iter().fold(Sums::default(), |total, b| total.add(b))

@@ -16,7 +16,7 @@ use std::path::Path;
 
 use alacs_board::{BoardCorners, board_gray, detect_checkerboard};
 use alacs_model::{Camera, Session, SessionView};
-use alacs_vision::{Region, StripeOptions, extract_stripe, laser_score, read_image};
+use alacs_vision::{Region, StripeOptions, extract_stripe_rgb, read_image};
 use nalgebra::{Isometry3, Point2};
 use rayon::prelude::*;
 
@@ -411,8 +411,12 @@ pub fn view_samples(
     };
     let region =
         Region::convex_polygon(&outline, BOARD_MARGIN_PX, camera.width_px, camera.height_px);
-    let score = laser_score(&on.to_rgb8(), off.as_ref().map(|o| o.to_rgb8()).as_ref())?;
-    let stripe_points = extract_stripe(&score, &region, stripe);
+    let stripe_points = extract_stripe_rgb(
+        &on.to_rgb8(),
+        off.as_ref().map(|o| o.to_rgb8()).as_ref(),
+        &region,
+        stripe,
+    )?;
     let board_from_camera = camera_from_board.inverse();
     let shade_at = |u_px: f64, v_px: f64| {
         sample_on_board(camera, &camera_from_board, &Point2::new(u_px, v_px), 0.0)

@@ -13,6 +13,7 @@
 
 use image::{ImageBuffer, Luma, RgbImage};
 use nalgebra::Point2;
+use rayon::prelude::*;
 
 use crate::{Error, Result};
 
@@ -333,6 +334,18 @@ const GREEN_DIP_FRACTION: f32 = 0.25;
 /// 4-pixel windows stays well inside it.
 const GREEN_NOISE_DN: f32 = 6.0;
 
+/// `R_on - R_off`, clamped at 0, as an integer.
+#[inline]
+fn difference_score_u8(red_on: u8, red_off: u8) -> u8 {
+    red_on.saturating_sub(red_off)
+}
+
+/// `R - max(G, B)`, clamped at 0, as an integer.
+#[inline]
+fn colour_score_u8(red: u8, green: u8, blue: u8) -> u8 {
+    red.saturating_sub(green.max(blue))
+}
+
 /// `R_on - R_off`, clamped at 0.
 #[inline]
 fn difference_score(red_on: u8, red_off: u8) -> f32 {
@@ -384,6 +397,12 @@ pub fn extract_stripe(
 /// [`laser_score`] and [`extract_stripe`] in one pass over the region: the
 /// scores are computed only there (plus the local background's reach), and
 /// clipped peaks are skipped per [`StripeOptions::saturation_dn`].
+///
+/// The same points as [`laser_score`] then [`extract_stripe`], faster: the
+/// scores are integers (`u8`, saturating), never a frame-sized buffer, and
+/// the rows run in parallel. With one peak per row and no line detector
+/// (a board), the peak and the ambiguity test's rival are found on the
+/// integer scores, loops the compiler vectorises.
 pub fn extract_stripe_rgb(
     on: &RgbImage,
     off: Option<&RgbImage>,
@@ -395,45 +414,113 @@ pub fn extract_stripe_rgb(
         check_same_size(on, off)?;
     }
     let reach = options.local_background.map_or(0, |b| b.reach());
-    let (on_raw, off_raw) = (on.as_raw(), off.map(|o| o.as_raw()));
-    let mut row = vec![0.0_f32; width as usize];
-    let mut buffer = Vec::new();
-    let mut points = Vec::new();
-    for &(v, u0, u1) in &region.spans {
-        if v >= height || u1 >= width {
-            continue;
-        }
-        let first = (u0 as usize).saturating_sub(reach);
-        let last = (u1 as usize + reach).min(width as usize - 1);
-        let row_start = 3 * v as usize * width as usize;
-        for (u, score) in row.iter_mut().enumerate().take(last + 1).skip(first) {
-            let i = row_start + 3 * u;
-            *score = match off_raw {
-                Some(off) => difference_score(on_raw[i], off[i]),
-                None => colour_score(on_raw[i], on_raw[i + 1], on_raw[i + 2]),
-            };
-        }
-        let found = points.len();
-        span_peaks(&row, (v, u0, u1), options, &mut buffer, &mut points);
-        let row_pixels = &on_raw[row_start..row_start + 3 * width as usize];
-        let row_points = points.split_off(found);
-        points.extend(row_points.into_iter().filter(|p| {
-            let clipped =
-                options.saturation_dn.is_some_and(|limit| saturated(row_pixels, p, limit));
-            let colour = off.is_none()
-                && options.green_check
-                && green_dips(row_pixels, p, options.local_background);
-            !(clipped || colour)
-        }));
+    let (on_raw, off_raw) = (on.as_raw().as_slice(), off.map(|o| o.as_raw().as_slice()));
+    let width = width as usize;
+    let rows: Vec<Vec<StripePoint>> = region
+        .spans
+        .par_iter()
+        .with_min_len(ROWS_PER_TASK)
+        .map_init(RowScratch::default, |scratch, &(v, u0, u1)| {
+            if v >= height || u1 as usize >= width {
+                return Vec::new();
+            }
+            let first = (u0 as usize).saturating_sub(reach);
+            let last = (u1 as usize + reach).min(width - 1);
+            let row_start = 3 * v as usize * width;
+            let row_pixels = &on_raw[row_start..row_start + 3 * width];
+            scratch.scores.resize(width, 0);
+            let scores = &mut scratch.scores[first..=last];
+            let pixels = &row_pixels[3 * first..3 * (last + 1)];
+            match off_raw {
+                Some(off) => {
+                    let off_pixels = &off[row_start + 3 * first..row_start + 3 * (last + 1)];
+                    for ((score, on), off) in scores
+                        .iter_mut()
+                        .zip(pixels.chunks_exact(3))
+                        .zip(off_pixels.chunks_exact(3))
+                    {
+                        *score = difference_score_u8(on[0], off[0]);
+                    }
+                }
+                None => {
+                    for (score, p) in scores.iter_mut().zip(pixels.chunks_exact(3)) {
+                        *score = colour_score_u8(p[0], p[1], p[2]);
+                    }
+                }
+            }
+            let mut points = Vec::new();
+            let span = (v, u0, u1);
+            if options.local_background.is_none() && options.max_peaks_per_row <= 1 {
+                single_peak_u8(&scratch.scores, span, options, &mut scratch.buffer, &mut points);
+            } else {
+                span_peaks(&scratch.scores, span, options, &mut scratch.buffer, &mut points);
+            }
+            points.retain(|p| {
+                let clipped =
+                    options.saturation_dn.is_some_and(|limit| saturated(row_pixels, p, limit));
+                let colour = off.is_none()
+                    && options.green_check
+                    && green_dips(row_pixels, p, options.local_background);
+                !(clipped || colour)
+            });
+            points
+        })
+        .collect();
+    Ok(rows.concat())
+}
+
+/// Rows of a region one parallel task takes at least: a row of a 5 MP
+/// frame is a few microseconds of work.
+const ROWS_PER_TASK: usize = 16;
+
+/// One thread's buffers for [`extract_stripe_rgb`]: a row's integer scores
+/// (image-wide, valid over the span and its reach) and the span's scores as
+/// `f32` for the sub-pixel step.
+#[derive(Default)]
+struct RowScratch {
+    scores: Vec<u8>,
+    buffer: Vec<f32>,
+}
+
+/// The one peak of a span of integer scores (no line detector): what
+/// [`span_peaks`] finds there, with the search on the integers. The last of
+/// equal maxima, as [`row_peak`]'s `max_by`.
+fn single_peak_u8(
+    row: &[u8],
+    (v, u0, u1): (u32, u32, u32),
+    options: &StripeOptions,
+    buffer: &mut Vec<f32>,
+    points: &mut Vec<StripePoint>,
+) {
+    let Some(span) = row.get(u0 as usize..=u1 as usize) else { return };
+    let Some(&peak) = span.iter().max() else { return };
+    if f32::from(peak) < options.min_strength {
+        return;
     }
-    Ok(points)
+    let Some(k) = span.iter().rposition(|&s| s == peak) else { return };
+    buffer.clear();
+    buffer.extend(span.iter().map(|&s| f32::from(s)));
+    // The strongest score more than `guard` pixels from the peak.
+    let rival = |guard: usize| {
+        let left = span.get(..k.saturating_sub(guard)).and_then(|l| l.iter().max());
+        let right = span.get(k + guard + 1..).and_then(|r| r.iter().max());
+        f32::from(left.max(right).copied().unwrap_or(0))
+    };
+    if let Some((u, strength, width_px)) = peak_at(buffer, k, options, rival) {
+        points.push(StripePoint {
+            u_px: f64::from(u0) + u,
+            v_px: f64::from(v),
+            strength,
+            width_px,
+        });
+    }
 }
 
 /// The peaks of one span of a row, appended to `points`: `row` holds the
 /// whole image row's scores (valid at least over the span and the local
 /// background's reach).
-fn span_peaks(
-    row: &[f32],
+fn span_peaks<T: Copy + Into<f64>>(
+    row: &[T],
     (v, u0, u1): (u32, u32, u32),
     options: &StripeOptions,
     buffer: &mut Vec<f32>,
@@ -444,7 +531,8 @@ fn span_peaks(
     match options.local_background {
         None => {
             buffer.clear();
-            buffer.extend_from_slice(span);
+            // Scores are f32 or u8: either converts exactly.
+            buffer.extend(span.iter().map(|&s| s.into() as f32));
         }
         Some(background) => local_contrast(row, first, last, background, buffer),
     }
@@ -483,8 +571,8 @@ fn span_peaks(
 /// The line detector of [`LocalBackground`] over `row[first..=last]`,
 /// written to `out`. Windows are cut at the row's ends; a side with no
 /// pixels counts as no background.
-fn local_contrast(
-    row: &[f32],
+fn local_contrast<T: Copy + Into<f64>>(
+    row: &[T],
     first: usize,
     last: usize,
     background: LocalBackground,
@@ -497,7 +585,7 @@ fn local_contrast(
     prefix.push(0.0_f64);
     let mut total = 0.0_f64;
     for &s in &row[lo..=hi] {
-        total += f64::from(s);
+        total += s.into();
         prefix.push(total);
     }
     let mean = |a: usize, b: usize| -> Option<f64> {
@@ -516,14 +604,35 @@ fn local_contrast(
             (Some(a), None) | (None, Some(a)) => a,
             (None, None) => 0.0,
         };
-        out.push((f64::from(score) - level).max(0.0) as f32);
+        out.push((score.into() - level).max(0.0) as f32);
     }
 }
 
 /// The sub-pixel peak of one row's scores: (column within the row, peak
 /// score, width at half maximum).
 fn row_peak(row: &[f32], options: &StripeOptions) -> Option<(f64, f32, f64)> {
-    let (k, &peak) = row.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1))?;
+    let (k, _) = row.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1))?;
+    // A second peak clear of this one's flanks makes the row ambiguous.
+    let rival = |guard: usize| {
+        row.iter()
+            .enumerate()
+            .filter(|(i, _)| *i + guard < k || *i > k + guard)
+            .map(|(_, s)| *s)
+            .fold(0.0_f32, f32::max)
+    };
+    peak_at(row, k, options, rival)
+}
+
+/// [`row_peak`] at the row's maximum `k`: the strength, width and
+/// ambiguity tests and the sub-pixel centre. `rival(guard)` is the
+/// strongest score more than `guard` pixels from `k`.
+fn peak_at(
+    row: &[f32],
+    k: usize,
+    options: &StripeOptions,
+    rival: impl FnOnce(usize) -> f32,
+) -> Option<(f64, f32, f64)> {
+    let peak = *row.get(k)?;
     if peak.is_nan() || peak < options.min_strength {
         return None;
     }
@@ -554,13 +663,7 @@ fn row_peak(row: &[f32], options: &StripeOptions) -> Option<(f64, f32, f64)> {
     }
     // A second peak clear of this one's flanks makes the row ambiguous.
     let guard = (2.0 * width_px).ceil() as usize + 2;
-    let rival = row
-        .iter()
-        .enumerate()
-        .filter(|(i, _)| *i + guard < k || *i > k + guard)
-        .map(|(_, s)| *s)
-        .fold(0.0_f32, f32::max);
-    if rival > options.ambiguity_ratio * peak {
+    if rival(guard) > options.ambiguity_ratio * peak {
         return None;
     }
     let centre = match options.method {
@@ -801,6 +904,61 @@ mod tests {
         let score = laser_score(&image, None).unwrap();
         let again = extract_stripe(&score, &Region::full(60, 3), &options);
         assert_eq!(points[..3], again[..]);
+    }
+
+    /// A frame with noise, a red surface patch and a tilted laser line
+    /// (with a ghost line in some rows), from a small integer hash.
+    fn noisy_frame(width: u32, height: u32, seed: u32, laser: bool) -> RgbImage {
+        let hash = |u: u32, v: u32, c: u32| {
+            let mut h = u.wrapping_mul(374_761_393) ^ v.wrapping_mul(668_265_263) ^ c ^ seed;
+            h = (h ^ (h >> 13)).wrapping_mul(1_274_126_177);
+            (h ^ (h >> 16)) % 24
+        };
+        RgbImage::from_fn(width, height, |u, v| {
+            let line = 40.0 + 0.3 * f64::from(v);
+            let mut red = 60 + hash(u, v, 0);
+            if (20..50).contains(&u) && (10..30).contains(&v) {
+                red += 120;
+            }
+            if laser {
+                let d = f64::from(u) - line;
+                red += (150.0 * (-d * d / 4.5).exp()) as u32;
+                if v % 7 == 0 {
+                    let g = f64::from(u) - line - 25.0;
+                    red += (100.0 * (-g * g / 4.5).exp()) as u32;
+                }
+            }
+            image::Rgb([red.min(255) as u8, (50 + hash(u, v, 1)) as u8, (40 + hash(u, v, 2)) as u8])
+        })
+    }
+
+    #[test]
+    fn the_integer_parallel_pass_finds_what_the_score_image_finds() {
+        let (width, height) = (120, 90);
+        let on = noisy_frame(width, height, 1, true);
+        let off = noisy_frame(width, height, 2, false);
+        let triangle = [Point2::new(10.0, 5.0), Point2::new(110.0, 20.0), Point2::new(30.0, 85.0)];
+        let regions = [
+            Region::full(width, height),
+            Region::rect(30, 10, 100, 80, width, height),
+            Region::convex_polygon(&triangle, 1.0, width, height),
+        ];
+        let orchard =
+            StripeOptions { saturation_dn: None, green_check: false, ..StripeOptions::orchard() };
+        for options in [StripeOptions::default(), orchard] {
+            for method in [PeakMethod::Steger, PeakMethod::CentreOfGravity] {
+                let options = StripeOptions { method, ..options.clone() };
+                for region in &regions {
+                    for off in [None, Some(&off)] {
+                        let score = laser_score(&on, off).unwrap();
+                        let expected = extract_stripe(&score, region, &options);
+                        let found = extract_stripe_rgb(&on, off, region, &options).unwrap();
+                        assert!(expected.len() > 20, "{} points", expected.len());
+                        assert_eq!(found, expected, "{options:?}");
+                    }
+                }
+            }
+        }
     }
 
     #[test]
