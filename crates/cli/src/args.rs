@@ -56,6 +56,52 @@ pub enum Command {
     /// Run the ROS 2 node: the action <ns>/localize_fruit (alacs_msgs/action/LocalizeFruit)
     /// and its topics, until SIGINT or SIGTERM. See README.md, "ROS 2".
     Ros(RosArgs),
+    /// Rewrite a file in another tool's layout.
+    #[command(subcommand)]
+    Convert(ConvertCommand),
+}
+
+/// `alacs convert`
+#[derive(Debug, Subcommand)]
+pub enum ConvertCommand {
+    /// A camera.yaml (ROS, OpenCV FileStorage, or their usual key names:
+    /// cameraMatrix/distCoeffs, K/D) to the ROS or the OpenCV layout.
+    Camera(ConvertCameraArgs),
+}
+
+/// `alacs convert camera`
+#[derive(Debug, Args)]
+pub struct ConvertCameraArgs {
+    /// The camera file to read.
+    #[arg(long, value_name = "FILE")]
+    pub input: PathBuf,
+    /// Where to write it (may be the input).
+    #[arg(short, long, value_name = "FILE")]
+    pub output: PathBuf,
+    /// The layout to write.
+    #[arg(long, value_enum, default_value_t = CameraFormatArg::Opencv)]
+    pub format: CameraFormatArg,
+    /// Print one JSON object (docs/FORMATS.md) on standard output instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// The layout of a written camera.yaml.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum CameraFormatArg {
+    /// ROS camera_calibration_parsers YAML (camera_matrix, distortion_model, ...).
+    Ros,
+    /// OpenCV FileStorage YAML (%YAML:1.0, !!opencv-matrix), as cv2.FileStorage reads it.
+    Opencv,
+}
+
+impl From<CameraFormatArg> for alacs::model::CameraFileFormat {
+    fn from(format: CameraFormatArg) -> Self {
+        match format {
+            CameraFormatArg::Ros => alacs::model::CameraFileFormat::Ros,
+            CameraFormatArg::Opencv => alacs::model::CameraFileFormat::OpenCv,
+        }
+    }
 }
 
 impl Command {
@@ -83,6 +129,7 @@ impl Command {
             Command::Bag(BagCommand::Import(a)) => a.json,
             Command::Session(SessionCommand::Init(a)) => a.json,
             Command::Ros(a) => a.json,
+            Command::Convert(ConvertCommand::Camera(a)) => a.json,
         }
     }
 }
@@ -326,6 +373,10 @@ pub struct CalibrateCameraArgs {
     /// Write the calibrated camera.yaml here.
     #[arg(short, long, value_name = "FILE")]
     pub output: Option<PathBuf>,
+    /// The layout of --output: ROS camera_calibration_parsers YAML, or
+    /// OpenCV FileStorage YAML (cv2.FileStorage reads it; alacs reads both).
+    #[arg(long, value_enum, default_value_t = CameraFormatArg::Ros)]
+    pub format: CameraFormatArg,
     /// Print one JSON object (docs/FORMATS.md) on standard output instead of text.
     #[arg(long)]
     pub json: bool,

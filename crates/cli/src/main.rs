@@ -103,5 +103,6 @@ fn run(command: args::Command) -> failure::CmdResult {
         Command::Rig(args::RigCommand::Check(a)) => cmd::rig::check(&a),
         Command::Bag(args::BagCommand::Export(a)) => cmd::bag::export(&a),
         Command::Bag(args::BagCommand::Import(a)) => cmd::bag::import(&a),
+        Command::Convert(args::ConvertCommand::Camera(a)) => cmd::convert::camera(&a),
     }
 }

@@ -176,7 +176,7 @@ pub fn camera(args: &CalibrateCameraArgs) -> CmdResult {
     let rejected: Vec<&str> =
         fit.views.iter().filter(|v| v.rejected.is_some()).map(|v| v.name.as_str()).collect();
     if let Some(path) = &args.output {
-        fit.camera.to_yaml_file(path)?;
+        fit.camera.to_yaml_file_as(path, args.format.into())?;
     }
     let c = &fit.camera;
     let (model, dist) = c.distortion.ros_model();

@@ -2,6 +2,7 @@
 
 pub mod bag;
 pub mod calibrate;
+pub mod convert;
 pub mod demo;
 pub mod evaluate;
 pub mod localize;

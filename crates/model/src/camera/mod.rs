@@ -20,6 +20,7 @@ use nalgebra::{Matrix2, Matrix2x3, Point2, Point3, Vector2, Vector3};
 use crate::{Error, Result};
 
 pub use distortion::Distortion;
+pub use yaml::CameraFileFormat;
 
 /// A pinhole camera with OpenCV lens distortion; pixels (u, v) = (column,
 /// row) with (0, 0) the centre of the top-left pixel.

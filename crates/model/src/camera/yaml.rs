@@ -28,8 +28,10 @@ const DEFAULT_CAMERA_NAME: &str = "camera";
 const FIXED_ENTRY_TOLERANCE: f64 = 1e-9;
 
 /// A matrix as ROS (`{rows, cols, data}`) and OpenCV (`!!opencv-matrix` with
-/// `dt: d`, ignored like every unknown key) write it.
-#[derive(Debug, Clone, Serialize, Deserialize)]
+/// `dt: d`, ignored like every unknown key) write it, or a bare list of its
+/// values (a ROS `CameraInfo` message's `k` and `d` as `ros2 topic echo`
+/// prints them).
+#[derive(Debug, Clone, Serialize)]
 struct MatrixFile {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     rows: Option<usize>,
@@ -37,6 +39,56 @@ struct MatrixFile {
     cols: Option<usize>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     data: Option<Vec<f64>>,
+}
+
+/// `{rows, cols, data}`, the mapping form of [`MatrixFile`].
+#[derive(Deserialize)]
+struct MatrixMapping {
+    #[serde(default)]
+    rows: Option<usize>,
+    #[serde(default)]
+    cols: Option<usize>,
+    #[serde(default)]
+    data: Option<Vec<f64>>,
+}
+
+/// A mapping, or a bare list of the values. Written out (not `untagged`) so
+/// that the numbers are read as numbers in place, and a bad value is
+/// reported under its key by the checks of [`MatrixFile::values`].
+impl<'de> Deserialize<'de> for MatrixFile {
+    fn deserialize<D: serde::Deserializer<'de>>(
+        deserializer: D,
+    ) -> std::result::Result<Self, D::Error> {
+        struct MatrixVisitor;
+        impl<'de> serde::de::Visitor<'de> for MatrixVisitor {
+            type Value = MatrixFile;
+
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str("a matrix: {rows, cols, data} or a list of its values")
+            }
+
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                mut seq: A,
+            ) -> std::result::Result<MatrixFile, A::Error> {
+                let mut data = Vec::new();
+                while let Some(value) = seq.next_element::<f64>()? {
+                    data.push(value);
+                }
+                Ok(MatrixFile { rows: None, cols: None, data: Some(data) })
+            }
+
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                map: A,
+            ) -> std::result::Result<MatrixFile, A::Error> {
+                let MatrixMapping { rows, cols, data } =
+                    MatrixMapping::deserialize(serde::de::value::MapAccessDeserializer::new(map))?;
+                Ok(MatrixFile { rows, cols, data })
+            }
+        }
+        deserializer.deserialize_any(MatrixVisitor)
+    }
 }
 
 impl MatrixFile {
@@ -87,17 +139,29 @@ impl MatrixFile {
 /// `calibration_time`, `avg_reprojection_error`, ...) are ignored.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 struct CameraFile {
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, skip_serializing_if = "Option::is_none", alias = "width")]
     image_width: Option<u32>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, skip_serializing_if = "Option::is_none", alias = "height")]
     image_height: Option<u32>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     camera_name: Option<String>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        alias = "cameraMatrix",
+        alias = "K",
+        alias = "k"
+    )]
     camera_matrix: Option<MatrixFile>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     distortion_model: Option<String>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        alias = "distCoeffs",
+        alias = "D",
+        alias = "d"
+    )]
     distortion_coefficients: Option<MatrixFile>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     rectification_matrix: Option<MatrixFile>,
@@ -157,13 +221,19 @@ impl CameraFile {
             ));
         }
 
-        // Checked for shape only: the intrinsics come from camera_matrix.
-        if let Some(rectification) = &self.rectification_matrix {
-            rectification.values("rectification_matrix")?;
-        }
-        if let Some(projection) = &self.projection_matrix {
-            projection.values("projection_matrix")?;
-        }
+        // Checked for shape only: the intrinsics come from camera_matrix. A
+        // matrix without `rows` and `cols` (a bare list) must hold the
+        // values of its shape.
+        let check_shape = |matrix: &Option<MatrixFile>, key: &str, count: usize| {
+            let Some(matrix) = matrix else { return Ok(()) };
+            let data = matrix.values(key)?;
+            if matrix.rows.is_none() && matrix.cols.is_none() && data.len() != count {
+                return Err(format!("`{key}` must hold {count} values, got {}", data.len()));
+            }
+            Ok(())
+        };
+        check_shape(&self.rectification_matrix, "rectification_matrix", 9)?;
+        check_shape(&self.projection_matrix, "projection_matrix", 12)?;
 
         let distortion = self.distortion()?;
         let camera = Camera {
@@ -386,6 +456,66 @@ impl Camera {
     pub fn to_yaml_file(&self, path: &Path) -> Result<()> {
         crate::io::write_file(path, self.to_yaml_string())
     }
+
+    /// camera.yaml text in OpenCV's `FileStorage` YAML, which
+    /// `cv2.FileStorage` reads: the `%YAML:1.0` header, `image_width`,
+    /// `image_height`, `camera_matrix` and `distortion_coefficients` as
+    /// `!!opencv-matrix` (`dt: d`; the coefficients 1 x n, OpenCV's order),
+    /// and `camera_name` and `distortion_model` as strings (which OpenCV
+    /// ignores and alacs reads back). Shortest round-trip digits, so alacs
+    /// reads the text back as this camera exactly.
+    pub fn to_opencv_yaml_string(&self) -> String {
+        let file = CameraFile::from(self);
+        let (model, _) = self.distortion.ros_model();
+        let mut out = format!(
+            "%YAML:1.0\n---\nimage_width: {}\nimage_height: {}\ncamera_name: {}\n",
+            self.width_px,
+            self.height_px,
+            yaml_string_quoted(&self.name)
+        );
+        let matrix = |out: &mut String, key: &str, matrix: Option<&MatrixFile>| {
+            let Some(matrix) = matrix else { return };
+            let data = matrix.data.as_deref().unwrap_or_default();
+            let values: Vec<String> = data.iter().map(|&v| yaml_float(v)).collect();
+            out.push_str(&format!(
+                "{key}: !!opencv-matrix\n   rows: {}\n   cols: {}\n   dt: d\n   data: [ {} ]\n",
+                matrix.rows.unwrap_or(1),
+                matrix.cols.unwrap_or(data.len()),
+                values.join(", ")
+            ));
+        };
+        matrix(&mut out, "camera_matrix", file.camera_matrix.as_ref());
+        out.push_str(&format!("distortion_model: \"{model}\"\n"));
+        matrix(&mut out, "distortion_coefficients", file.distortion_coefficients.as_ref());
+        out
+    }
+
+    /// Writes camera.yaml in `format` atomically.
+    pub fn to_yaml_file_as(&self, path: &Path, format: CameraFileFormat) -> Result<()> {
+        let text = match format {
+            CameraFileFormat::Ros => self.to_yaml_string(),
+            CameraFileFormat::OpenCv => self.to_opencv_yaml_string(),
+        };
+        crate::io::write_file(path, text)
+    }
+}
+
+/// The layouts alacs writes camera.yaml in; it reads both (and OpenCV's and
+/// ROS's usual key names) without being told.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum CameraFileFormat {
+    /// ROS `camera_calibration_parsers` YAML ([`Camera::to_yaml_string`]).
+    #[default]
+    Ros,
+    /// OpenCV `FileStorage` YAML ([`Camera::to_opencv_yaml_string`]).
+    OpenCv,
+}
+
+/// A string as OpenCV's `FileStorage` writes one: always double-quoted
+/// (JSON escapes), so its YAML parser never takes it for a number.
+fn yaml_string_quoted(text: &str) -> String {
+    let plain = yaml_string(text);
+    if plain.starts_with('"') { plain } else { format!("\"{plain}\"") }
 }
 
 /// Serializes as camera.yaml's keys (so `serde_json::to_value(&camera)` is

@@ -941,3 +941,69 @@ fn absurd_distortion_coefficients_in_camera_yaml_are_refused_naming_the_key() {
     let text = minimal_yaml("distortion_coefficients: {data: [0.1, 0, 0, 0, 9000]}");
     assert!(Camera::from_yaml_str(&text).is_ok(), "large but possible coefficients are read");
 }
+
+#[test]
+fn the_opencv_layout_reads_back_as_the_same_camera() {
+    let base = Camera::blackfly_s_5mp();
+    let cameras = [
+        Camera { name: "rig left".into(), ..base.clone() },
+        Camera { distortion: Distortion::None, ..base.clone() },
+        Camera {
+            distortion: Distortion::RationalPolynomial([
+                0.1, -0.2, 1e-3, -2e-3, 0.05, 0.01, -0.02, 0.003,
+            ]),
+            skew_px: 0.25,
+            ..base
+        },
+    ];
+    for camera in cameras {
+        let text = camera.to_opencv_yaml_string();
+        assert!(text.starts_with("%YAML:1.0\n---\n"), "{text}");
+        assert!(
+            text.contains("camera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n")
+        );
+        assert!(text.contains("distortion_coefficients: !!opencv-matrix\n"), "{text}");
+        let back = Camera::from_yaml_str(&text).unwrap();
+        let expected = match camera.distortion {
+            d if d.is_identity() => Camera { distortion: Distortion::None, ..camera.clone() },
+            _ => camera.clone(),
+        };
+        assert_eq!(back, expected, "{text}");
+    }
+}
+
+#[test]
+fn opencv_and_ros_key_names_are_read() {
+    let expected = Camera::from_yaml_str(
+        "image_width: 640\nimage_height: 480\n\
+         camera_matrix: {rows: 3, cols: 3, data: [500, 0, 320, 0, 510, 240, 0, 0, 1]}\n\
+         distortion_coefficients: {rows: 1, cols: 5, data: [0.1, -0.2, 0.001, 0.002, 0.03]}\n",
+    )
+    .unwrap();
+    let k = "[500, 0, 320, 0, 510, 240, 0, 0, 1]";
+    let d = "[0.1, -0.2, 0.001, 0.002, 0.03]";
+    for text in [
+        // OpenCV's usual names (calibrateCamera's outputs).
+        format!(
+            "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\n\
+             cameraMatrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: {k}\n\
+             distCoeffs: !!opencv-matrix\n   rows: 5\n   cols: 1\n   dt: d\n   data: {d}\n"
+        ),
+        format!("image_width: 640\nimage_height: 480\nK: {{data: {k}}}\nD: {{data: {d}}}\n"),
+        // A ROS 2 CameraInfo message as `ros2 topic echo` prints it.
+        format!(
+            "header:\n  frame_id: camera\nheight: 480\nwidth: 640\n\
+             distortion_model: plumb_bob\nd: {d}\nk: {k}\n\
+             r: [1, 0, 0, 0, 1, 0, 0, 0, 1]\np: [500, 0, 320, 0, 0, 510, 240, 0, 0, 0, 1, 0]\n\
+             binning_x: 0\nbinning_y: 0\n"
+        ),
+    ] {
+        let camera = Camera::from_yaml_str(&text).unwrap_or_else(|e| panic!("{e}\n{text}"));
+        assert_eq!(camera, expected, "{text}");
+    }
+    // Two names for one key are refused, not silently merged.
+    let both = format!(
+        "image_width: 640\nimage_height: 480\nK: {{data: {k}}}\ncamera_matrix: {{data: {k}}}\nD: {{data: {d}}}\n"
+    );
+    assert!(Camera::from_yaml_str(&both).is_err());
+}
