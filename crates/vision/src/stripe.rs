@@ -424,10 +424,26 @@ pub fn extract_stripe_rgb(
             if v >= height || u1 as usize >= width {
                 return Vec::new();
             }
-            let first = (u0 as usize).saturating_sub(reach);
-            let last = (u1 as usize + reach).min(width - 1);
             let row_start = 3 * v as usize * width;
             let row_pixels = &on_raw[row_start..row_start + 3 * width];
+            let keep = |p: &StripePoint| {
+                let clipped =
+                    options.saturation_dn.is_some_and(|limit| saturated(row_pixels, p, limit));
+                let colour = off.is_none()
+                    && options.green_check
+                    && green_dips(row_pixels, p, options.local_background);
+                !(clipped || colour)
+            };
+            if options.local_background.is_none() && options.max_peaks_per_row <= 1 {
+                let bytes = 3 * u0 as usize..3 * (u1 as usize + 1);
+                let on_span = &row_pixels[bytes.clone()];
+                let off_span = off_raw.map(|off| &off[row_start..row_start + 3 * width][bytes]);
+                let point =
+                    single_peak_u8(on_span, off_span, (v, u0), options, &mut scratch.interleaved);
+                return point.filter(keep).into_iter().collect();
+            }
+            let first = (u0 as usize).saturating_sub(reach);
+            let last = (u1 as usize + reach).min(width - 1);
             scratch.scores.resize(width, 0);
             let scores = &mut scratch.scores[first..=last];
             let pixels = &row_pixels[3 * first..3 * (last + 1)];
@@ -449,20 +465,8 @@ pub fn extract_stripe_rgb(
                 }
             }
             let mut points = Vec::new();
-            let span = (v, u0, u1);
-            if options.local_background.is_none() && options.max_peaks_per_row <= 1 {
-                single_peak_u8(&scratch.scores, span, options, &mut scratch.buffer, &mut points);
-            } else {
-                span_peaks(&scratch.scores, span, options, &mut scratch.buffer, &mut points);
-            }
-            points.retain(|p| {
-                let clipped =
-                    options.saturation_dn.is_some_and(|limit| saturated(row_pixels, p, limit));
-                let colour = off.is_none()
-                    && options.green_check
-                    && green_dips(row_pixels, p, options.local_background);
-                !(clipped || colour)
-            });
+            span_peaks(&scratch.scores, (v, u0, u1), options, &mut scratch.buffer, &mut points);
+            points.retain(keep);
             points
         })
         .collect();
@@ -475,45 +479,135 @@ const ROWS_PER_TASK: usize = 16;
 
 /// One thread's buffers for [`extract_stripe_rgb`]: a row's integer scores
 /// (image-wide, valid over the span and its reach) and the span's scores as
-/// `f32` for the sub-pixel step.
+/// `f32` for the line detector's path, or the interleaved scores of
+/// [`single_peak_u8`].
 #[derive(Default)]
 struct RowScratch {
     scores: Vec<u8>,
     buffer: Vec<f32>,
+    interleaved: Vec<u8>,
 }
 
-/// The one peak of a span of integer scores (no line detector): what
-/// [`span_peaks`] finds there, with the search on the integers. The last of
-/// equal maxima, as [`row_peak`]'s `max_by`.
-fn single_peak_u8(
-    row: &[u8],
-    (v, u0, u1): (u32, u32, u32),
-    options: &StripeOptions,
-    buffer: &mut Vec<f32>,
-    points: &mut Vec<StripePoint>,
-) {
-    let Some(span) = row.get(u0 as usize..=u1 as usize) else { return };
-    let Some(&peak) = span.iter().max() else { return };
-    if f32::from(peak) < options.min_strength {
-        return;
+/// Bytes of one block of [`interleaved_scores`]: 16 pixels, three 16-byte
+/// vectors.
+const BLOCK_BYTES: usize = 48;
+
+/// Keeps the red byte of each pixel in a block.
+const RED_BYTES: [u8; BLOCK_BYTES] = {
+    let mut mask = [0_u8; BLOCK_BYTES];
+    let mut i = 0;
+    while i < BLOCK_BYTES {
+        mask[i] = 0xFF;
+        i += 3;
     }
-    let Some(k) = span.iter().rposition(|&s| s == peak) else { return };
-    buffer.clear();
-    buffer.extend(span.iter().map(|&s| f32::from(s)));
+    mask
+};
+
+/// The scores of a span of RGB pixels (`on`, and `off` of the same span),
+/// computed on the interleaved bytes: `out[3 u]` is pixel u's score
+/// (`R - max(G, B)` or `R_on - R_off`, saturating), the green and blue
+/// bytes' places hold 0. Every byte is computed and the others masked
+/// away, so the loop runs on whole vectors with no shuffling (SSE2 has
+/// none for bytes).
+fn interleaved_scores(on: &[u8], off: Option<&[u8]>, out: &mut Vec<u8>) {
+    let len = on.len() - on.len() % 3;
+    out.clear();
+    out.resize(len, 0);
+    let mut base = 0;
+    match off {
+        None => {
+            // Byte t + 2 of a block is read: the last block stops 2 bytes early.
+            while base + BLOCK_BYTES + 2 <= len {
+                let (Ok(bytes), Ok(scores)) = (
+                    <&[u8; BLOCK_BYTES + 2]>::try_from(&on[base..base + BLOCK_BYTES + 2]),
+                    <&mut [u8; BLOCK_BYTES]>::try_from(&mut out[base..base + BLOCK_BYTES]),
+                ) else {
+                    break;
+                };
+                for t in 0..BLOCK_BYTES {
+                    scores[t] =
+                        bytes[t].saturating_sub(bytes[t + 1].max(bytes[t + 2])) & RED_BYTES[t];
+                }
+                base += BLOCK_BYTES;
+            }
+            for j in (base..len).step_by(3) {
+                out[j] = colour_score_u8(on[j], on[j + 1], on[j + 2]);
+            }
+        }
+        Some(off) => {
+            while base + BLOCK_BYTES <= len.min(off.len()) {
+                let (Ok(bytes), Ok(dark), Ok(scores)) = (
+                    <&[u8; BLOCK_BYTES]>::try_from(&on[base..base + BLOCK_BYTES]),
+                    <&[u8; BLOCK_BYTES]>::try_from(&off[base..base + BLOCK_BYTES]),
+                    <&mut [u8; BLOCK_BYTES]>::try_from(&mut out[base..base + BLOCK_BYTES]),
+                ) else {
+                    break;
+                };
+                for t in 0..BLOCK_BYTES {
+                    scores[t] = bytes[t].saturating_sub(dark[t]) & RED_BYTES[t];
+                }
+                base += BLOCK_BYTES;
+            }
+            for j in (base..len.min(off.len())).step_by(3) {
+                out[j] = difference_score_u8(on[j], off[j]);
+            }
+        }
+    }
+}
+
+/// The largest byte (0 for none), in a loop the compiler vectorises
+/// (`iter().max()` compares references, one byte at a time).
+fn max_u8(bytes: &[u8]) -> u8 {
+    bytes.iter().fold(0, |m, &b| m.max(b))
+}
+
+/// The index of the last occurrence of `value` in `scores`, searched from
+/// the end a vector-friendly chunk at a time.
+fn last_index_of(scores: &[u8], value: u8) -> Option<usize> {
+    const CHUNK: usize = 64;
+    let mut end = scores.len();
+    while end > 0 {
+        let start = end.saturating_sub(CHUNK);
+        let chunk = &scores[start..end];
+        if max_u8(chunk) >= value {
+            if let Some(i) = chunk.iter().rposition(|&s| s == value) {
+                return Some(start + i);
+            }
+        }
+        end = start;
+    }
+    None
+}
+
+/// The one peak of a span (no line detector): what [`span_peaks`] finds
+/// there, searched on the interleaved integer scores of the span's pixels
+/// (`on`, `off`: the span's RGB bytes). The last of equal maxima, as
+/// [`row_peak`]'s `max_by`.
+fn single_peak_u8(
+    on: &[u8],
+    off: Option<&[u8]>,
+    (v, u0): (u32, u32),
+    options: &StripeOptions,
+    interleaved: &mut Vec<u8>,
+) -> Option<StripePoint> {
+    interleaved_scores(on, off, interleaved);
+    let scores = interleaved.as_slice();
+    if scores.is_empty() {
+        return None;
+    }
+    let peak = max_u8(scores);
+    if f32::from(peak) < options.min_strength {
+        return None;
+    }
+    let k = last_index_of(scores, peak)? / 3;
     // The strongest score more than `guard` pixels from the peak.
     let rival = |guard: usize| {
-        let left = span.get(..k.saturating_sub(guard)).and_then(|l| l.iter().max());
-        let right = span.get(k + guard + 1..).and_then(|r| r.iter().max());
-        f32::from(left.max(right).copied().unwrap_or(0))
+        let left = scores.get(..3 * k.saturating_sub(guard)).map_or(0, max_u8);
+        let right = scores.get(3 * (k + guard + 1)..).map_or(0, max_u8);
+        f32::from(left.max(right))
     };
-    if let Some((u, strength, width_px)) = peak_at(buffer, k, options, rival) {
-        points.push(StripePoint {
-            u_px: f64::from(u0) + u,
-            v_px: f64::from(v),
-            strength,
-            width_px,
-        });
-    }
+    let (u, strength, width_px) = peak_at(&EveryThird(scores), k, options, rival)?;
+    Some(StripePoint { u_px: f64::from(u0) + u, v_px: f64::from(v), strength, width_px })
 }
 
 /// The peaks of one span of a row, appended to `points`: `row` holds the
@@ -608,6 +702,38 @@ fn local_contrast<T: Copy + Into<f64>>(
     }
 }
 
+/// Scores along a row as the sub-pixel step reads them: an `f32` row, or
+/// every third byte of the interleaved integer scores of [`single_peak_u8`].
+trait Profile {
+    /// Number of pixels.
+    fn pixels(&self) -> usize;
+    /// The score of pixel `i` (< `pixels()`).
+    fn at(&self, i: usize) -> f32;
+}
+
+impl Profile for [f32] {
+    fn pixels(&self) -> usize {
+        self.len()
+    }
+
+    fn at(&self, i: usize) -> f32 {
+        self[i]
+    }
+}
+
+/// Pixel `i`'s score at byte `3 i` (the bytes between are 0).
+struct EveryThird<'a>(&'a [u8]);
+
+impl Profile for EveryThird<'_> {
+    fn pixels(&self) -> usize {
+        self.0.len() / 3
+    }
+
+    fn at(&self, i: usize) -> f32 {
+        f32::from(self.0[3 * i])
+    }
+}
+
 /// The sub-pixel peak of one row's scores: (column within the row, peak
 /// score, width at half maximum).
 fn row_peak(row: &[f32], options: &StripeOptions) -> Option<(f64, f32, f64)> {
@@ -626,30 +752,30 @@ fn row_peak(row: &[f32], options: &StripeOptions) -> Option<(f64, f32, f64)> {
 /// [`row_peak`] at the row's maximum `k`: the strength, width and
 /// ambiguity tests and the sub-pixel centre. `rival(guard)` is the
 /// strongest score more than `guard` pixels from `k`.
-fn peak_at(
-    row: &[f32],
+fn peak_at<P: Profile + ?Sized>(
+    row: &P,
     k: usize,
     options: &StripeOptions,
     rival: impl FnOnce(usize) -> f32,
 ) -> Option<(f64, f32, f64)> {
-    let peak = *row.get(k)?;
+    let peak = (k < row.pixels()).then(|| row.at(k))?;
     if peak.is_nan() || peak < options.min_strength {
         return None;
     }
     let half = peak / 2.0;
     let mut left = k;
-    while left > 0 && row[left - 1] > half {
+    while left > 0 && row.at(left - 1) > half {
         left -= 1;
     }
     let mut right = k;
-    while right + 1 < row.len() && row[right + 1] > half {
+    while right + 1 < row.pixels() && row.at(right + 1) > half {
         right += 1;
     }
     // Width at half maximum, interpolated at both flanks.
     let flank = |inside: usize, outside: Option<usize>| -> f64 {
         match outside {
             Some(o) => {
-                let (a, b) = (row[inside], row[o]);
+                let (a, b) = (row.at(inside), row.at(o));
                 if a > b { f64::from((a - half) / (a - b)) } else { 0.5 }
             }
             None => 0.5,
@@ -657,7 +783,7 @@ fn peak_at(
     };
     let width_px = (right - left) as f64
         + flank(left, left.checked_sub(1))
-        + flank(right, (right + 1 < row.len()).then_some(right + 1));
+        + flank(right, (right + 1 < row.pixels()).then_some(right + 1));
     if width_px > options.max_width_px {
         return None;
     }
@@ -670,11 +796,11 @@ fn peak_at(
         PeakMethod::CentreOfGravity => {
             let margin = (width_px.ceil() as usize).max(2);
             let lo = left.saturating_sub(margin);
-            let hi = (right + margin).min(row.len() - 1);
-            let background = row[lo].min(row[hi]);
+            let hi = (right + margin).min(row.pixels() - 1);
+            let background = row.at(lo).min(row.at(hi));
             let (mut sum, mut weighted) = (0.0_f64, 0.0_f64);
-            for (i, s) in row.iter().enumerate().take(hi + 1).skip(lo) {
-                let w = f64::from((s - background).max(0.0));
+            for i in lo..=hi {
+                let w = f64::from((row.at(i) - background).max(0.0));
                 sum += w;
                 weighted += w * i as f64;
             }
@@ -684,14 +810,15 @@ fn peak_at(
             weighted / sum
         }
         PeakMethod::Gaussian | PeakMethod::Parabola => {
-            if k == 0 || k + 1 >= row.len() {
+            if k == 0 || k + 1 >= row.pixels() {
                 return None;
             }
             let transform = |s: f32| match options.method {
                 PeakMethod::Gaussian => f64::from(s.max(1e-3)).ln(),
                 _ => f64::from(s),
             };
-            let (a, b, c) = (transform(row[k - 1]), transform(row[k]), transform(row[k + 1]));
+            let (a, b, c) =
+                (transform(row.at(k - 1)), transform(row.at(k)), transform(row.at(k + 1)));
             let denominator = a - 2.0 * b + c;
             let offset = if denominator < 0.0 { 0.5 * (a - c) / denominator } else { 0.0 };
             k as f64 + offset.clamp(-0.5, 0.5)
@@ -716,7 +843,13 @@ fn peak_at(
 /// half a pixel away. One more step, from the sub-pixel centre (the
 /// kernels are analytic, so the derivatives are as easy to take there),
 /// removes that to under 0.003 px.
-fn steger_centre(row: &[f32], k: usize, left: usize, right: usize, sigma: f64) -> Option<f64> {
+fn steger_centre<P: Profile + ?Sized>(
+    row: &P,
+    k: usize,
+    left: usize,
+    right: usize,
+    sigma: f64,
+) -> Option<f64> {
     let offset_at = |x: f64| {
         let (first, second) = smoothed_derivatives(row, x, sigma);
         // Written so that NaN counts as no maximum.
@@ -751,9 +884,9 @@ fn steger_centre(row: &[f32], k: usize, left: usize, right: usize, sigma: f64) -
 /// derivatives integrated over each pixel, as Steger (1998) samples them
 /// (a pixel holds the mean of the continuous profile over its width), cut
 /// at 4 sigma; the row's end pixels repeat beyond it.
-fn smoothed_derivatives(row: &[f32], x: f64, sigma: f64) -> (f64, f64) {
+fn smoothed_derivatives<P: Profile + ?Sized>(row: &P, x: f64, sigma: f64) -> (f64, f64) {
     let reach = (4.0 * sigma + 0.5).ceil() as i64;
-    let (nearest, last) = (x.round() as i64, row.len() as i64 - 1);
+    let (nearest, last) = (x.round() as i64, row.pixels() as i64 - 1);
     // The Gaussian g and its slope g' at distance d from x; the normalisation,
     // 1 / (sqrt(2 pi) sigma), cancels in -g' / g'' and keeps the sign of
     // g'', so it is left out.
@@ -767,7 +900,7 @@ fn smoothed_derivatives(row: &[f32], x: f64, sigma: f64) -> (f64, f64) {
     let mut upper = at(x - (nearest - reach) as f64 + 0.5);
     for i in nearest - reach..=nearest + reach {
         let lower = at(x - i as f64 - 0.5);
-        let value = f64::from(row[i.clamp(0, last) as usize]);
+        let value = f64::from(row.at(i.clamp(0, last) as usize));
         first += value * (upper.0 - lower.0);
         second += value * (upper.1 - lower.1);
         upper = lower;
