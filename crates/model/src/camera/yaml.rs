@@ -395,17 +395,27 @@ fn yaml_string(text: &str) -> String {
     quoted
 }
 
-/// One `key: {rows, cols, data: [..]}` block in the ROS layout.
-fn write_matrix(out: &mut String, key: &str, matrix: Option<&MatrixFile>) {
+/// One `key: {rows, cols, data: [..]}` block in the ROS layout, or the
+/// same as an `!!opencv-matrix` (`dt: d`) in OpenCV's.
+fn write_matrix(
+    out: &mut String,
+    key: &str,
+    matrix: Option<&MatrixFile>,
+    format: CameraFileFormat,
+) {
     let Some(matrix) = matrix else { return };
     let data = matrix.data.as_deref().unwrap_or_default();
     let values: Vec<String> = data.iter().map(|&v| yaml_float(v)).collect();
-    out.push_str(&format!(
-        "{key}:\n  rows: {}\n  cols: {}\n  data: [{}]\n",
-        matrix.rows.unwrap_or(1),
-        matrix.cols.unwrap_or(data.len()),
-        values.join(", ")
-    ));
+    let (rows, cols) = (matrix.rows.unwrap_or(1), matrix.cols.unwrap_or(data.len()));
+    let values = values.join(", ");
+    out.push_str(&match format {
+        CameraFileFormat::Ros => {
+            format!("{key}:\n  rows: {rows}\n  cols: {cols}\n  data: [{values}]\n")
+        }
+        CameraFileFormat::OpenCv => format!(
+            "{key}: !!opencv-matrix\n   rows: {rows}\n   cols: {cols}\n   dt: d\n   data: [ {values} ]\n"
+        ),
+    });
 }
 
 impl Camera {
@@ -436,25 +446,7 @@ impl Camera {
     /// text back gives this camera exactly (a distortion whose coefficients
     /// are all zero reads back as [`Distortion::None`]).
     pub fn to_yaml_string(&self) -> String {
-        let file = CameraFile::from(self);
-        let (model, _) = self.distortion.ros_model();
-        let mut out = format!(
-            "image_width: {}\nimage_height: {}\ncamera_name: {}\n",
-            self.width_px,
-            self.height_px,
-            yaml_string(&self.name)
-        );
-        write_matrix(&mut out, "camera_matrix", file.camera_matrix.as_ref());
-        out.push_str(&format!("distortion_model: {model}\n"));
-        write_matrix(&mut out, "distortion_coefficients", file.distortion_coefficients.as_ref());
-        write_matrix(&mut out, "rectification_matrix", file.rectification_matrix.as_ref());
-        write_matrix(&mut out, "projection_matrix", file.projection_matrix.as_ref());
-        out
-    }
-
-    /// Writes camera.yaml ([`Camera::to_yaml_string`]) atomically.
-    pub fn to_yaml_file(&self, path: &Path) -> Result<()> {
-        crate::io::write_file(path, self.to_yaml_string())
+        self.to_yaml_string_as(CameraFileFormat::Ros)
     }
 
     /// camera.yaml text in OpenCV's `FileStorage` YAML, which
@@ -465,38 +457,52 @@ impl Camera {
     /// ignores and alacs reads back). Shortest round-trip digits, so alacs
     /// reads the text back as this camera exactly.
     pub fn to_opencv_yaml_string(&self) -> String {
+        self.to_yaml_string_as(CameraFileFormat::OpenCv)
+    }
+
+    /// camera.yaml text in `format` (see [`Camera::to_yaml_string`] and
+    /// [`Camera::to_opencv_yaml_string`]).
+    pub fn to_yaml_string_as(&self, format: CameraFileFormat) -> String {
         let file = CameraFile::from(self);
         let (model, _) = self.distortion.ros_model();
-        let mut out = format!(
-            "%YAML:1.0\n---\nimage_width: {}\nimage_height: {}\ncamera_name: {}\n",
-            self.width_px,
-            self.height_px,
-            yaml_string_quoted(&self.name)
-        );
-        let matrix = |out: &mut String, key: &str, matrix: Option<&MatrixFile>| {
-            let Some(matrix) = matrix else { return };
-            let data = matrix.data.as_deref().unwrap_or_default();
-            let values: Vec<String> = data.iter().map(|&v| yaml_float(v)).collect();
-            out.push_str(&format!(
-                "{key}: !!opencv-matrix\n   rows: {}\n   cols: {}\n   dt: d\n   data: [ {} ]\n",
-                matrix.rows.unwrap_or(1),
-                matrix.cols.unwrap_or(data.len()),
-                values.join(", ")
-            ));
+        let (header, name, model) = match format {
+            CameraFileFormat::Ros => ("", yaml_string(&self.name), model.to_string()),
+            CameraFileFormat::OpenCv => {
+                ("%YAML:1.0\n---\n", yaml_string_quoted(&self.name), format!("\"{model}\""))
+            }
         };
-        matrix(&mut out, "camera_matrix", file.camera_matrix.as_ref());
-        out.push_str(&format!("distortion_model: \"{model}\"\n"));
-        matrix(&mut out, "distortion_coefficients", file.distortion_coefficients.as_ref());
+        let mut out = format!(
+            "{header}image_width: {}\nimage_height: {}\ncamera_name: {name}\n",
+            self.width_px, self.height_px
+        );
+        write_matrix(&mut out, "camera_matrix", file.camera_matrix.as_ref(), format);
+        out.push_str(&format!("distortion_model: {model}\n"));
+        write_matrix(
+            &mut out,
+            "distortion_coefficients",
+            file.distortion_coefficients.as_ref(),
+            format,
+        );
+        if format == CameraFileFormat::Ros {
+            write_matrix(
+                &mut out,
+                "rectification_matrix",
+                file.rectification_matrix.as_ref(),
+                format,
+            );
+            write_matrix(&mut out, "projection_matrix", file.projection_matrix.as_ref(), format);
+        }
         out
+    }
+
+    /// Writes camera.yaml ([`Camera::to_yaml_string`]) atomically.
+    pub fn to_yaml_file(&self, path: &Path) -> Result<()> {
+        self.to_yaml_file_as(path, CameraFileFormat::Ros)
     }
 
     /// Writes camera.yaml in `format` atomically.
     pub fn to_yaml_file_as(&self, path: &Path, format: CameraFileFormat) -> Result<()> {
-        let text = match format {
-            CameraFileFormat::Ros => self.to_yaml_string(),
-            CameraFileFormat::OpenCv => self.to_opencv_yaml_string(),
-        };
-        crate::io::write_file(path, text)
+        crate::io::write_file(path, self.to_yaml_string_as(format))
     }
 }
 
