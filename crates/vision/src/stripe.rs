@@ -569,10 +569,10 @@ fn last_index_of(scores: &[u8], value: u8) -> Option<usize> {
     while end > 0 {
         let start = end.saturating_sub(CHUNK);
         let chunk = &scores[start..end];
-        if max_u8(chunk) >= value {
-            if let Some(i) = chunk.iter().rposition(|&s| s == value) {
-                return Some(start + i);
-            }
+        if max_u8(chunk) >= value
+            && let Some(i) = chunk.iter().rposition(|&s| s == value)
+        {
+            return Some(start + i);
         }
         end = start;
     }
@@ -687,19 +687,33 @@ fn local_contrast<T: Copy + Into<f64>>(
         let (a, b) = (a.max(lo), b.min(hi + 1));
         (b > a).then(|| (prefix[b - lo] - prefix[a - lo]) / (b - a) as f64)
     };
-    out.clear();
-    for (u, &score) in row.iter().enumerate().take(last + 1).skip(first) {
-        let left = u
-            .checked_sub(background.gap_px)
-            .and_then(|end| mean(end.saturating_sub(background.window_px), end));
-        let right = mean(u + background.gap_px + 1, u + background.reach() + 1);
+    let (gap, window, reach) = (background.gap_px, background.window_px, background.reach());
+    let clipped = |u: usize| {
+        let left = u.checked_sub(gap).and_then(|end| mean(end.saturating_sub(window), end));
+        let right = mean(u + gap + 1, u + reach + 1);
         let level = match (left, right) {
             (Some(a), Some(b)) => a.max(b),
             (Some(a), None) | (None, Some(a)) => a,
             (None, None) => 0.0,
         };
-        out.push((score.into() - level).max(0.0) as f32);
+        (row[u].into() - level).max(0.0) as f32
+    };
+    out.clear();
+    // Where both windows lie whole inside lo..=hi, the same arithmetic
+    // without the clipping (most of a row).
+    let (inner_first, inner_last) = (first.max(lo + reach), last.min(hi.saturating_sub(reach)));
+    if window == 0 || inner_first > inner_last {
+        out.extend((first..=last).map(clipped));
+        return;
     }
+    out.extend((first..inner_first).map(clipped));
+    let size = window as f64;
+    out.extend((inner_first..=inner_last).map(|u| {
+        let left = (prefix[u - gap - lo] - prefix[u - reach - lo]) / size;
+        let right = (prefix[u + reach + 1 - lo] - prefix[u + gap + 1 - lo]) / size;
+        (row[u].into() - left.max(right)).max(0.0) as f32
+    }));
+    out.extend((inner_last + 1..=last).map(clipped));
 }
 
 /// Scores along a row as the sub-pixel step reads them: an `f32` row, or
@@ -789,7 +803,9 @@ fn peak_at<P: Profile + ?Sized>(
     }
     // A second peak clear of this one's flanks makes the row ambiguous.
     let guard = (2.0 * width_px).ceil() as usize + 2;
-    if rival(guard) > options.ambiguity_ratio * peak {
+    // An infinite ratio (the several-peaks search) admits any rival: no
+    // need to look for one.
+    if options.ambiguity_ratio.is_finite() && rival(guard) > options.ambiguity_ratio * peak {
         return None;
     }
     let centre = match options.method {
@@ -1090,6 +1106,34 @@ mod tests {
                         assert_eq!(found, expected, "{options:?}");
                     }
                 }
+            }
+        }
+    }
+
+    #[test]
+    fn the_line_detector_subtracts_the_larger_window_mean() {
+        let row: Vec<u8> = (0..90_u32).map(|i| ((i * 37 + i * i) % 251) as u8).collect();
+        let background = LocalBackground { gap_px: 5, window_px: 4 };
+        for (first, last) in [(0, 89), (3, 40), (9, 80), (50, 89), (0, 8), (20, 20)] {
+            let mut out = Vec::new();
+            local_contrast(&row, first, last, background, &mut out);
+            let lo = first.saturating_sub(9);
+            let hi = (last + 9).min(89);
+            let mean = |a: i64, b: i64| {
+                let values: Vec<f64> = (a.max(lo as i64)..b.min(hi as i64 + 1))
+                    .map(|i| f64::from(row[i as usize]))
+                    .collect();
+                (!values.is_empty()).then(|| values.iter().sum::<f64>() / values.len() as f64)
+            };
+            for (k, u) in (first..=last).enumerate() {
+                let u = u as i64;
+                let level = match (mean(u - 9, u - 5), mean(u + 6, u + 10)) {
+                    (Some(a), Some(b)) => a.max(b),
+                    (Some(a), None) | (None, Some(a)) => a,
+                    (None, None) => 0.0,
+                };
+                let expected = (f64::from(row[u as usize]) - level).max(0.0) as f32;
+                assert_eq!(out[k], expected, "span {first}..={last}, pixel {u}");
             }
         }
     }
