@@ -98,6 +98,11 @@ struct Sums {
 }
 
 impl Sums {
+    /// J^T J (p x p) and J^T r (p) of the first `p` parameters.
+    fn normal_equations(&self, p: usize) -> (DMatrix<f64>, DVector<f64>) {
+        (self.jtj.view((0, 0), (p, p)).into_owned(), self.jtr.rows(0, p).into_owned())
+    }
+
     fn add(mut self, other: &Sums) -> Sums {
         self.cost += other.cost;
         self.jtj += other.jtj;
@@ -199,19 +204,18 @@ pub(crate) fn normal_equations(
     let problem = Problem { samples, indices, fidelity: laser.fidelity, residual };
     let p = problem.p();
     let sums = problem.block_sums(&laser.prepare(), indices);
-    (!sums.invalid)
-        .then(|| (sums.jtj.view((0, 0), (p, p)).into_owned(), sums.jtr.rows(0, p).into_owned()))
+    (!sums.invalid).then(|| sums.normal_equations(p))
 }
 
 /// Solves `(A + lambda diag(A)) x = -b` over the first `p` parameters
 /// (Marquardt's scaling), or `None` where it is singular.
 fn damped_step(sums: &Sums, p: usize, lambda: f64) -> Option<Vector3<f64>> {
-    let a = sums.jtj.view((0, 0), (p, p)).into_owned();
+    let (a, b) = sums.normal_equations(p);
     let mut damped = a.clone();
     for k in 0..p {
         damped[(k, k)] += lambda * a[(k, k)];
     }
-    let x = damped.cholesky()?.solve(&(-sums.jtr.rows(0, p).into_owned()));
+    let x = damped.cholesky()?.solve(&-b);
     let mut step = Vector3::zeros();
     step.rows_mut(0, p).copy_from(&x);
     step.iter().all(|v| v.is_finite()).then_some(step)
@@ -284,8 +288,7 @@ pub(crate) fn refine(
     let n = indices.len();
     let covariance = (n > p).then(|| {
         let sigma2 = current.cost / (n - p) as f64;
-        let a = current.jtj.view((0, 0), (p, p)).into_owned();
-        a.try_inverse().map(|inv| DMatrix::from_fn(p, p, |i, j| inv[(i, j)] * sigma2))
+        current.normal_equations(p).0.try_inverse().map(|inv| inv * sigma2)
     });
     Ok(Refined { laser, covariance: covariance.flatten() })
 }

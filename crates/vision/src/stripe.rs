@@ -346,16 +346,16 @@ fn colour_score_u8(red: u8, green: u8, blue: u8) -> u8 {
     red.saturating_sub(green.max(blue))
 }
 
-/// `R_on - R_off`, clamped at 0.
+/// [`difference_score_u8`] as the score image holds it.
 #[inline]
 fn difference_score(red_on: u8, red_off: u8) -> f32 {
-    (f32::from(red_on) - f32::from(red_off)).max(0.0)
+    f32::from(difference_score_u8(red_on, red_off))
 }
 
-/// `R - max(G, B)`, clamped at 0.
+/// [`colour_score_u8`] as the score image holds it.
 #[inline]
 fn colour_score(red: u8, green: u8, blue: u8) -> f32 {
-    (f32::from(red) - f32::from(green.max(blue))).max(0.0)
+    f32::from(colour_score_u8(red, green, blue))
 }
 
 fn check_same_size(on: &RgbImage, off: &RgbImage) -> Result<()> {
