@@ -3,7 +3,7 @@
 use alacs_model::{Fidelity, LaserModel, PreparedLaser};
 
 use crate::linear::LinearForm;
-use crate::refine::{Residual, refine};
+use crate::refine::{Layout, Residual, refine};
 use crate::uncertainty::{StdSource, at_least, bootstrap_samples};
 use crate::{Error, LaserSample, Result, validate_samples};
 use alacs_model::ransac::{self, Estimator, RansacOptions};
@@ -86,6 +86,9 @@ pub struct CalibrationOptions {
     pub max_iterations: usize,
     /// RANSAC seed.
     pub seed: u64,
+    /// Fit the slide scale k (L = L0 - k d) where the samples span two or
+    /// more slide positions; `false` holds k = 1, the seed paper's model.
+    pub fit_slide_scale: bool,
 }
 
 impl Default for CalibrationOptions {
@@ -96,6 +99,7 @@ impl Default for CalibrationOptions {
             confidence: 0.999,
             max_iterations: 2000,
             seed: 0,
+            fit_slide_scale: true,
         }
     }
 }
@@ -109,28 +113,32 @@ pub struct ParameterStdDev {
     pub l0_mm: f64,
     /// Of beta, degrees (`None` for the low-fidelity model).
     pub beta_deg: Option<f64>,
+    /// Of the slide scale k (`None` where k was not fitted).
+    pub slide_scale: Option<f64>,
     /// How they were estimated.
     pub source: StdSource,
 }
 
 impl ParameterStdDev {
-    /// From standard deviations of (alpha rad, L0 mm[, beta rad]).
-    pub(crate) fn from_parameters(std: &[f64], source: StdSource) -> Option<Self> {
+    /// From standard deviations of the parameters of `layout`, in its order.
+    pub(crate) fn from_parameters(std: &[f64], layout: Layout, source: StdSource) -> Option<Self> {
         let (alpha, l0) = (*std.first()?, *std.get(1)?);
-        let all_finite = std.iter().all(|s| s.is_finite());
+        let all_finite = std.len() == layout.len() && std.iter().all(|s| s.is_finite());
         all_finite.then(|| ParameterStdDev {
             alpha_deg: alpha.to_degrees(),
             l0_mm: l0,
-            beta_deg: std.get(2).map(|b| b.to_degrees()),
+            beta_deg: layout.beta_index().map(|k| std[k].to_degrees()),
+            slide_scale: layout.slide_scale_index().map(|k| std[k]),
             source,
         })
     }
 
-    /// The standard deviations of (alpha rad, L0 mm[, beta rad]), as
+    /// The standard deviations of (alpha rad, L0 mm[, beta rad][, k]), as
     /// [`Self::from_parameters`] takes them.
     pub(crate) fn to_parameters(self) -> Vec<f64> {
         let mut std = vec![self.alpha_deg.to_radians(), self.l0_mm];
         std.extend(self.beta_deg.map(f64::to_radians));
+        std.extend(self.slide_scale);
         std
     }
 }
@@ -144,6 +152,9 @@ pub struct LaserCalibration {
     pub laser: LaserModel,
     /// 0-based indices of the samples the final fit used (all for methods 1 and 3).
     pub inliers: Vec<usize>,
+    /// Whether the slide scale k was fitted (two or more slide positions
+    /// and [`CalibrationOptions::fit_slide_scale`]); else it is 1.
+    pub slide_scale_fitted: bool,
     /// Number of samples given.
     pub n_samples: usize,
     /// Mean |z - z_hat| over `inliers`, the paper's Table 1 metric.
@@ -202,7 +213,8 @@ pub fn calibrate(
 ) -> Result<LaserCalibration> {
     validate_samples(samples)?;
     let fidelity = method.fidelity();
-    let form = LinearForm::new(fidelity, samples);
+    let form = LinearForm::new(fidelity, samples, options.fit_slide_scale);
+    let layout = form.layout();
     check_geometry(samples, fidelity, form.unknowns() + 1)?;
 
     let mut threshold_mm = options.threshold_mm;
@@ -215,7 +227,7 @@ pub fn calibrate(
         let initial = form.solve_least_squares(samples.iter()).ok_or_else(|| {
             Error::Degenerate("the linear system of eq. (7) is rank deficient".into())
         })?;
-        let refined = refine(samples, &all, &initial, options.residual)?;
+        let refined = refine(samples, &all, &initial, layout, options.residual)?;
         (refined.laser, all, refined.covariance, None)
     };
 
@@ -236,13 +248,14 @@ pub fn calibrate(
     // without poses are taken as independent.
     let with_poses = !inliers.is_empty() && inliers.iter().all(|&i| samples[i].pose.is_some());
     let std_dev = if with_poses {
-        bootstrap_samples(samples, &inliers, &laser, options.residual, options.seed).and_then(
-            |(std, source)| {
-                ParameterStdDev::from_parameters(&at_least(&std, covariance_std.as_deref()), source)
-            },
-        )
+        bootstrap_samples(samples, &inliers, &laser, layout, options.residual, options.seed)
+            .and_then(|(std, source)| {
+                let std = at_least(&std, covariance_std.as_deref());
+                ParameterStdDev::from_parameters(&std, layout, source)
+            })
     } else {
-        covariance_std.and_then(|std| ParameterStdDev::from_parameters(&std, StdSource::Covariance))
+        covariance_std
+            .and_then(|std| ParameterStdDev::from_parameters(&std, layout, StdSource::Covariance))
     };
     Ok(LaserCalibration {
         method,
@@ -251,6 +264,7 @@ pub fn calibrate(
         mean_abs_error_all_mm: mean(&mut (0..samples.len())),
         rms_error_mm: rms,
         inliers,
+        slide_scale_fitted: layout.slide_scale,
         n_samples: samples.len(),
         std_dev,
         ransac_iterations,
@@ -346,7 +360,7 @@ fn robust_fit_at(
         if inliers.len() < need {
             return Err(no_consensus(inliers.len()));
         }
-        let refined = refine(samples, &inliers, &laser, options.residual)?;
+        let refined = refine(samples, &inliers, &laser, form.layout(), options.residual)?;
         let next = ransac::inliers(&estimator, &refined.laser.prepare(), options.threshold_mm);
         if next == inliers || next.len() < need {
             return Ok((refined, inliers, outcome.iterations));
@@ -354,7 +368,7 @@ fn robust_fit_at(
         laser = refined.laser;
         inliers = next;
     }
-    let refined = refine(samples, &inliers, &laser, options.residual)?;
+    let refined = refine(samples, &inliers, &laser, form.layout(), options.residual)?;
     Ok((refined, inliers, outcome.iterations))
 }
 

@@ -5,10 +5,12 @@
 //!
 //! ```text
 //! p1 - u p2 - v p3 = 1/z                       (one slide position, L fixed)
-//! p1 - u p2 - v p3 + d/z q = 1/z,  q = 1/L0    (several slide positions)
+//! p1 - u p2 - v p3 + d/z q = 1/z,  q = k/L0    (several slide positions)
 //! ```
 //!
-//! with `p` divided by L0 in the second form. Three samples (two for the
+//! with `p` divided by L0 in the second form, so that `hypot(p1, p2) = 1/L0`
+//! and the slide scale k of L = L0 - k d is `q L0` (held at 1, `q = 1/L0`,
+//! where the fit does not free it). Three samples (two for the
 //! low-fidelity model, where p3 = 0; one more with several slide positions)
 //! give a minimal solver for RANSAC hypotheses; all samples, weighted by z^2
 //! so that the algebraic residual approximates the depth residual of
@@ -18,6 +20,7 @@ use alacs_model::{Fidelity, LaserModel};
 use nalgebra::{DMatrix, DVector, Matrix4, Vector4};
 
 use crate::LaserSample;
+use crate::refine::Layout;
 
 /// Slide positions closer together than this are treated as one: the
 /// column for 1/L0 would be nearly parallel to the right-hand side, leaving
@@ -34,23 +37,35 @@ pub(crate) struct LinearForm {
     fidelity: Fidelity,
     /// `Some(d)` when every sample shares (to `MIN_SLIDE_SPREAD_MM`) slide travel d.
     common_slide_mm: Option<f64>,
+    /// Whether several slide positions free the slide scale k.
+    fit_slide_scale: bool,
 }
 
 impl LinearForm {
-    /// The form for `samples`; several slide positions add the 1/L0 column.
-    pub(crate) fn new(fidelity: Fidelity, samples: &[LaserSample]) -> Self {
+    /// The form for `samples`; several slide positions add the k/L0 column,
+    /// and free k where `fit_slide_scale`.
+    pub(crate) fn new(fidelity: Fidelity, samples: &[LaserSample], fit_slide_scale: bool) -> Self {
         let (min, max, sum) =
             samples.iter().fold((f64::INFINITY, f64::NEG_INFINITY, 0.0), |(lo, hi, sum), s| {
                 (lo.min(s.slide_mm), hi.max(s.slide_mm), sum + s.slide_mm)
             });
         let common_slide_mm =
             (max - min < MIN_SLIDE_SPREAD_MM).then(|| sum / samples.len().max(1) as f64);
-        Self { fidelity, common_slide_mm }
+        Self { fidelity, common_slide_mm, fit_slide_scale }
     }
 
     /// The model's fidelity.
     pub(crate) fn fidelity(&self) -> Fidelity {
         self.fidelity
+    }
+
+    /// The parameters the nonlinear refinement frees: k where the samples
+    /// span several slide positions and the caller asked for it.
+    pub(crate) fn layout(&self) -> Layout {
+        Layout {
+            fidelity: self.fidelity,
+            slide_scale: self.fit_slide_scale && self.common_slide_mm.is_none(),
+        }
     }
 
     /// Number of unknowns, which is also the minimal sample size.
@@ -83,19 +98,26 @@ impl LinearForm {
     /// in front of the camera.
     fn model(&self, p: &[f64]) -> Option<LaserModel> {
         let tan_term = if self.fidelity == Fidelity::High { p[2] } else { 0.0 };
-        let (l0_mm, tan_beta) = match self.common_slide_mm {
-            // p = (sin a, cos a, tan b) / L.
+        let (l0_mm, tan_beta, slide_scale) = match self.common_slide_mm {
+            // p = (sin a, cos a, tan b) / L, L = L0 - d (k = 1: one slide
+            // position cannot tell k from L0).
             Some(slide_mm) => {
                 let l_mm = 1.0 / p[0].hypot(p[1]);
-                (l_mm + slide_mm, tan_term * l_mm)
+                (l_mm + slide_mm, tan_term * l_mm, 1.0)
             }
-            // p = (sin a, cos a, tan b, 1) / L0.
+            // p = (sin a, cos a, tan b, k) / L0.
             None => {
                 let q = p[self.unknowns() - 1];
-                (1.0 / q, tan_term / q)
+                if self.fit_slide_scale {
+                    let l0_mm = 1.0 / p[0].hypot(p[1]);
+                    (l0_mm, tan_term * l0_mm, q * l0_mm)
+                } else {
+                    (1.0 / q, tan_term / q, 1.0)
+                }
             }
         };
-        let laser = LaserModel::new(self.fidelity, p[0].atan2(p[1]), tan_beta.atan(), l0_mm);
+        let laser = LaserModel::new(self.fidelity, p[0].atan2(p[1]), tan_beta.atan(), l0_mm)
+            .with_slide_scale(slide_scale);
         laser.validate().ok().map(|()| laser)
     }
 

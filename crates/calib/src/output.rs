@@ -6,7 +6,7 @@ use serde::{Deserialize, Serialize};
 use crate::LaserCalibration;
 
 /// One calibration as the `calibrate laser --json` object: the laser
-/// (`model`, `alpha_deg`, `beta_deg`, `l0_mm`) with one standard deviation
+/// (`model`, `alpha_deg`, `beta_deg`, `l0_mm`, `slide_scale`) with one standard deviation
 /// of each (`*_std_*`, and how they were estimated: `std_source`), the
 /// fit's `inliers` and statistics, and the paper's `method` number and `name`. Keys in
 /// alphabetical order, as the CLI has always printed them.
@@ -45,6 +45,13 @@ pub struct CalibrationOutput {
     pub residual: String,
     /// RMS of z - z_hat over the inliers, mm.
     pub rms_error_mm: f64,
+    /// The slide scale k of L = L0 - k d (1 where it was not fitted).
+    pub slide_scale: f64,
+    /// Whether k was fitted (two or more slide positions, not held by
+    /// `--hold-slide-scale`).
+    pub slide_scale_fitted: bool,
+    /// One standard deviation of k (`null` where k was not fitted or undefined).
+    pub slide_scale_std: Option<f64>,
     /// How the standard deviations were estimated (`null` where undefined).
     pub std_source: Option<String>,
     /// The inlier threshold the fit ended with, mm.
@@ -71,6 +78,9 @@ impl LaserCalibration {
             ransac_iterations: self.ransac_iterations,
             residual: self.residual.as_str().to_owned(),
             rms_error_mm: self.rms_error_mm,
+            slide_scale: self.laser.slide_scale,
+            slide_scale_fitted: self.slide_scale_fitted,
+            slide_scale_std: self.std_dev.and_then(|s| s.slide_scale),
             std_source: self.std_dev.map(|s| s.source.describe()),
             threshold_mm: self.threshold_mm,
         }
@@ -117,6 +127,9 @@ mod tests {
                 "ransac_iterations",
                 "residual",
                 "rms_error_mm",
+                "slide_scale",
+                "slide_scale_fitted",
+                "slide_scale_std",
                 "std_source",
                 "threshold_mm"
             ]

@@ -1,9 +1,9 @@
 //! Nonlinear least-squares refinement of the laser parameters, eq. (9), by
-//! Levenberg-Marquardt on the normal equations (two or three parameters,
+//! Levenberg-Marquardt on the normal equations (two to four parameters,
 //! up to millions of samples).
 
 use alacs_model::{Fidelity, LaserModel, PreparedLaser};
-use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
+use nalgebra::{DMatrix, DVector, Matrix4, Vector4};
 use rayon::prelude::*;
 
 use crate::{Error, LaserSample, Result};
@@ -32,12 +32,55 @@ impl Residual {
     }
 }
 
+/// Which laser parameters a fit frees, and their order in its vectors:
+/// alpha (rad), L0 (mm), then beta (rad) for the high-fidelity model, then
+/// the slide scale k where the samples span several slide positions.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Layout {
+    pub fidelity: Fidelity,
+    /// Whether k is fitted (else held at the model's value).
+    pub slide_scale: bool,
+}
+
+impl Layout {
+    /// Number of fitted parameters.
+    pub fn len(&self) -> usize {
+        2 + usize::from(self.fidelity == Fidelity::High) + usize::from(self.slide_scale)
+    }
+
+    /// The fitted parameters' places in the full vector (alpha, L0, beta, k).
+    fn places(&self) -> impl Iterator<Item = usize> {
+        let beta = self.fidelity == Fidelity::High;
+        [0, 1].into_iter().chain(beta.then_some(2)).chain(self.slide_scale.then_some(3))
+    }
+
+    /// The fitted parameters of `laser`, in this layout's order.
+    pub fn parameters(&self, laser: &LaserModel) -> Vec<f64> {
+        let full = full_parameters(laser);
+        self.places().map(|k| full[k]).collect()
+    }
+
+    /// Where k sits in this layout's vectors, if it is fitted.
+    pub fn slide_scale_index(&self) -> Option<usize> {
+        self.slide_scale.then(|| self.len() - 1)
+    }
+
+    /// Where beta sits in this layout's vectors, if it is fitted.
+    pub fn beta_index(&self) -> Option<usize> {
+        (self.fidelity == Fidelity::High).then_some(2)
+    }
+}
+
+/// All four of (alpha rad, L0 mm, beta rad, k).
+fn full_parameters(laser: &LaserModel) -> [f64; 4] {
+    [laser.alpha_rad, laser.l0_mm, laser.effective_beta_rad(), laser.slide_scale]
+}
+
 /// The refined model with its statistics.
 #[derive(Debug, Clone)]
 pub(crate) struct Refined {
     pub laser: LaserModel,
-    /// Covariance of (alpha in rad, L0 in mm, beta in rad) (beta row/column
-    /// absent for the low-fidelity model), from sigma^2 (J^T J)^-1.
+    /// Covariance of the layout's parameters, from sigma^2 (J^T J)^-1.
     pub covariance: Option<DMatrix<f64>>,
 }
 
@@ -82,17 +125,18 @@ const RELATIVE_COST_TOLERANCE: f64 = 1e-14;
 /// residuals by one unit).
 const SCALED_STEP_TOLERANCE: f64 = 1e-10;
 
-/// The parameter vector: alpha (rad), L0 (mm) and, for the high-fidelity
-/// model, beta (rad).
-type Params = [f64; 3];
+/// The full parameter vector (alpha rad, L0 mm, beta rad, k), the fixed
+/// ones included.
+type Params = [f64; 4];
 
 /// One pass over the samples at some parameters: the sum of squared
-/// residuals and the normal equations' J^T J and J^T r (p x p and p used).
+/// residuals and the normal equations' J^T J and J^T r over the fitted
+/// parameters in the layout's order (p x p and p used).
 #[derive(Debug, Clone, Copy, Default)]
 struct Sums {
     cost: f64,
-    jtj: Matrix3<f64>,
-    jtr: Vector3<f64>,
+    jtj: Matrix4<f64>,
+    jtr: Vector4<f64>,
     /// A sample's ray misses the laser plane: the gradient is undefined there.
     invalid: bool,
 }
@@ -116,19 +160,34 @@ impl Sums {
 struct Problem<'a> {
     samples: &'a [LaserSample],
     indices: &'a [usize],
-    fidelity: Fidelity,
+    layout: Layout,
     residual: Residual,
+    /// The fitted parameters' places in [`Params`], `p` of them.
+    places: [usize; 4],
 }
 
-impl Problem<'_> {
+impl<'a> Problem<'a> {
+    fn new(
+        samples: &'a [LaserSample],
+        indices: &'a [usize],
+        layout: Layout,
+        residual: Residual,
+    ) -> Self {
+        let mut places = [0; 4];
+        for (slot, k) in places.iter_mut().zip(layout.places()) {
+            *slot = k;
+        }
+        Problem { samples, indices, layout, residual, places }
+    }
+
     /// Number of fitted parameters.
     fn p(&self) -> usize {
-        if self.fidelity == Fidelity::High { 3 } else { 2 }
+        self.layout.len()
     }
 
     fn laser(&self, params: &Params) -> LaserModel {
-        let beta = if self.fidelity == Fidelity::High { params[2] } else { 0.0 };
-        LaserModel::new(self.fidelity, params[0], beta, params[1])
+        LaserModel::new(self.layout.fidelity, params[0], params[2], params[1])
+            .with_slide_scale(params[3])
     }
 
     /// Residual and its gradient for one sample (`None` for the gradient
@@ -137,7 +196,7 @@ impl Problem<'_> {
         &self,
         laser: &PreparedLaser,
         s: &LaserSample,
-    ) -> (f64, Option<Vector3<f64>>) {
+    ) -> (f64, Option<Vector4<f64>>) {
         match self.residual {
             Residual::Depth => {
                 let normalized = s.normalized();
@@ -158,16 +217,15 @@ impl Problem<'_> {
 
     /// The sums over `block` under `laser`, in order on this thread.
     fn block_sums(&self, laser: &PreparedLaser, block: &[usize]) -> Sums {
-        let low = self.fidelity == Fidelity::Low;
+        let p = self.p();
         let mut sums = Sums::default();
         for &i in block {
             let (r, gradient) = self.residual_and_gradient(laser, &self.samples[i]);
             sums.cost += r * r;
             match gradient {
-                Some(mut g) => {
-                    if low {
-                        g[2] = 0.0;
-                    }
+                Some(full) => {
+                    // The fitted parameters' entries first, the rest 0.
+                    let g = Vector4::from_fn(|k, _| if k < p { full[self.places[k]] } else { 0.0 });
                     sums.jtj += g * g.transpose();
                     sums.jtr += g * r;
                 }
@@ -192,16 +250,16 @@ impl Problem<'_> {
 }
 
 /// The normal equations of `laser`'s residuals over `indices`: J^T J
-/// (p x p) and J^T r (p), p = 2 for the low-fidelity model, else 3 (alpha
-/// in rad, L0 in mm, beta in rad), summed in order on this thread. `None`
-/// where a sample's ray misses the laser plane.
+/// (p x p) and J^T r (p) over the parameters of `layout`, summed in order
+/// on this thread. `None` where a sample's ray misses the laser plane.
 pub(crate) fn normal_equations(
     samples: &[LaserSample],
     indices: &[usize],
     laser: &LaserModel,
+    layout: Layout,
     residual: Residual,
 ) -> Option<(DMatrix<f64>, DVector<f64>)> {
-    let problem = Problem { samples, indices, fidelity: laser.fidelity, residual };
+    let problem = Problem::new(samples, indices, layout, residual);
     let p = problem.p();
     let sums = problem.block_sums(&laser.prepare(), indices);
     (!sums.invalid).then(|| sums.normal_equations(p))
@@ -209,42 +267,43 @@ pub(crate) fn normal_equations(
 
 /// Solves `(A + lambda diag(A)) x = -b` over the first `p` parameters
 /// (Marquardt's scaling), or `None` where it is singular.
-fn damped_step(sums: &Sums, p: usize, lambda: f64) -> Option<Vector3<f64>> {
+fn damped_step(sums: &Sums, p: usize, lambda: f64) -> Option<Vector4<f64>> {
     let (a, b) = sums.normal_equations(p);
     let mut damped = a.clone();
     for k in 0..p {
         damped[(k, k)] += lambda * a[(k, k)];
     }
     let x = damped.cholesky()?.solve(&-b);
-    let mut step = Vector3::zeros();
+    let mut step = Vector4::zeros();
     step.rows_mut(0, p).copy_from(&x);
     step.iter().all(|v| v.is_finite()).then_some(step)
 }
 
-/// Refines `initial` on the samples `indices` by minimizing `residual`:
-/// Levenberg-Marquardt on the normal equations. With two or three
+/// Refines `initial` on the samples `indices` by minimizing `residual`
+/// over the parameters of `layout` (the others held at `initial`'s):
+/// Levenberg-Marquardt on the normal equations. With two to four
 /// parameters and up to millions of samples, each iteration is one pass
 /// that sums J^T J and J^T r (no N x p Jacobian is stored, and the pass runs
-/// in parallel), and the step is a 3 x 3 solve.
+/// in parallel), and the step is a 4 x 4 solve at most.
 pub(crate) fn refine(
     samples: &[LaserSample],
     indices: &[usize],
     initial: &LaserModel,
+    layout: Layout,
     residual: Residual,
 ) -> Result<Refined> {
-    let fidelity = initial.fidelity;
-    let problem = Problem { samples, indices, fidelity, residual };
+    let problem = Problem::new(samples, indices, layout, residual);
     let p = problem.p();
-    let beta = if fidelity == Fidelity::High { initial.beta_rad } else { 0.0 };
-    let mut params: Params = [initial.alpha_rad, initial.l0_mm, beta];
+    let mut params: Params = full_parameters(initial);
     let mut current = problem.sums(&params);
     let failed = |params: &Params, why: &str| {
         let laser = problem.laser(params);
         Error::FitFailed(format!(
-            "Levenberg-Marquardt ended at alpha {:.3} deg, L0 {:.3} mm, beta {:.3} deg ({why})",
+            "Levenberg-Marquardt ended at alpha {:.3} deg, L0 {:.3} mm, beta {:.3} deg, slide scale {:.5} ({why})",
             laser.alpha_deg(),
             laser.l0_mm,
             laser.beta_deg(),
+            laser.slide_scale,
         ))
     };
     if current.invalid || !current.cost.is_finite() {
@@ -264,7 +323,10 @@ pub(crate) fn refine(
         if scaled_step <= SCALED_STEP_TOLERANCE {
             break;
         }
-        let trial_params: Params = std::array::from_fn(|k| params[k] + step[k]);
+        let mut trial_params: Params = params;
+        for (k, &place) in problem.places[..p].iter().enumerate() {
+            trial_params[place] += step[k];
+        }
         let trial = problem.sums(&trial_params);
         if trial.invalid || !(trial.cost.is_finite() && trial.cost <= current.cost) {
             lambda *= 10.0;

@@ -20,6 +20,7 @@ use alacs_vision::{Region, StripeOptions, extract_stripe_rgb, read_image};
 use nalgebra::{Isometry3, Point2};
 use rayon::prelude::*;
 
+use crate::refine::Layout;
 use crate::uncertainty::{
     MIN_BOOTSTRAP_POSES, PoseData, at_least, bootstrap_session, sample_on_board,
 };
@@ -506,17 +507,25 @@ pub fn calibrate_laser_session(
     let poses = pose_data(&views, &calibration.inliers);
     let mut warnings =
         quality_warnings(&samples, &calibration, contributing, calibration.threshold_mm);
+    let layout = Layout {
+        fidelity: calibration.laser.fidelity,
+        slide_scale: calibration.slide_scale_fitted,
+    };
     if let Some((std, source)) = bootstrap_session(
         &poses,
         camera,
         &calibration.laser,
+        layout,
         options.calibration.residual,
         options.camera_uncertainty,
         options.calibration.seed,
     ) {
         let covariance = calibration.std_dev.map(ParameterStdDev::to_parameters);
-        calibration.std_dev =
-            ParameterStdDev::from_parameters(&at_least(&std, covariance.as_deref()), source);
+        calibration.std_dev = ParameterStdDev::from_parameters(
+            &at_least(&std, covariance.as_deref()),
+            layout,
+            source,
+        );
     } else {
         calibration.std_dev = None;
         warnings.push(if poses.len() < MIN_BOOTSTRAP_POSES {

@@ -22,7 +22,7 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
 use crate::intrinsics::CameraLinearization;
-use crate::refine::{normal_equations, refine};
+use crate::refine::{Layout, normal_equations, refine};
 use crate::{BoardObservation, LaserSample, Residual};
 
 /// Bootstrap replicates drawn: the standard deviation of a standard
@@ -79,16 +79,6 @@ impl StdSource {
             ),
         }
     }
-}
-
-/// The laser parameters a fit gives, as a vector: alpha (rad), L0 (mm) and,
-/// for the high-fidelity model, beta (rad).
-fn parameters(laser: &LaserModel) -> Vec<f64> {
-    let mut p = vec![laser.alpha_rad, laser.l0_mm];
-    if laser.fidelity == alacs_model::Fidelity::High {
-        p.push(laser.beta_rad);
-    }
-    p
 }
 
 /// Standard deviations over `replicates` draws of `groups` groups with
@@ -152,11 +142,12 @@ pub(crate) fn bootstrap_samples(
     samples: &[LaserSample],
     inliers: &[usize],
     laser: &LaserModel,
+    layout: Layout,
     residual: Residual,
     seed: u64,
 ) -> Option<(Vec<f64>, StdSource)> {
     let linearized = inliers.len() > LINEARIZED_BOOTSTRAP_SAMPLES;
-    pose_bootstrap(samples, inliers, laser, residual, seed, linearized)
+    pose_bootstrap(samples, inliers, laser, layout, residual, seed, linearized)
 }
 
 /// [`bootstrap_samples`], each replicate a refit, or with `linearized` one
@@ -165,6 +156,7 @@ fn pose_bootstrap(
     samples: &[LaserSample],
     inliers: &[usize],
     laser: &LaserModel,
+    layout: Layout,
     residual: Residual,
     seed: u64,
     linearized: bool,
@@ -186,9 +178,9 @@ fn pose_bootstrap(
         // normal equations at the fit, summed over the draw.
         let per_pose: Vec<(DMatrix<f64>, DVector<f64>)> = members
             .par_iter()
-            .map(|m| normal_equations(samples, m, laser, residual))
+            .map(|m| normal_equations(samples, m, laser, layout, residual))
             .collect::<Option<_>>()?;
-        let fitted = DVector::from_vec(parameters(laser));
+        let fitted = DVector::from_vec(layout.parameters(laser));
         let p = fitted.len();
         bootstrap(poses.len(), BOOTSTRAP_REPLICATES, seed, 2, |draw| {
             let (mut jtj, mut jtr) = (DMatrix::zeros(p, p), DVector::zeros(p));
@@ -207,7 +199,9 @@ fn pose_bootstrap(
             draw.sort_unstable();
             let indices: Vec<usize> =
                 draw.iter().flat_map(|&g| members[g].iter().copied()).collect();
-            refine(samples, &indices, laser, residual).ok().map(|r| parameters(&r.laser))
+            refine(samples, &indices, laser, layout, residual)
+                .ok()
+                .map(|r| layout.parameters(&r.laser))
         })?
     };
     Some((std, StdSource::PoseBootstrap { poses: poses.len(), replicates, camera: false }))
@@ -234,6 +228,7 @@ pub(crate) fn bootstrap_session(
     poses: &[PoseData],
     camera: &Camera,
     laser: &LaserModel,
+    layout: Layout,
     residual: Residual,
     recalibrate_camera: bool,
     seed: u64,
@@ -272,7 +267,9 @@ pub(crate) fn bootstrap_session(
                 }
             }
             let all: Vec<usize> = (0..samples.len()).collect();
-            refine(&samples, &all, laser, residual).ok().map(|r| parameters(&r.laser))
+            refine(&samples, &all, laser, layout, residual)
+                .ok()
+                .map(|r| layout.parameters(&r.laser))
         })?;
     Some((
         std,
@@ -360,13 +357,14 @@ mod tests {
             LaserModel::new(Fidelity::High, 19.07_f64.to_radians(), 0.69_f64.to_radians(), 381.98);
         let samples = samples_with_pose_errors(&truth, 300, 40);
         let all: Vec<usize> = (0..samples.len()).collect();
-        let fit = refine(&samples, &all, &truth, Residual::Depth).unwrap();
+        let layout = Layout { fidelity: Fidelity::High, slide_scale: true };
+        let fit = refine(&samples, &all, &truth, layout, Residual::Depth).unwrap();
         let (refits, _) =
-            pose_bootstrap(&samples, &all, &fit.laser, Residual::Depth, 3, false).unwrap();
+            pose_bootstrap(&samples, &all, &fit.laser, layout, Residual::Depth, 3, false).unwrap();
         let (steps, _) =
-            pose_bootstrap(&samples, &all, &fit.laser, Residual::Depth, 3, true).unwrap();
+            pose_bootstrap(&samples, &all, &fit.laser, layout, Residual::Depth, 3, true).unwrap();
         let covariance = fit.covariance.unwrap();
-        for k in 0..3 {
+        for k in 0..4 {
             let ratio = steps[k] / refits[k];
             assert!((0.95..1.05).contains(&ratio), "parameter {k}: {} vs {}", steps[k], refits[k]);
         }

@@ -97,6 +97,105 @@ fn simulated_session_calibrates_camera_and_laser_to_the_truth() {
     }
 }
 
+/// Largest |z_fit - z| over the working volume at slide travel `slide_mm`:
+/// the true laser's points at depths 600-1200 mm (every 25 mm) on every
+/// 32nd image row, seen through the true camera (points outside the image
+/// left out), triangulated through the fitted camera and laser.
+fn max_depth_error_mm(
+    truth: (&Camera, &LaserModel),
+    fit: (&Camera, &LaserModel),
+    slide_mm: f64,
+) -> f64 {
+    let (true_camera, true_laser) = truth;
+    let (camera, laser) = fit;
+    let half_height_n = f64::from(true_camera.height_px) / 2.0 / true_camera.fy_px;
+    let mut worst: f64 = 0.0;
+    for i in 0..=24 {
+        let z = 600.0 + 25.0 * f64::from(i);
+        for row in (0..true_camera.height_px).step_by(32) {
+            let v_n =
+                (f64::from(row) / f64::from(true_camera.height_px) * 2.0 - 1.0) * half_height_n;
+            // eq. (7): z = L / (sin a - u cos a - v tan b), solved for u.
+            let u_n = (true_laser.alpha_rad.sin()
+                - true_laser.laser_distance_mm(slide_mm) / z
+                - v_n * true_laser.beta_rad.tan())
+                / true_laser.alpha_rad.cos();
+            let point = nalgebra::Point3::new(u_n * z, v_n * z, z);
+            let Ok(pixel) = true_camera.project(&point) else { continue };
+            let inside = (0.0..f64::from(true_camera.width_px)).contains(&pixel.x)
+                && (0.0..f64::from(true_camera.height_px)).contains(&pixel.y);
+            if !inside {
+                continue;
+            }
+            let normalized = camera.undistort_pixel(&pixel).unwrap();
+            let z_fit = laser.depth_mm(&normalized, slide_mm).unwrap();
+            worst = worst.max((z_fit - z).abs());
+        }
+    }
+    worst
+}
+
+/// Issue 17: a slide whose travel is k d instead of d (a pitch error, a
+/// steps-per-mm setting, an axis at an angle to the baseline). Half-scale
+/// sessions of 8 poses at slides 0, 100, 200 mm: k within 0.02 % and the
+/// depth error over the working volume (0.6-1.2 m, the whole image) within
+/// 1 mm at every slide position; held at 1 (the seed's model) the same
+/// sessions are up to 5 mm off at 200 mm (k 0.99 and 1.02).
+#[test]
+fn a_slide_scale_error_is_fitted_to_the_noise_floor() {
+    use alacs_sim::SlideError;
+    // (scale, angle, seed): k = scale cos(angle) = 0.99, 0.997, 1.02, 0.997
+    // from an axis turned by 4.44 deg, and the perfect slide, whose errors
+    // are the noise floor (the fitted camera and laser of one session
+    // together: 0.5-0.75 mm on seeds 15 and 16, where the true camera with
+    // the fitted laser is 0.8-4 mm off at the image's corners).
+    let cases =
+        [(0.99, 0.0, 11), (0.997, 0.0, 12), (1.02, 0.0, 13), (1.0, 4.44, 14), (1.0, 0.0, 15)];
+    for (scale, angle_deg, seed) in cases {
+        let options = SessionOptions {
+            n_views: 8,
+            slides_mm: vec![0.0, 100.0, 200.0],
+            scale: 0.5,
+            seed,
+            slide: SlideError { scale, angle_deg },
+            ..SessionOptions::default()
+        };
+        let simulated =
+            simulate_session(&Camera::blackfly_s_5mp(), &truth_laser(), &options).unwrap();
+        let dir = temp_dir(&format!("slide{seed}"));
+        simulated.write(&dir).unwrap();
+        let true_k = simulated.laser.slide_scale;
+        let session = Session::read(&dir).unwrap();
+        let camera = calibrate_camera(&session).unwrap().camera;
+        let fit = |fit_slide_scale: bool| {
+            let mut options = LaserSessionOptions::default();
+            options.calibration.fit_slide_scale = fit_slide_scale;
+            calibrate_laser_session(&session, &camera, &options, &|| {}).unwrap().calibration
+        };
+        let (fitted, held) = (fit(true), fit(false));
+        let truth = (&simulated.camera, &simulated.laser);
+        let errors: Vec<f64> = [0.0, 100.0, 200.0]
+            .iter()
+            .map(|&d| max_depth_error_mm(truth, (&camera, &fitted.laser), d))
+            .collect();
+        let held_error = max_depth_error_mm(truth, (&camera, &held.laser), 200.0);
+        let k = fitted.laser.slide_scale;
+        let k_std = fitted.std_dev.and_then(|s| s.slide_scale).unwrap();
+        eprintln!(
+            "k {true_k:.5}: fitted {k:.6} +- {k_std:.6} ({:+.4} %), max depth error {errors:.3?} mm at 0/100/200 mm; k held at 1: {held_error:.2} mm at 200 mm, {} of {} inliers",
+            100.0 * (k - true_k) / true_k,
+            held.inliers.len(),
+            held.n_samples
+        );
+        assert!(fitted.slide_scale_fitted && !held.slide_scale_fitted);
+        assert!(((k - true_k) / true_k).abs() < 2e-4, "k {k} for {true_k}");
+        assert!(errors.iter().all(|&e| e <= 1.0), "{errors:?}");
+        // The fitted k's standard deviation covers its error.
+        assert!((k - true_k).abs() < 3.0 * k_std, "k {k} +- {k_std} for {true_k}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
+
 /// A session of `views` poses without laser-off images ([`write_session`]),
 /// read back, and the image of its view `index`, to be spoiled.
 fn session_with_victim(

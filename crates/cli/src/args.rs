@@ -441,6 +441,10 @@ pub struct CalibrateLaserArgs {
     /// Residual the least-squares fit minimizes.
     #[arg(long, value_enum, default_value = "depth")]
     pub residual: ResidualArg,
+    /// Hold the slide scale k at 1 (the seed paper's L = L0 - d) instead of
+    /// fitting L = L0 - k d where the samples span two or more slide positions.
+    #[arg(long)]
+    pub hold_slide_scale: bool,
     /// Print one JSON object (docs/FORMATS.md) on standard output instead of text.
     #[arg(long)]
     pub json: bool,
@@ -581,6 +585,16 @@ pub struct SimulateSessionArgs {
     /// Largest board tilt away from facing the camera, degrees.
     #[arg(long, default_value_t = 40.0, value_parser = number_in(0.0, 89.0))]
     pub max_tilt_deg: f64,
+    /// The slide's scale error: the laser's travel per commanded mm along
+    /// the slide's axis (1: the seed paper's perfect slide).
+    #[arg(long, value_name = "S", default_value_t = 1.0, value_parser = number_in(0.8, 1.25))]
+    pub slide_scale: f64,
+    /// The angle of the slide's axis to the laser's baseline, degrees (in
+    /// the plane of the baseline and the optical axis): the stripe shows
+    /// L = L0 - k d with k = scale cos(angle); truth.json's laser holds k.
+    #[arg(long, value_name = "DEG", default_value_t = 0.0, allow_hyphen_values = true,
+          value_parser = number_in(-alacs::sim::MAX_SLIDE_ANGLE_DEG, alacs::sim::MAX_SLIDE_ANGLE_DEG))]
+    pub slide_angle_deg: f64,
     /// How images are rendered.
     #[command(flatten)]
     pub render: RenderArgs,

@@ -90,6 +90,14 @@ pub fn summary(c: &LaserCalibration) -> String {
             pm(std.and_then(|s| s.beta_deg), 4)
         );
     }
+    if c.slide_scale_fitted {
+        let _ = writeln!(
+            out,
+            "  k     = {:>9.5}    {} (slide scale: L = L0 - k d)",
+            c.laser.slide_scale,
+            pm(std.and_then(|s| s.slide_scale), 5)
+        );
+    }
     if let Some(s) = std {
         let _ = writeln!(out, "  +- one standard deviation: {}", s.source.describe());
     }

@@ -781,13 +781,15 @@ fn camera_key_expect(top: &str, key: &str, value: Option<&str>) -> Expect {
 fn laser_number_expect(_top: &str, key: &str, value: &str) -> Expect {
     match (key, value) {
         ("beta_deg", "-1" | "0") | ("l0_mm", "1e308") => Expect::Any,
+        // An empty `slide_scale:` is YAML's null: k absent, the seed's 1.
+        ("slide_scale", "") => Expect::Any,
         _ => Expect::Refused,
     }
 }
 
 fn laser_key_expect(_top: &str, key: &str, value: Option<&str>) -> Expect {
     match (key, value) {
-        ("model" | "beta_deg", None | Some("null")) => Expect::Any,
+        ("model" | "beta_deg" | "slide_scale", None | Some("null")) => Expect::Any,
         _ => Expect::Refused,
     }
 }

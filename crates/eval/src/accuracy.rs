@@ -374,12 +374,8 @@ impl AccuracyEvaluation {
             })
         };
         json!({
-            "laser": {
-                "model": self.laser.fidelity.as_str(),
-                "alpha_deg": self.laser.alpha_deg(),
-                "beta_deg": self.laser.beta_deg(),
-                "l0_mm": self.laser.l0_mm,
-            },
+            // laser.yaml's keys, from their one owner (it cannot fail).
+            "laser": serde_json::to_value(self.laser.to_file()).unwrap_or_default(),
             "points_per_view": self.points_per_view.as_str(),
             "n_points": self.points.len(),
             "noise_floor": {

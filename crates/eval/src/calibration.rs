@@ -79,20 +79,24 @@ fn calibration_json(c: &LaserCalibration) -> Value {
     serde_json::to_value(c.to_output()).unwrap_or(Value::Null)
 }
 
-/// The seed paper's Table 1 for `results`, as text.
+/// The seed paper's Table 1 for `results`, as text; with a column for the
+/// slide scale k where a method fitted it (samples from several slide
+/// positions).
 pub fn table_1(results: &[LaserCalibration]) -> String {
+    let with_k = results.iter().any(|c| c.slide_scale_fitted);
     let mut out = String::new();
-    let _ = writeln!(
+    let _ = write!(
         out,
         "{:<44} {:>11} {:>9} {:>10} {:>15} {:>9}",
         "", "alpha (deg)", "L0 (mm)", "beta (deg)", "Mean error (mm)", "inliers"
     );
+    out.push_str(if with_k { "   slide scale k\n" } else { "\n" });
     for c in results {
         let beta = match c.laser.fidelity {
             Fidelity::Low => "/".to_string(),
             Fidelity::High => format!("{:.2}", c.laser.beta_deg()),
         };
-        let _ = writeln!(
+        let _ = write!(
             out,
             "{:<44} {:>11.2} {:>9.2} {:>10} {:>15.2} {:>9}",
             format!("Method {} ({})", c.method.number(), c.method.name()),
@@ -102,6 +106,10 @@ pub fn table_1(results: &[LaserCalibration]) -> String {
             c.mean_abs_error_mm,
             format!("{}/{}", c.inliers.len(), c.n_samples)
         );
+        if with_k {
+            let _ = write!(out, " {:>17.5}", c.laser.slide_scale);
+        }
+        out.push('\n');
     }
     out
 }

@@ -6,16 +6,35 @@
 //!
 //! ```text
 //! D = sin(alpha) - u_n cos(alpha) - v_n tan(beta)
-//! z = L / D,  x = u_n z,  y = v_n z,  L = L0 - d
+//! z = L / D,  x = u_n z,  y = v_n z,  L = L0 - k d
 //! ```
 //!
 //! Equivalently the laser is the plane `-cos(alpha) x - tan(beta) y +
 //! sin(alpha) z = L` in the camera frame, with the laser's origin at
 //! `(-L cos(alpha), 0, L sin(alpha))`, eq. (4).
+//!
+//! # The slide's own error: k
+//!
+//! The seed paper takes the slide as perfect, L = L0 - d. A real slide moves
+//! the laser by k d for a commanded d: a lead screw's pitch error, a belt's
+//! stretch or a steps-per-mm setting make k a little off 1. A slide axis at
+//! an angle to the baseline does the same and nothing more that the stripe
+//! can show: moving the laser by d along an axis `a` (its length the travel
+//! per commanded mm) shifts its plane, whose orientation a translation does
+//! not change, by `n . a d` along the plane's normal `n`; the model's
+//! baseline `b = (cos(alpha), 0, -sin(alpha))` (where eq. (4)'s origin moves
+//! as d grows) shifts it by `n . b d`, so the plane is that of L = L0 - k d
+//! with `k = (n . a) / (n . b)`: cos(angle) for a true-length axis turned
+//! within the plane of the baseline and the camera's optical axis (the
+//! turned part, `(sin(alpha), 0, cos(alpha))`, lies in the laser plane). The part of the motion
+//! that lies in the laser plane moves no lit point and cannot be measured;
+//! it moves only the laser's origin, which the model uses for shadows. So
+//! the model has one more parameter, `slide_scale` k (1 for the seed's
+//! model), and a calibration with two or more slide positions fits it.
 
 use std::path::Path;
 
-use nalgebra::{Matrix3x2, Point2, Point3, Vector3};
+use nalgebra::{Matrix3x2, Point2, Point3, Vector3, Vector4};
 use serde::{Deserialize, Serialize};
 
 use crate::{Error, Plane, Result};
@@ -74,6 +93,9 @@ pub struct LaserModel {
     pub beta_rad: f64,
     /// L0: laser-camera distance at slide travel 0.
     pub l0_mm: f64,
+    /// k: the laser's travel per unit of commanded slide travel, L = L0 - k
+    /// d (1 for the seed paper's perfect slide; see the module documentation).
+    pub slide_scale: f64,
 }
 
 /// Where the slide must go to put the laser plane on a point.
@@ -87,20 +109,38 @@ pub struct SlideTarget {
     pub clamped_mm: f64,
 }
 
-/// laser.yaml as written on disk (FORMATS.md).
-#[derive(Debug, Deserialize)]
-struct LaserFile {
-    model: Fidelity,
-    alpha_deg: f64,
-    beta_deg: Option<f64>,
-    l0_mm: f64,
+/// laser.yaml's keys as written on disk (FORMATS.md), degrees at the edge:
+/// also the `laser` object of truth.json and of `evaluate accuracy --json`
+/// (serialize [`LaserModel::to_file`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct LaserFile {
+    /// `low-fidelity` or `high-fidelity`.
+    pub model: Fidelity,
+    /// alpha, degrees.
+    pub alpha_deg: f64,
+    /// beta, degrees (may be absent for the low-fidelity model).
+    pub beta_deg: Option<f64>,
+    /// L0, mm.
+    pub l0_mm: f64,
+    /// k of L = L0 - k d (absent: 1).
+    pub slide_scale: Option<f64>,
 }
 
+/// The range of k a laser.yaml or a fit may hold: a slide whose travel is
+/// off by more than a fifth is a wrong steps-per-mm setting (or a wrong
+/// unit), not a calibration result.
+pub const SLIDE_SCALE_RANGE: (f64, f64) = (0.8, 1.25);
+
 impl LaserModel {
-    /// A model from radians.
+    /// A model from radians, with the seed's perfect slide (k = 1).
     pub fn new(fidelity: Fidelity, alpha_rad: f64, beta_rad: f64, l0_mm: f64) -> Self {
         let beta_rad = if fidelity == Fidelity::Low { 0.0 } else { beta_rad };
-        Self { fidelity, alpha_rad, beta_rad, l0_mm }
+        Self { fidelity, alpha_rad, beta_rad, l0_mm, slide_scale: 1.0 }
+    }
+
+    /// This model with slide scale `k`: L = L0 - k d.
+    pub fn with_slide_scale(self, slide_scale: f64) -> Self {
+        Self { slide_scale, ..self }
     }
 
     /// A model from degrees, as files and the paper give them.
@@ -134,9 +174,18 @@ impl LaserModel {
     }
 
     /// Checks that the parameters describe a laser in front of the camera:
-    /// finite values, L0 > 0, 0 < alpha < 180 deg, |beta| < 90 deg.
+    /// finite values, L0 > 0, 0 < alpha < 180 deg, |beta| < 90 deg, k within
+    /// [`SLIDE_SCALE_RANGE`].
     pub fn validate(&self) -> Result<()> {
         let invalid = |message: String| Err(Error::InvalidParameters { what: "laser", message });
+        if !self.slide_scale.is_finite()
+            || !(SLIDE_SCALE_RANGE.0..=SLIDE_SCALE_RANGE.1).contains(&self.slide_scale)
+        {
+            return invalid(format!(
+                "slide_scale must lie in [{}, {}] (the laser's travel per mm of slide travel), got {}",
+                SLIDE_SCALE_RANGE.0, SLIDE_SCALE_RANGE.1, self.slide_scale
+            ));
+        }
         if !(self.alpha_rad.is_finite() && self.beta_rad.is_finite() && self.l0_mm.is_finite()) {
             return invalid(format!(
                 "parameters must be finite (alpha {} rad, beta {} rad, L0 {} mm)",
@@ -155,9 +204,9 @@ impl LaserModel {
         Ok(())
     }
 
-    /// L = L0 - d: the laser-camera distance at slide travel `slide_mm`.
+    /// L = L0 - k d: the laser-camera distance at slide travel `slide_mm`.
     pub fn laser_distance_mm(&self, slide_mm: f64) -> f64 {
-        self.l0_mm - slide_mm
+        self.l0_mm - self.slide_scale * slide_mm
     }
 
     /// This model with its trigonometric terms evaluated once, for loops
@@ -202,13 +251,13 @@ impl LaserModel {
     }
 
     /// Gradient of the modelled depth z_hat of eq. (9) with respect to the
-    /// parameters (alpha in rad, L0 in mm, beta in rad); see
+    /// parameters (alpha in rad, L0 in mm, beta in rad, k); see
     /// [`PreparedLaser::depth_gradient_params`].
     pub fn depth_gradient_params(
         &self,
         normalized: &Point2<f64>,
         slide_mm: f64,
-    ) -> Result<Vector3<f64>> {
+    ) -> Result<Vector4<f64>> {
         self.prepare().depth_gradient_params(normalized, slide_mm)
     }
 
@@ -220,13 +269,13 @@ impl LaserModel {
     }
 
     /// Gradient of [`Self::signed_distance_mm`] with respect to the parameters
-    /// (alpha in rad, L0 in mm, beta in rad); see
+    /// (alpha in rad, L0 in mm, beta in rad, k); see
     /// [`PreparedLaser::signed_distance_gradient_params`].
     pub fn signed_distance_gradient_params(
         &self,
         point_in_camera: &Point3<f64>,
         slide_mm: f64,
-    ) -> Vector3<f64> {
+    ) -> Vector4<f64> {
         self.prepare().signed_distance_gradient_params(point_in_camera, slide_mm)
     }
 
@@ -246,10 +295,10 @@ impl LaserModel {
     }
 
     /// The inverse the scanner needs: the slide travel d that puts the laser
-    /// plane through `point_in_camera`, from `n · p = L0 - d`.
+    /// plane through `point_in_camera`, from `n · p = L0 - k d`.
     pub fn slide_for_point(&self, point_in_camera: &Point3<f64>) -> f64 {
         let plane = self.plane_in_camera(0.0);
-        self.l0_mm - plane.normal.dot(&point_in_camera.coords)
+        (self.l0_mm - plane.normal.dot(&point_in_camera.coords)) / self.slide_scale
     }
 
     /// [`Self::slide_for_point`] with the stroke `0 ..= stroke_mm` checked and clamped.
@@ -263,7 +312,8 @@ impl LaserModel {
     }
 
     /// Parses laser.yaml text (FORMATS.md). `beta_deg` may be omitted for the
-    /// low-fidelity model; unknown extra keys are ignored.
+    /// low-fidelity model, `slide_scale` (k) where it is 1; unknown extra
+    /// keys are ignored.
     pub fn from_yaml_str(text: &str) -> Result<Self> {
         Self::parse_yaml(text, Path::new("<string>"))
     }
@@ -286,20 +336,33 @@ impl LaserModel {
             }
             (_, beta) => beta.unwrap_or(0.0),
         };
-        let model = Self::from_degrees(file.model, file.alpha_deg, beta_deg, file.l0_mm);
+        let model = Self::from_degrees(file.model, file.alpha_deg, beta_deg, file.l0_mm)
+            .with_slide_scale(file.slide_scale.unwrap_or(1.0));
         model.validate().map_err(|e| parse_error(e.to_string()))?;
         Ok(model)
     }
 
-    /// laser.yaml text with the four keys of FORMATS.md (shortest
+    /// The five keys of laser.yaml, every one given.
+    pub fn to_file(&self) -> LaserFile {
+        LaserFile {
+            model: self.fidelity,
+            alpha_deg: self.alpha_deg(),
+            beta_deg: Some(self.beta_deg()),
+            l0_mm: self.l0_mm,
+            slide_scale: Some(self.slide_scale),
+        }
+    }
+
+    /// laser.yaml text with the five keys of FORMATS.md (shortest
     /// round-trip float formatting, so reading it back gives the same model).
     pub fn to_yaml_string(&self) -> String {
         format!(
-            "model: {}\nalpha_deg: {}\nbeta_deg: {}\nl0_mm: {}\n",
+            "model: {}\nalpha_deg: {}\nbeta_deg: {}\nl0_mm: {}\nslide_scale: {}\n",
             self.fidelity,
             self.alpha_deg(),
             self.beta_deg(),
-            self.l0_mm
+            self.l0_mm,
+            self.slide_scale
         )
     }
 
@@ -367,22 +430,24 @@ impl PreparedLaser {
     }
 
     /// Gradient of the modelled depth z_hat of eq. (9) with respect to the
-    /// parameters (alpha in rad, L0 in mm, beta in rad). For the low-fidelity
-    /// model the beta entry is the derivative at beta = 0, which callers that
-    /// fit two parameters ignore.
+    /// parameters (alpha in rad, L0 in mm, beta in rad, k). For the
+    /// low-fidelity model the beta entry is the derivative at beta = 0,
+    /// which callers that fit two parameters ignore.
     pub fn depth_gradient_params(
         &self,
         normalized: &Point2<f64>,
         slide_mm: f64,
-    ) -> Result<Vector3<f64>> {
+    ) -> Result<Vector4<f64>> {
         let z = self.depth_mm(normalized, slide_mm)?;
         let denominator = self.denominator(normalized);
         let (sin_a, cos_a, cos_b) = (self.sin_alpha, self.cos_alpha, self.cos_beta);
-        // z = L / D:  dz/dp = -z/D * dD/dp for the angles, dz/dL0 = 1/D.
+        // z = L / D:  dz/dp = -z/D * dD/dp for the angles, dz/dL0 = 1/D,
+        // dz/dk = -d/D (L = L0 - k d).
         let dz_dalpha = -z / denominator * (cos_a + normalized.x * sin_a);
         let dz_dl0 = 1.0 / denominator;
         let dz_dbeta = z / denominator * normalized.y / (cos_b * cos_b);
-        Ok(Vector3::new(dz_dalpha, dz_dl0, dz_dbeta))
+        let dz_dk = -slide_mm / denominator;
+        Ok(Vector4::new(dz_dalpha, dz_dl0, dz_dbeta, dz_dk))
     }
 
     /// Signed Euclidean distance of `point_in_camera` from the laser plane at
@@ -393,22 +458,23 @@ impl PreparedLaser {
     }
 
     /// Gradient of [`Self::signed_distance_mm`] with respect to the parameters
-    /// (alpha in rad, L0 in mm, beta in rad). With the normal scaled to unit
-    /// length the distance is
-    /// `-cos(a) cos(b) x - sin(b) y + sin(a) cos(b) z - L cos(b)`.
+    /// (alpha in rad, L0 in mm, beta in rad, k). With the normal scaled to
+    /// unit length the distance is
+    /// `-cos(a) cos(b) x - sin(b) y + sin(a) cos(b) z - L cos(b)`, L = L0 - k d.
     pub fn signed_distance_gradient_params(
         &self,
         point_in_camera: &Point3<f64>,
         slide_mm: f64,
-    ) -> Vector3<f64> {
+    ) -> Vector4<f64> {
         let (x, y, z) = (point_in_camera.x, point_in_camera.y, point_in_camera.z);
         let (sin_a, cos_a) = (self.sin_alpha, self.cos_alpha);
         let (sin_b, cos_b) = (self.sin_beta, self.cos_beta);
         let l_mm = self.model.laser_distance_mm(slide_mm);
-        Vector3::new(
+        Vector4::new(
             (sin_a * x + cos_a * z) * cos_b,
             -cos_b,
             cos_a * sin_b * x - cos_b * y - sin_a * sin_b * z + l_mm * sin_b,
+            slide_mm * cos_b,
         )
     }
 

@@ -47,7 +47,9 @@ mod session;
 pub use camera::*;
 pub use error::{Error, ErrorClass, Result};
 pub use geometry::{Plane, Ray};
-pub use laser::{Fidelity, LaserModel, PreparedLaser, SLIDE_STROKE_MM, SlideTarget};
+pub use laser::{
+    Fidelity, LaserFile, LaserModel, PreparedLaser, SLIDE_SCALE_RANGE, SLIDE_STROKE_MM, SlideTarget,
+};
 pub use pixels::{TriangulateOutput, read_pixels_csv};
 pub use samples::{
     LaserSample, parse_samples_csv, read_samples_csv, samples_csv_string, validate_samples,

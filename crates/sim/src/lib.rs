@@ -47,6 +47,7 @@ mod render;
 mod samples;
 mod scan;
 mod session;
+mod slide;
 mod truth;
 
 pub use board::{BoardScene, Checkerboard};
@@ -65,4 +66,5 @@ pub use scan::{
     RenderedScan, ScanFrame, ScanOptions, SimulatedScan, simulate_rendered_scan, simulate_scan,
 };
 pub use session::{RgbdOptions, SessionOptions, SessionView, SimulatedSession, simulate_session};
+pub use slide::{MAX_SLIDE_ANGLE_DEG, SlideError};
 pub use truth::{camera_to_json, laser_to_json};

@@ -19,7 +19,7 @@ use crate::error::{MAX_SESSION_VIEWS, check_positive_range, check_scale, check_s
 use crate::progress::ImageWriter;
 use crate::render::{LaserStripe, RayMap, RenderOptions, mix_seed};
 use crate::samples::random_tilt;
-use crate::{Error, Result, camera_to_json, laser_to_json};
+use crate::{Error, Result, SlideError, camera_to_json, laser_to_json};
 
 /// How to generate a calibration session. `Default`: 10 poses at 0.6-1.2 m,
 /// tilted up to 40 deg, the laser at d = 0, the default board, lights and
@@ -52,6 +52,9 @@ pub struct SessionOptions {
     /// (`viewNN_rgbd.png`, session.yaml's `image_rgbd`): what
     /// `alacs calibrate rgbd` takes.
     pub rgbd: Option<RgbdOptions>,
+    /// The slide's own error (scale and axis angle); the default is the
+    /// seed's perfect slide.
+    pub slide: SlideError,
 }
 
 /// A second camera beside the ALACS camera: an RGB-D camera's colour camera.
@@ -95,6 +98,7 @@ impl Default for SessionOptions {
             render: RenderOptions::default(),
             seed: 0,
             rgbd: None,
+            slide: SlideError::default(),
         }
     }
 }
@@ -118,6 +122,7 @@ impl SessionOptions {
             return invalid(format!("roll {} deg must lie in 0..180", self.max_roll_deg));
         }
         check_scale(self.scale)?;
+        self.slide.validate()?;
         self.board.validate()?;
         self.render.validate()
     }
@@ -149,8 +154,10 @@ pub struct SessionView {
 pub struct SimulatedSession {
     /// The camera rendered (already scaled).
     pub camera: Camera,
-    /// The true laser.
+    /// The true laser: the laser given, with the slide's k (see [`SlideError`]).
     pub laser: LaserModel,
+    /// The slide's own error.
+    pub slide: SlideError,
     /// The target.
     pub board: Checkerboard,
     /// How views are rendered.
@@ -192,6 +199,8 @@ pub fn simulate_session(
 ) -> Result<SimulatedSession> {
     options.validate()?;
     camera.validate()?;
+    laser.validate()?;
+    let laser = &options.slide.apply(laser);
     laser.validate()?;
     let camera = camera.scaled(options.scale);
     camera.validate().map_err(|e| {
@@ -250,6 +259,7 @@ pub fn simulate_session(
     Ok(SimulatedSession {
         camera,
         laser: *laser,
+        slide: options.slide,
         board: options.board,
         render: options.render,
         views,
@@ -424,7 +434,10 @@ impl SimulatedSession {
     /// The laser stripe of view `index`.
     pub fn laser_stripe(&self, index: usize) -> Result<LaserStripe> {
         let view = self.view(index)?;
-        Ok(LaserStripe::new(&self.laser, view.slide_mm, &self.render.laser, self.camera.fx_px))
+        let mut stripe =
+            LaserStripe::new(&self.laser, view.slide_mm, &self.render.laser, self.camera.fx_px);
+        stripe.origin = self.slide.origin_in_camera(&self.laser, view.slide_mm);
+        Ok(stripe)
     }
 
     fn view(&self, index: usize) -> Result<&SessionView> {
@@ -528,6 +541,7 @@ impl SimulatedSession {
             "rgbd": rgbd,
             "camera": camera_to_json(&self.camera),
             "laser": laser_to_json(&self.laser),
+            "slide": self.slide.to_json(),
             "board": {
                 "inner_corners": [board.inner_corners.0, board.inner_corners.1],
                 "square_mm": [board.square_mm.0, board.square_mm.1],

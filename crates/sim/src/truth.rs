@@ -1,7 +1,7 @@
 //! Ground truth in the JSON shapes of FORMATS.md (truth.json).
 
 use alacs_model::{Camera, LaserModel};
-use serde_json::{Value, json};
+use serde_json::Value;
 
 /// The camera as camera.yaml holds it, in JSON.
 pub fn camera_to_json(camera: &Camera) -> Value {
@@ -11,10 +11,6 @@ pub fn camera_to_json(camera: &Camera) -> Value {
 
 /// The laser as laser.yaml holds it, in JSON.
 pub fn laser_to_json(laser: &LaserModel) -> Value {
-    json!({
-        "model": laser.fidelity.as_str(),
-        "alpha_deg": laser.alpha_deg(),
-        "beta_deg": laser.beta_deg(),
-        "l0_mm": laser.l0_mm,
-    })
+    // LaserFile serializes with exactly the laser.yaml keys; it cannot fail.
+    serde_json::to_value(laser.to_file()).unwrap_or_default()
 }

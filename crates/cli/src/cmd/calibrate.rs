@@ -33,6 +33,7 @@ fn options(args: &CalibrateLaserArgs) -> CmdResult<CalibrationOptions> {
         threshold_mm: args.threshold_mm,
         max_iterations: args.max_iterations,
         seed: args.seed,
+        fit_slide_scale: !args.hold_slide_scale,
         ..CalibrationOptions::default()
     })
 }

@@ -2,7 +2,7 @@
 
 use alacs::sim::{
     Exposure, LaserLight, OrchardOptions, RenderOptions, RgbdOptions, SampleOptions, ScanOptions,
-    Sensor, SessionOptions, simulate_samples, simulate_scan, simulate_session,
+    Sensor, SessionOptions, SlideError, simulate_samples, simulate_scan, simulate_session,
 };
 use alacs::{Camera, Fidelity, LaserModel};
 use anyhow::anyhow;
@@ -181,6 +181,7 @@ pub fn session(args: &SimulateSessionArgs) -> CmdResult {
                 })
             })
             .transpose()?,
+        slide: SlideError { scale: args.slide_scale, angle_deg: args.slide_angle_deg },
         ..SessionOptions::default()
     };
     let bar = output::progress_bar(args.json, "computing the camera's rays");

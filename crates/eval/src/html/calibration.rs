@@ -334,6 +334,7 @@ fn summary(page: &mut Page, report: &CalibrationReport) {
             num("alpha (deg)"),
             num("beta (deg)"),
             num("L0 (mm)"),
+            num("slide scale k"),
             num("samples"),
             num("mean |z - z_hat| (mm)"),
             num("within threshold"),
@@ -344,6 +345,7 @@ fn summary(page: &mut Page, report: &CalibrationReport) {
                 num(format!("{:.3}", laser.alpha_deg())),
                 num(format!("{:.3}", laser.beta_deg())),
                 num(format!("{:.2}", laser.l0_mm)),
+                num(format!("{:.5}", laser.slide_scale)),
                 num(report.samples.len().to_string()),
                 num(fixed(report.mean_abs_residual_mm(), 3)),
                 num({
@@ -376,6 +378,11 @@ fn summary(page: &mut Page, report: &CalibrationReport) {
                                 alacs_model::Fidelity::High => format!("{:.3}", c.laser.beta_deg()),
                             }),
                             num(format!("{:.2}", c.laser.l0_mm)),
+                            num(if c.slide_scale_fitted {
+                                format!("{:.5}", c.laser.slide_scale)
+                            } else {
+                                "1 (held)".to_string()
+                            }),
                             num(format!("{:.3}", c.mean_abs_error_mm)),
                             num(format!("{}/{}", c.inliers.len(), c.n_samples)),
                         ],
@@ -389,6 +396,7 @@ fn summary(page: &mut Page, report: &CalibrationReport) {
                     num("alpha (deg)"),
                     num("beta (deg)"),
                     num("L0 (mm)"),
+                    num("slide scale k"),
                     num("mean |z - z_hat| (mm)"),
                     num("inliers"),
                 ],

@@ -203,9 +203,9 @@ pub fn write_scan_html(out: &mut OutputDir, report: &ScanReport) -> Result<Vec<P
     let title = "alacs scan report";
     let mut page = Page::new(title);
     page.paragraph(
-        &format!("Scan {}: {} frames, located with the camera \"{}\" and a {} laser (alpha {:.3} deg, beta {:.3} deg, L0 {:.2} mm).",
+        &format!("Scan {}: {} frames, located with the camera \"{}\" and a {} laser (alpha {:.3} deg, beta {:.3} deg, L0 {:.2} mm, slide scale {:.5}).",
             report.source, report.frames.len(), report.camera.name, report.laser.fidelity.as_str(),
-            report.laser.alpha_deg(), report.laser.beta_deg(), report.laser.l0_mm),
+            report.laser.alpha_deg(), report.laser.beta_deg(), report.laser.l0_mm, report.laser.slide_scale),
         None,
     );
     summary(&mut page, report);

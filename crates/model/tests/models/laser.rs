@@ -45,24 +45,24 @@ impl Differentiable for Triangulation {
     }
 }
 
-/// The modelled depth of eq. (9) as a map (alpha, L0, beta) -> z_hat.
+/// The modelled depth of eq. (9) as a map (alpha, L0, beta, k) -> z_hat.
 struct DepthOfParams(Fidelity, Point2<f64>, f64);
 
 impl Differentiable for DepthOfParams {
     fn name(&self) -> String {
-        format!("z_hat(alpha, L0, beta) {} at {:?}, d = {} mm", self.0, self.1, self.2)
+        format!("z_hat(alpha, L0, beta, k) {} at {:?}, d = {} mm", self.0, self.1, self.2)
     }
     fn eval(&self, x: &DVector<f64>) -> Option<DVector<f64>> {
-        let laser = LaserModel::new(self.0, x[0], x[2], x[1]);
+        let laser = LaserModel::new(self.0, x[0], x[2], x[1]).with_slide_scale(x[3]);
         Some(DVector::from_element(1, laser.depth_mm(&self.1, self.2).ok()?))
     }
     fn jacobian(&self, x: &DVector<f64>) -> Option<DMatrix<f64>> {
-        let laser = LaserModel::new(self.0, x[0], x[2], x[1]);
+        let laser = LaserModel::new(self.0, x[0], x[2], x[1]).with_slide_scale(x[3]);
         let mut g = laser.depth_gradient_params(&self.1, self.2).ok()?;
         if self.0 == Fidelity::Low {
             g[2] = 0.0; // beta is not a parameter of the low-fidelity model
         }
-        Some(DMatrix::from_row_slice(1, 3, g.as_slice()))
+        Some(DMatrix::from_row_slice(1, 4, g.as_slice()))
     }
 }
 
@@ -84,9 +84,10 @@ fn triangulation_jacobian_matches_finite_differences() {
 fn depth_parameter_gradient_matches_finite_differences() {
     for fidelity in [Fidelity::High, Fidelity::Low] {
         let laser = paper_laser();
-        let params = DVector::from_column_slice(&[laser.alpha_rad, laser.l0_mm, laser.beta_rad]);
+        let params =
+            DVector::from_column_slice(&[laser.alpha_rad, laser.l0_mm, laser.beta_rad, 0.997]);
         for n in normalized_grid() {
-            let f = DepthOfParams(fidelity, n, 50.0);
+            let f = DepthOfParams(fidelity, n, 150.0);
             assert_finite(&f, &params);
             assert_jacobian(&f, &params, 1e-5);
         }
@@ -115,7 +116,12 @@ fn triangulated_points_reproject_to_their_normalized_coordinates() {
 
 #[test]
 fn triangulated_points_lie_on_the_laser_plane_and_invert_to_their_slide() {
-    let laser = paper_laser();
+    for laser in [paper_laser(), paper_laser().with_slide_scale(0.99)] {
+        assert_points_lie_on_the_plane_and_invert(&laser);
+    }
+}
+
+fn assert_points_lie_on_the_plane_and_invert(laser: &LaserModel) {
     for slide_mm in [0.0, 10.0, 123.4, 200.0] {
         let plane = laser.plane_in_camera(slide_mm);
         assert!(plane.signed_distance_mm(&laser.origin_in_camera(slide_mm)).abs() < 1e-9);
@@ -178,10 +184,12 @@ fn laser_yaml_round_trips_exactly() {
     for laser in [
         paper_laser(),
         low_fidelity_laser(),
-        LaserModel::new(Fidelity::High, 0.1234567890123, -0.01, 1.0 / 3.0),
+        LaserModel::new(Fidelity::High, 0.1234567890123, -0.01, 1.0 / 3.0)
+            .with_slide_scale(1.0 - 1.0 / 3000.0),
     ] {
         let back = LaserModel::from_yaml_str(&laser.to_yaml_string()).unwrap();
         assert_eq!(back.fidelity, laser.fidelity);
+        assert_eq!(back.slide_scale.to_bits(), laser.slide_scale.to_bits());
         assert_eq!(back.alpha_rad.to_bits(), laser.alpha_deg().to_radians().to_bits());
         assert_eq!(back.beta_deg().to_bits(), laser.beta_deg().to_bits());
         assert_eq!(back.l0_mm.to_bits(), laser.l0_mm.to_bits());
@@ -196,6 +204,11 @@ fn laser_yaml_from_formats_md_reads() {
     assert!((laser.alpha_deg() - 19.07).abs() < 1e-12);
     assert!((laser.beta_deg() - 0.69).abs() < 1e-12);
     assert_eq!(laser.l0_mm, 381.98);
+    // A file without `slide_scale` (every file before it existed) is the seed's slide.
+    assert_eq!(laser.slide_scale, 1.0);
+    let scaled = LaserModel::from_yaml_str(&format!("{text}slide_scale: 0.997\n")).unwrap();
+    assert_eq!(scaled.slide_scale, 0.997);
+    assert!((scaled.laser_distance_mm(200.0) - (381.98 - 0.997 * 200.0)).abs() < 1e-12);
     let low = LaserModel::from_yaml_str("model: low-fidelity\nalpha_deg: 19.03\nl0_mm: 382.83\n")
         .unwrap();
     assert_eq!(low.fidelity, Fidelity::Low);
@@ -210,6 +223,8 @@ fn laser_yaml_errors_name_the_problem() {
         ("model: medium\nalpha_deg: 19.07\nbeta_deg: 0.1\nl0_mm: 381.98\n", "medium"),
         ("model: high-fidelity\nalpha_deg: 19.07\nbeta_deg: 0.1\nl0_mm: -3\n", "l0_mm"),
         ("model: high-fidelity\nalpha_deg: .nan\nbeta_deg: 0.1\nl0_mm: 300\n", "finite"),
+        ("model: low-fidelity\nalpha_deg: 19\nl0_mm: 300\nslide_scale: 0\n", "slide_scale"),
+        ("model: low-fidelity\nalpha_deg: 19\nl0_mm: 300\nslide_scale: .inf\n", "slide_scale"),
         ("model: high-fidelity\nalpha_deg: [1, 2\n", ""),
     ];
     for (text, needle) in cases {
@@ -234,31 +249,31 @@ fn laser_origin_is_at_distance_l_from_the_camera() {
     }
 }
 
-/// The geometric residual as a map (alpha, L0, beta) -> signed distance of a fixed point.
+/// The geometric residual as a map (alpha, L0, beta, k) -> signed distance of a fixed point.
 struct DistanceOfParams(Fidelity, nalgebra::Point3<f64>, f64);
 
 impl Differentiable for DistanceOfParams {
     fn name(&self) -> String {
-        format!("plane distance(alpha, L0, beta) {} at {}, d = {} mm", self.0, self.1, self.2)
+        format!("plane distance(alpha, L0, beta, k) {} at {}, d = {} mm", self.0, self.1, self.2)
     }
     fn eval(&self, x: &DVector<f64>) -> Option<DVector<f64>> {
-        let laser = LaserModel::new(self.0, x[0], x[2], x[1]);
+        let laser = LaserModel::new(self.0, x[0], x[2], x[1]).with_slide_scale(x[3]);
         Some(DVector::from_element(1, laser.signed_distance_mm(&self.1, self.2)))
     }
     fn jacobian(&self, x: &DVector<f64>) -> Option<DMatrix<f64>> {
-        let laser = LaserModel::new(self.0, x[0], x[2], x[1]);
+        let laser = LaserModel::new(self.0, x[0], x[2], x[1]).with_slide_scale(x[3]);
         let mut g = laser.signed_distance_gradient_params(&self.1, self.2);
         if self.0 == Fidelity::Low {
             g[2] = 0.0;
         }
-        Some(DMatrix::from_row_slice(1, 3, g.as_slice()))
+        Some(DMatrix::from_row_slice(1, 4, g.as_slice()))
     }
 }
 
 #[test]
 fn plane_distance_gradient_matches_finite_differences() {
     let laser = paper_laser();
-    let params = DVector::from_column_slice(&[laser.alpha_rad, laser.l0_mm, laser.beta_rad]);
+    let params = DVector::from_column_slice(&[laser.alpha_rad, laser.l0_mm, laser.beta_rad, 0.997]);
     for fidelity in [Fidelity::High, Fidelity::Low] {
         for n in normalized_grid() {
             // A point 3 mm off the plane, so the distance is not trivially 0.
