@@ -1,6 +1,8 @@
 //! Camera calibration from views of a planar board: Zhang's closed form, then
-//! Levenberg-Marquardt over intrinsics, `plumb_bob` distortion and every
-//! board pose (the seed paper's camera model, eqs. (1)-(2)); and the board
+//! Levenberg-Marquardt over intrinsics, `plumb_bob` or `rational_polynomial`
+//! distortion and every board pose (the seed paper's camera model, eqs.
+//! (1)-(2)), with OpenCV's controls (fixed k3, zero tangential distortion,
+//! fixed aspect ratio, fixed principal point, a starting camera); and the board
 //! pose of one view with a calibrated camera (PnP), which the laser
 //! calibration needs per view.
 //!
@@ -11,12 +13,13 @@
 //!    homographies) when the views do not determine the principal point.
 //! 3. Each view's pose from its homography and K.
 //! 4. Levenberg-Marquardt on the reprojection error of every corner, with
-//!    analytic Jacobians, over fx, fy, cx, cy, k1, k2, p1, p2, k3 and the
-//!    poses (rotation vector, translation).
+//!    analytic Jacobians, over the free ones of fx, fy, cx, cy and the
+//!    distortion coefficients (`IntrinsicsLayout`), and the poses (rotation
+//!    vector, translation).
 //! 5. Views whose RMS reprojection error is far above the others are
 //!    rejected, with the reason, and the fit repeated.
 
-use alacs_model::{Camera, Distortion};
+use alacs_model::{Camera, Distortion, DistortionModel};
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{
     DMatrix, DVector, Dyn, Isometry3, Matrix3, Point2, Point3, Translation3, UnitQuaternion,
@@ -48,11 +51,201 @@ pub struct IntrinsicsOptions {
     pub reject_floor_px: f64,
     /// Fewest views a calibration may use.
     pub min_views: usize,
+    /// The distortion model fitted (OpenCV's default `plumb_bob`, or
+    /// `rational_polynomial`: its `CALIB_RATIONAL_MODEL`).
+    pub distortion: DistortionModel,
+    /// Intrinsics held instead of fitted.
+    pub fixed: FixedIntrinsics,
+    /// A starting camera (OpenCV's `CALIB_USE_INTRINSIC_GUESS`): its
+    /// intrinsics and distortion start the fit instead of Zhang's closed
+    /// form, and give the values of the held ones. It must have the size of
+    /// the views' images.
+    pub initial: Option<Camera>,
 }
 
 impl Default for IntrinsicsOptions {
     fn default() -> Self {
-        IntrinsicsOptions { reject_factor: 3.0, reject_floor_px: 1.0, min_views: 3 }
+        IntrinsicsOptions {
+            reject_factor: 3.0,
+            reject_floor_px: 1.0,
+            min_views: 3,
+            distortion: DistortionModel::PlumbBob,
+            fixed: FixedIntrinsics::default(),
+            initial: None,
+        }
+    }
+}
+
+/// Which intrinsics a camera calibration holds, as OpenCV's flags do; the
+/// held values come from the starting camera, or are OpenCV's defaults.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct FixedIntrinsics {
+    /// k3 held (`CALIB_FIX_K3`): the starting camera's, else 0.
+    pub k3: bool,
+    /// p1 = p2 = 0 (`CALIB_ZERO_TANGENT_DIST`).
+    pub tangential: bool,
+    /// fx / fy held (`CALIB_FIX_ASPECT_RATIO`): the starting camera's, else 1.
+    pub aspect: bool,
+    /// cx, cy held (`CALIB_FIX_PRINCIPAL_POINT`): the starting camera's,
+    /// else the image centre ((w - 1) / 2, (h - 1) / 2).
+    pub principal_point: bool,
+}
+
+impl FixedIntrinsics {
+    /// What a calibrated camera shows it was calibrated with: a distortion
+    /// coefficient that is exactly 0 (k3, or p1 and p2) was held there, fx
+    /// equal to fy to the bit was an aspect ratio held at 1, and a principal
+    /// point exactly at the image centre was held there (fitted values are
+    /// never exact). For re-calibrations of a given camera (the bootstrap).
+    pub fn inferred_from(camera: &Camera) -> FixedIntrinsics {
+        let c = camera.distortion.coefficients();
+        let zero = |i: usize| c.get(i).is_none_or(|&v| v == 0.0);
+        let (cx, cy) = image_centre(camera.width_px, camera.height_px);
+        FixedIntrinsics {
+            k3: zero(4),
+            tangential: zero(2) && zero(3),
+            aspect: camera.fx_px == camera.fy_px,
+            principal_point: camera.cx_px == cx && camera.cy_px == cy,
+        }
+    }
+}
+
+/// OpenCV's image centre, ((w - 1) / 2, (h - 1) / 2).
+fn image_centre(width_px: u32, height_px: u32) -> (f64, f64) {
+    ((f64::from(width_px) - 1.0) / 2.0, (f64::from(height_px) - 1.0) / 2.0)
+}
+
+/// One intrinsic parameter a calibration fits.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Intrinsic {
+    Fx,
+    Fy,
+    /// fx, with fy = `aspect` fx (the aspect ratio held).
+    Focal {
+        aspect: f64,
+    },
+    Cx,
+    Cy,
+    /// The distortion coefficient at this index, in OpenCV's order.
+    Coefficient(usize),
+}
+
+/// The intrinsics a calibration fits, in their order in its parameter
+/// vector; the held ones keep their values in the camera it starts from.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct IntrinsicsLayout {
+    free: Vec<Intrinsic>,
+    coefficients: usize,
+}
+
+impl IntrinsicsLayout {
+    /// The layout for `fixed` on `start` (which holds the held values).
+    pub(crate) fn new(start: &Camera, fixed: FixedIntrinsics) -> Self {
+        let mut free = if fixed.aspect {
+            vec![Intrinsic::Focal { aspect: start.fy_px / start.fx_px }]
+        } else {
+            vec![Intrinsic::Fx, Intrinsic::Fy]
+        };
+        if !fixed.principal_point {
+            free.extend([Intrinsic::Cx, Intrinsic::Cy]);
+        }
+        let coefficients = start.distortion.coefficients().len();
+        free.extend(
+            (0..coefficients)
+                .filter(|&i| !(fixed.tangential && (i == 2 || i == 3)) && !(fixed.k3 && i == 4))
+                .map(Intrinsic::Coefficient),
+        );
+        IntrinsicsLayout { free, coefficients }
+    }
+
+    fn len(&self) -> usize {
+        self.free.len()
+    }
+
+    /// The free intrinsics' values in `camera`.
+    fn pack(&self, camera: &Camera) -> impl Iterator<Item = f64> {
+        let coefficients = camera.distortion.coefficients().to_vec();
+        let (fx, fy, cx, cy) = (camera.fx_px, camera.fy_px, camera.cx_px, camera.cy_px);
+        self.free.iter().map(move |p| match *p {
+            Intrinsic::Fx | Intrinsic::Focal { .. } => fx,
+            Intrinsic::Fy => fy,
+            Intrinsic::Cx => cx,
+            Intrinsic::Cy => cy,
+            Intrinsic::Coefficient(i) => coefficients.get(i).copied().unwrap_or(0.0),
+        })
+    }
+
+    /// `template` with the free intrinsics set to `values`.
+    fn camera(&self, values: &[f64], template: &Camera) -> Camera {
+        let mut camera = template.clone();
+        let mut coefficients = camera.distortion.coefficients().to_vec();
+        for (p, &v) in self.free.iter().zip(values) {
+            match *p {
+                Intrinsic::Fx => camera.fx_px = v,
+                Intrinsic::Fy => camera.fy_px = v,
+                Intrinsic::Focal { aspect } => {
+                    camera.fx_px = v;
+                    camera.fy_px = aspect * v;
+                }
+                Intrinsic::Cx => camera.cx_px = v,
+                Intrinsic::Cy => camera.cy_px = v,
+                Intrinsic::Coefficient(i) => {
+                    if let Some(slot) = coefficients.get_mut(i) {
+                        *slot = v;
+                    }
+                }
+            }
+        }
+        camera.distortion = match camera.distortion {
+            Distortion::RationalPolynomial(_) => {
+                Distortion::RationalPolynomial(std::array::from_fn(|i| coefficients[i]))
+            }
+            Distortion::PlumbBob(_) => {
+                Distortion::PlumbBob(std::array::from_fn(|i| coefficients[i]))
+            }
+            Distortion::None => Distortion::None,
+        };
+        camera
+    }
+
+    /// d(pixel)/d(free intrinsics) of a corner at undistorted normalized
+    /// `normalized` under `camera`: one (du, dv) per free intrinsic.
+    fn jacobian(&self, camera: &Camera, normalized: &Point2<f64>) -> Vec<(f64, f64)> {
+        let distorted = camera.distort(normalized);
+        let d_coefficients = camera.distortion.coefficient_jacobian(normalized);
+        self.free
+            .iter()
+            .map(|p| match *p {
+                Intrinsic::Fx => (distorted.x, 0.0),
+                Intrinsic::Fy => (0.0, distorted.y),
+                Intrinsic::Focal { aspect } => (distorted.x, aspect * distorted.y),
+                Intrinsic::Cx => (1.0, 0.0),
+                Intrinsic::Cy => (0.0, 1.0),
+                Intrinsic::Coefficient(i) => d_coefficients.get(i).map_or((0.0, 0.0), |d| {
+                    (camera.fx_px * d.x + camera.skew_px * d.y, camera.fy_px * d.y)
+                }),
+            })
+            .collect()
+    }
+
+    /// Standard deviations of fx, fy, cx, cy and every distortion
+    /// coefficient (0 for held ones) from those of the free intrinsics.
+    fn full_std_dev(&self, free_std: &[f64]) -> Vec<f64> {
+        let mut std = vec![0.0; 4 + self.coefficients];
+        for (p, &s) in self.free.iter().zip(free_std) {
+            match *p {
+                Intrinsic::Fx => std[0] = s,
+                Intrinsic::Fy => std[1] = s,
+                Intrinsic::Focal { aspect } => {
+                    std[0] = s;
+                    std[1] = aspect.abs() * s;
+                }
+                Intrinsic::Cx => std[2] = s,
+                Intrinsic::Cy => std[3] = s,
+                Intrinsic::Coefficient(i) => std[4 + i] = s,
+            }
+        }
+        std
     }
 }
 
@@ -81,10 +274,10 @@ pub struct IntrinsicsFit {
     pub rms_px: f64,
     /// Every view, in input order.
     pub views: Vec<ViewFit>,
-    /// Standard deviations of fx, fy, cx, cy (px) and k1, k2, p1, p2, k3,
-    /// from sigma^2 (J^T J)^-1 over the corners of one observation per
-    /// board pose.
-    pub std_dev: Option<[f64; 9]>,
+    /// Standard deviations of fx, fy, cx, cy (px) and the distortion
+    /// coefficients in OpenCV's order (0 for held ones), from sigma^2
+    /// (J^T J)^-1 over the corners of one observation per board pose.
+    pub std_dev: Option<Vec<f64>>,
     /// Images the views came from (a session's images of one board pose at
     /// several slide positions are one view).
     pub images: usize,
@@ -96,9 +289,6 @@ impl IntrinsicsFit {
         self.views.iter().filter(|v| v.rejected.is_none()).count()
     }
 }
-
-/// Number of intrinsic parameters fitted: fx, fy, cx, cy, k1, k2, p1, p2, k3.
-const N_INTRINSICS: usize = 9;
 
 /// Calibrates a camera of `width_px` x `height_px` from board views.
 pub fn calibrate_intrinsics(
@@ -132,8 +322,9 @@ pub fn calibrate_intrinsics(
             )));
         }
         let used_views: Vec<&BoardObservation> = used.iter().map(|&i| &views[i]).collect();
-        let (camera, poses) = initial_guess(width_px, height_px, &used_views)?;
-        let (camera, poses, std_dev) = refine(camera, poses, &used_views)?;
+        let (camera, poses) = initial_guess(width_px, height_px, &used_views, options)?;
+        let layout = IntrinsicsLayout::new(&camera, options.fixed);
+        let (camera, poses, std_dev) = refine(camera, poses, &used_views, &layout)?;
         let mut sum_sq = 0.0;
         let mut count = 0usize;
         let mut view_rms = Vec::with_capacity(used.len());
@@ -258,24 +449,104 @@ fn smallest_right_singular_vector(a: DMatrix<f64>) -> Option<DVector<f64>> {
     Some(eigen.eigenvectors.column(index).into_owned())
 }
 
+/// The camera the fit starts from, with each view's pose: the options'
+/// starting camera (each pose by PnP with it), or Zhang's closed form for K
+/// (zero skew) from the homographies, or OpenCV's initialisation when that
+/// is not possible (each pose from its homography). In the options'
+/// distortion model, with the held intrinsics at their values.
+fn initial_guess(
+    width_px: u32,
+    height_px: u32,
+    views: &[&BoardObservation],
+    options: &IntrinsicsOptions,
+) -> Result<(Camera, Vec<Isometry3<f64>>)> {
+    let (mut camera, poses) = match &options.initial {
+        Some(initial) => {
+            if (initial.width_px, initial.height_px) != (width_px, height_px) {
+                return Err(Error::Degenerate(format!(
+                    "the starting camera is {} x {} px; the views' images are {width_px} x {height_px} px",
+                    initial.width_px, initial.height_px
+                )));
+            }
+            let k_inv = intrinsic_matrix(initial)
+                .try_inverse()
+                .ok_or_else(|| Error::Degenerate("the starting camera's K is singular".into()))?;
+            let mut poses = Vec::with_capacity(views.len());
+            for view in views {
+                let pose = match board_pose(initial, view) {
+                    Ok((pose, _)) => pose,
+                    Err(_) => pose_from_homography(&k_inv, &view_homography(view)?),
+                };
+                poses.push(pose);
+            }
+            (initial.clone(), poses)
+        }
+        None => zhang_guess(width_px, height_px, views)?,
+    };
+    let mut coefficients = camera.distortion.to_model(options.distortion);
+    if options.fixed.tangential {
+        coefficients = zero_tangential(coefficients);
+    }
+    camera.distortion = coefficients;
+    if options.initial.is_none() {
+        if options.fixed.aspect {
+            camera.fy_px = camera.fx_px;
+        }
+        if options.fixed.principal_point {
+            (camera.cx_px, camera.cy_px) = image_centre(width_px, height_px);
+        }
+    }
+    Ok((camera, poses))
+}
+
+/// `distortion` with p1 = p2 = 0.
+fn zero_tangential(distortion: Distortion) -> Distortion {
+    match distortion {
+        Distortion::PlumbBob([k1, k2, _, _, k3]) => Distortion::PlumbBob([k1, k2, 0.0, 0.0, k3]),
+        Distortion::RationalPolynomial([k1, k2, _, _, k3, k4, k5, k6]) => {
+            Distortion::RationalPolynomial([k1, k2, 0.0, 0.0, k3, k4, k5, k6])
+        }
+        Distortion::None => Distortion::None,
+    }
+}
+
+/// K of `camera`.
+fn intrinsic_matrix(camera: &Camera) -> Matrix3<f64> {
+    Matrix3::new(
+        camera.fx_px,
+        camera.skew_px,
+        camera.cx_px,
+        0.0,
+        camera.fy_px,
+        camera.cy_px,
+        0.0,
+        0.0,
+        1.0,
+    )
+}
+
+/// The homography board plane -> pixels of one view.
+fn view_homography(view: &BoardObservation) -> Result<Matrix3<f64>> {
+    let board: Vec<Point2<f64>> = view.points_in_board.iter().map(|p| p.xy()).collect();
+    homography(&board, &view.pixels).ok_or_else(|| {
+        Error::Degenerate(format!("{}: the corners do not determine a homography", view.name))
+    })
+}
+
 /// Zhang's closed form for K (zero skew) from the homographies, or OpenCV's
 /// initialisation when that is not possible; then each view's pose.
-fn initial_guess(
+fn zhang_guess(
     width_px: u32,
     height_px: u32,
     views: &[&BoardObservation],
 ) -> Result<(Camera, Vec<Isometry3<f64>>)> {
     let mut homographies = Vec::with_capacity(views.len());
     for view in views {
-        let board: Vec<Point2<f64>> = view.points_in_board.iter().map(|p| p.xy()).collect();
-        let h = homography(&board, &view.pixels).ok_or_else(|| {
-            Error::Degenerate(format!("{}: the corners do not determine a homography", view.name))
-        })?;
-        homographies.push(h);
+        homographies.push(view_homography(view)?);
     }
     // Work in pixel coordinates scaled to about unit size, for conditioning.
     let scale = f64::from(width_px.max(height_px)).max(1.0);
-    let (cx0, cy0) = ((f64::from(width_px) - 1.0) / 2.0, (f64::from(height_px) - 1.0) / 2.0);
+    let (cx0, cy0) = image_centre(width_px, height_px);
     let to_unit =
         Matrix3::new(1.0 / scale, 0.0, -cx0 / scale, 0.0, 1.0 / scale, -cy0 / scale, 0.0, 0.0, 1.0);
     let unit_h: Vec<Matrix3<f64>> = homographies.iter().map(|h| to_unit * h).collect();
@@ -414,35 +685,26 @@ fn squared_error(camera: &Camera, pose: &Isometry3<f64>, view: &BoardObservation
 /// and finite, so Levenberg-Marquardt rejects the step.
 const BEHIND_CAMERA_PX: f64 = 1e6;
 
-/// Reprojection error of every corner of every view, over intrinsics (unless
-/// fixed) and poses.
+/// Reprojection error of every corner of every view, over the free
+/// intrinsics of `layout` (none: the camera fixed, PnP) and the poses.
 struct Reprojection<'a> {
     views: &'a [&'a BoardObservation],
-    /// Intrinsics when fixed (PnP); `None` when they are parameters.
-    fixed: Option<&'a Camera>,
+    /// The fitted intrinsics; `None` when the camera is fixed (PnP).
+    layout: Option<&'a IntrinsicsLayout>,
+    /// The camera with the held intrinsics (all of them without a layout).
     template: Camera,
     params: DVector<f64>,
 }
 
 impl Reprojection<'_> {
     fn n_intrinsics(&self) -> usize {
-        if self.fixed.is_some() { 0 } else { N_INTRINSICS }
+        self.layout.map_or(0, IntrinsicsLayout::len)
     }
 
     fn camera(&self) -> Camera {
-        match self.fixed {
-            Some(camera) => camera.clone(),
-            None => {
-                let p = &self.params;
-                Camera {
-                    fx_px: p[0],
-                    fy_px: p[1],
-                    cx_px: p[2],
-                    cy_px: p[3],
-                    distortion: Distortion::PlumbBob([p[4], p[5], p[6], p[7], p[8]]),
-                    ..self.template.clone()
-                }
-            }
+        match self.layout {
+            Some(layout) => layout.camera(&self.params.as_slice()[..layout.len()], &self.template),
+            None => self.template.clone(),
         }
     }
 
@@ -460,15 +722,16 @@ impl Reprojection<'_> {
         )
     }
 
-    fn pack(camera: Option<&Camera>, poses: &[Isometry3<f64>]) -> DVector<f64> {
-        let mut params = Vec::with_capacity(N_INTRINSICS + 6 * poses.len());
-        if let Some(c) = camera {
-            params.extend([c.fx_px, c.fy_px, c.cx_px, c.cy_px]);
-            let mut k = [0.0; 5];
-            for (slot, value) in k.iter_mut().zip(c.distortion.coefficients()) {
-                *slot = *value;
-            }
-            params.extend(k);
+    /// The parameter vector: `layout`'s intrinsics of `camera` (none
+    /// without a layout), then each pose.
+    fn pack(
+        layout: Option<&IntrinsicsLayout>,
+        camera: &Camera,
+        poses: &[Isometry3<f64>],
+    ) -> DVector<f64> {
+        let mut params = Vec::with_capacity(layout.map_or(0, |l| l.len()) + 6 * poses.len());
+        if let Some(layout) = layout {
+            params.extend(layout.pack(camera));
         }
         for pose in poses {
             params.extend(pose.rotation.scaled_axis().iter());
@@ -528,26 +791,14 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for Reprojection<'_> {
                         jacobian[(row + r, col + 3 + c)] = d_pixel_d_point[(r, c)];
                     }
                 }
-                if n_k > 0 {
-                    let (x, y) = (in_camera.x / in_camera.z, in_camera.y / in_camera.z);
-                    let distorted = camera.distort(&Point2::new(x, y));
-                    let r2 = x * x + y * y;
-                    let (r4, r6) = (r2 * r2, r2 * r2 * r2);
-                    // d(x_d, y_d) / d(k1, k2, p1, p2, k3), OpenCV's plumb_bob.
-                    let d_distortion = [
-                        (x * r2, y * r2),
-                        (x * r4, y * r4),
-                        (2.0 * x * y, r2 + 2.0 * y * y),
-                        (r2 + 2.0 * x * x, 2.0 * x * y),
-                        (x * r6, y * r6),
-                    ];
-                    jacobian[(row, 0)] = distorted.x;
-                    jacobian[(row, 2)] = 1.0;
-                    jacobian[(row + 1, 1)] = distorted.y;
-                    jacobian[(row + 1, 3)] = 1.0;
-                    for (k, (dx, dy)) in d_distortion.iter().enumerate() {
-                        jacobian[(row, 4 + k)] = camera.fx_px * dx + camera.skew_px * dy;
-                        jacobian[(row + 1, 4 + k)] = camera.fy_px * dy;
+                if let Some(layout) = self.layout {
+                    let normalized =
+                        Point2::new(in_camera.x / in_camera.z, in_camera.y / in_camera.z);
+                    for (k, (du, dv)) in
+                        layout.jacobian(&camera, &normalized).into_iter().enumerate()
+                    {
+                        jacobian[(row, k)] = du;
+                        jacobian[(row + 1, k)] = dv;
                     }
                 }
                 row += 2;
@@ -572,18 +823,20 @@ fn so3_left_jacobian(w: &Vector3<f64>) -> Matrix3<f64> {
 }
 
 /// A refined camera, its board poses and its intrinsics' standard deviations.
-type Refined = (Camera, Vec<Isometry3<f64>>, Option<[f64; 9]>);
+type Refined = (Camera, Vec<Isometry3<f64>>, Option<Vec<f64>>);
 
-/// Runs Levenberg-Marquardt over intrinsics and poses.
+/// Runs Levenberg-Marquardt over the free intrinsics of `layout` and the
+/// poses, from `camera` (which holds the held intrinsics).
 fn refine(
     camera: Camera,
     poses: Vec<Isometry3<f64>>,
     views: &[&BoardObservation],
+    layout: &IntrinsicsLayout,
 ) -> Result<Refined> {
     let problem = Reprojection {
         views,
-        fixed: None,
-        params: Reprojection::pack(Some(&camera), &poses),
+        layout: Some(layout),
+        params: Reprojection::pack(Some(layout), &camera, &poses),
         template: camera,
     };
     let (problem, report) = LevenbergMarquardt::new().with_patience(200).minimize(problem);
@@ -610,23 +863,27 @@ fn refine(
 pub(crate) struct CameraLinearization {
     params: DVector<f64>,
     template: Camera,
+    layout: IntrinsicsLayout,
     /// Per pose: J_g^T J_g and J_g^T r_g over (intrinsics, the pose's six).
     blocks: Vec<(DMatrix<f64>, DVector<f64>)>,
 }
 
 impl CameraLinearization {
-    /// Refines `camera` and `poses` on `views` (Levenberg-Marquardt) and
-    /// linearizes the problem there.
+    /// Refines `camera` and `poses` on `views` (Levenberg-Marquardt, over
+    /// the intrinsics `camera` shows were fitted: [`FixedIntrinsics::inferred_from`])
+    /// and linearizes the problem there.
     pub(crate) fn new(
         camera: Camera,
         poses: Vec<Isometry3<f64>>,
         views: &[&BoardObservation],
     ) -> Result<CameraLinearization> {
-        let (camera, poses, _) = refine(camera, poses, views)?;
+        let layout = IntrinsicsLayout::new(&camera, FixedIntrinsics::inferred_from(&camera));
+        let (camera, poses, _) = refine(camera, poses, views, &layout)?;
+        let n_intrinsics = layout.len();
         let problem = Reprojection {
             views,
-            fixed: None,
-            params: Reprojection::pack(Some(&camera), &poses),
+            layout: Some(&layout),
+            params: Reprojection::pack(Some(&layout), &camera, &poses),
             template: camera,
         };
         let failed = || Error::FitFailed("camera calibration: no Jacobian at the optimum".into());
@@ -637,27 +894,29 @@ impl CameraLinearization {
         for (v, view) in views.iter().enumerate() {
             let rows = 2 * view.pixels.len();
             let columns: Vec<usize> =
-                (0..N_INTRINSICS).chain(N_INTRINSICS + 6 * v..N_INTRINSICS + 6 * v + 6).collect();
+                (0..n_intrinsics).chain(n_intrinsics + 6 * v..n_intrinsics + 6 * v + 6).collect();
             let j = DMatrix::from_fn(rows, columns.len(), |r, c| jacobian[(row + r, columns[c])]);
             let r = residuals.rows(row, rows).into_owned();
             blocks.push((j.transpose() * &j, j.transpose() * r));
             row += rows;
         }
-        Ok(CameraLinearization { params: problem.params, template: problem.template, blocks })
+        let (params, template) = (problem.params, problem.template);
+        Ok(CameraLinearization { params, template, layout, blocks })
     }
 
     /// The camera and every pose of the replicate that counts pose `g`
     /// `counts[g]` times (a pose drawn no times keeps its pose).
     pub(crate) fn replicate(&self, counts: &[usize]) -> Option<(Camera, Vec<Isometry3<f64>>)> {
         let drawn: Vec<usize> = (0..self.blocks.len()).filter(|&g| counts[g] > 0).collect();
-        let n = N_INTRINSICS + 6 * drawn.len();
+        let n_intrinsics = self.layout.len();
+        let n = n_intrinsics + 6 * drawn.len();
         let mut normal = DMatrix::<f64>::zeros(n, n);
         let mut gradient = DVector::<f64>::zeros(n);
         for (k, &g) in drawn.iter().enumerate() {
             let weight = counts[g] as f64;
             let (jtj, jtr) = &self.blocks[g];
             let index = |c: usize| {
-                if c < N_INTRINSICS { c } else { N_INTRINSICS + 6 * k + c - N_INTRINSICS }
+                if c < n_intrinsics { c } else { n_intrinsics + 6 * k + c - n_intrinsics }
             };
             for a in 0..jtj.nrows() {
                 gradient[index(a)] += weight * jtr[a];
@@ -668,25 +927,31 @@ impl CameraLinearization {
         }
         let step = normal.cholesky()?.solve(&gradient);
         let mut params = self.params.clone();
-        for i in 0..N_INTRINSICS {
+        for i in 0..n_intrinsics {
             params[i] -= step[i];
         }
         for (k, &g) in drawn.iter().enumerate() {
             for i in 0..6 {
-                params[N_INTRINSICS + 6 * g + i] -= step[N_INTRINSICS + 6 * k + i];
+                params[n_intrinsics + 6 * g + i] -= step[n_intrinsics + 6 * k + i];
             }
         }
         let views: [&BoardObservation; 0] = [];
-        let problem =
-            Reprojection { views: &views, fixed: None, params, template: self.template.clone() };
+        let problem = Reprojection {
+            views: &views,
+            layout: Some(&self.layout),
+            params,
+            template: self.template.clone(),
+        };
         let camera = problem.camera();
         camera.validate().ok()?;
         Some((camera, (0..self.blocks.len()).map(|g| problem.pose(g)).collect()))
     }
 }
 
-/// sigma^2 (J^T J)^-1 for the intrinsics, sigma^2 = SSE / (m - n).
-fn intrinsics_std_dev(problem: &Reprojection<'_>) -> Option<[f64; 9]> {
+/// sigma^2 (J^T J)^-1 for the intrinsics, sigma^2 = SSE / (m - n): of fx,
+/// fy, cx, cy and every distortion coefficient (0 for held ones).
+fn intrinsics_std_dev(problem: &Reprojection<'_>) -> Option<Vec<f64>> {
+    let layout = problem.layout?;
     let jacobian = problem.jacobian()?;
     let residuals = problem.residuals()?;
     let (m, n) = jacobian.shape();
@@ -695,8 +960,8 @@ fn intrinsics_std_dev(problem: &Reprojection<'_>) -> Option<[f64; 9]> {
     }
     let sigma2 = residuals.norm_squared() / (m - n) as f64;
     let covariance = (jacobian.transpose() * &jacobian).try_inverse()?;
-    let std: [f64; 9] = std::array::from_fn(|i| (sigma2 * covariance[(i, i)]).sqrt());
-    std.iter().all(|s| s.is_finite()).then_some(std)
+    let free: Vec<f64> = (0..layout.len()).map(|i| (sigma2 * covariance[(i, i)]).sqrt()).collect();
+    free.iter().all(|s| s.is_finite()).then(|| layout.full_std_dev(&free))
 }
 
 /// The pose of a board seen by a calibrated camera (PnP): a homography on
@@ -722,8 +987,8 @@ pub fn board_pose(camera: &Camera, view: &BoardObservation) -> Result<(Isometry3
     let views = [view];
     let problem = Reprojection {
         views: &views,
-        fixed: Some(camera),
-        params: Reprojection::pack(None, &[initial]),
+        layout: None,
+        params: Reprojection::pack(None, camera, &[initial]),
         template: camera.clone(),
     };
     let (problem, _) = LevenbergMarquardt::new().with_patience(100).minimize(problem);
@@ -756,15 +1021,29 @@ mod tests {
 
     #[test]
     fn jacobian_matches_finite_differences() {
-        let camera = Camera::blackfly_s_5mp();
+        let rational = Camera {
+            distortion: Distortion::RationalPolynomial([
+                -0.08, 0.12, 1e-4, -1e-4, 0.01, 0.02, -0.01, 0.003,
+            ]),
+            fy_px: 2330.0,
+            ..Camera::blackfly_s_5mp()
+        };
+        for (camera, aspect) in [(Camera::blackfly_s_5mp(), false), (rational, true)] {
+            jacobian_matches_finite_differences_for(camera, aspect);
+        }
+    }
+
+    fn jacobian_matches_finite_differences_for(camera: Camera, aspect: bool) {
         let pose =
             Isometry3::new(Vector3::new(-150.0, -100.0, 800.0), Vector3::new(0.3, -0.4, 0.2));
         let view = board_view(&camera, &pose);
         let views = [&view];
+        let fixed = FixedIntrinsics { aspect, ..FixedIntrinsics::default() };
+        let layout = IntrinsicsLayout::new(&camera, fixed);
         let mut problem = Reprojection {
             views: &views,
-            fixed: None,
-            params: Reprojection::pack(Some(&camera), &[pose]),
+            layout: Some(&layout),
+            params: Reprojection::pack(Some(&layout), &camera, &[pose]),
             template: camera.clone(),
         };
         let analytic = problem.jacobian().unwrap();

@@ -60,7 +60,8 @@ pub use calibrate::{
 };
 pub use error::{Error, Result};
 pub use intrinsics::{
-    BoardObservation, IntrinsicsFit, IntrinsicsOptions, ViewFit, board_pose, calibrate_intrinsics,
+    BoardObservation, FixedIntrinsics, IntrinsicsFit, IntrinsicsOptions, ViewFit, board_pose,
+    calibrate_intrinsics,
 };
 pub use output::CalibrationOutput;
 pub use refine::Residual;

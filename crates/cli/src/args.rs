@@ -377,9 +377,48 @@ pub struct CalibrateCameraArgs {
     /// OpenCV FileStorage YAML (cv2.FileStorage reads it; alacs reads both).
     #[arg(long, value_enum, default_value_t = CameraFormatArg::Ros)]
     pub format: CameraFormatArg,
+    /// The distortion model fitted (default: the --initial camera's, else
+    /// plumb_bob).
+    #[arg(long, value_enum)]
+    pub distortion: Option<DistortionArg>,
+    /// Intrinsics held instead of fitted, as OpenCV's flags (comma-separated
+    /// or repeated): k3 (CALIB_FIX_K3), tangential (CALIB_ZERO_TANGENT_DIST),
+    /// aspect (CALIB_FIX_ASPECT_RATIO), principal-point
+    /// (CALIB_FIX_PRINCIPAL_POINT); held values come from --initial, else
+    /// 0, 0, fx/fy = 1 and the image centre.
+    #[arg(long, value_enum, value_delimiter = ',', value_name = "WHAT")]
+    pub fix: Vec<FixArg>,
+    /// A starting camera.yaml (OpenCV's CALIB_USE_INTRINSIC_GUESS): its
+    /// intrinsics and distortion start the fit and give the held values.
+    #[arg(long, value_name = "FILE")]
+    pub initial: Option<PathBuf>,
     /// Print one JSON object (docs/FORMATS.md) on standard output instead of text.
     #[arg(long)]
     pub json: bool,
+}
+
+/// A distortion model `calibrate camera` fits.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum DistortionArg {
+    /// k1, k2, p1, p2, k3 (OpenCV's default).
+    #[value(name = "plumb_bob")]
+    PlumbBob,
+    /// k1, k2, p1, p2, k3, k4, k5, k6 (OpenCV's CALIB_RATIONAL_MODEL).
+    #[value(name = "rational_polynomial")]
+    RationalPolynomial,
+}
+
+/// An intrinsic `calibrate camera` can hold.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum FixArg {
+    /// k3 (CALIB_FIX_K3).
+    K3,
+    /// p1 = p2 = 0 (CALIB_ZERO_TANGENT_DIST).
+    Tangential,
+    /// fx / fy (CALIB_FIX_ASPECT_RATIO).
+    Aspect,
+    /// cx, cy (CALIB_FIX_PRINCIPAL_POINT).
+    PrincipalPoint,
 }
 
 /// The residual minimized by the least-squares step.

@@ -420,6 +420,21 @@ fn calibrate_camera_json_has_the_formats_md_keys() {
     let text = std::fs::read_to_string(&yaml).unwrap();
     assert!(text.contains("camera_matrix") && text.contains("plumb_bob"), "{text}");
     assert!(text.contains(&format!("{}", json["fx_px"].as_f64().unwrap())), "{text}");
+    // OpenCV's controls: the rational model with k3 and the tangential terms held.
+    let template =
+        "calibrate camera --session {} --json --distortion rational_polynomial --fix k3,tangential";
+    let json = stdout_json(&alacs(&cmdline(template, &[&opencv_right()])));
+    assert_eq!(json["distortion_model"], "rational_polynomial");
+    let dist: Vec<f64> =
+        json["dist"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    assert_eq!(dist.len(), 8);
+    assert_eq!((dist[2], dist[3], dist[4]), (0.0, 0.0, 0.0));
+    assert_eq!(json["dist_std"].as_array().unwrap().len(), 8);
+    assert_eq!(json["fixed"], serde_json::json!(["k3", "tangential"]));
+    // An unknown control is refused naming it (exit 2).
+    let output = alacs(&cmdline("calibrate camera --session {} --fix k9", &[&opencv_right()]));
+    assert_eq!(output.status.code(), Some(2));
+    assert!(stderr(&output).contains("k9"), "{}", stderr(&output));
 }
 
 #[test]

@@ -3,14 +3,17 @@
 use std::path::Path;
 
 use alacs::calib::{
-    CalibrationOptions, IntrinsicsOptions, LaserSessionOptions, Method, Residual,
+    CalibrationOptions, FixedIntrinsics, IntrinsicsOptions, LaserSessionOptions, Method, Residual,
     calibrate_camera_session, calibrate_laser_session, read_samples_csv, write_samples_csv,
 };
+use alacs::model::DistortionModel;
 use alacs::{Camera, Session};
 use anyhow::anyhow;
 use serde_json::json;
 
-use crate::args::{CalibrateCameraArgs, CalibrateLaserArgs, CalibrateRgbdArgs, ResidualArg};
+use crate::args::{
+    CalibrateCameraArgs, CalibrateLaserArgs, CalibrateRgbdArgs, DistortionArg, FixArg, ResidualArg,
+};
 use crate::failure::{CmdResult, Failure};
 use crate::output;
 
@@ -158,12 +161,44 @@ fn session_samples(
     Ok((result.samples, result.calibration))
 }
 
+/// The camera calibration's controls from the command line.
+fn intrinsics_options(args: &CalibrateCameraArgs) -> CmdResult<IntrinsicsOptions> {
+    let initial = args.initial.as_deref().map(Camera::from_yaml_file).transpose()?;
+    let distortion = match (args.distortion, &initial) {
+        (Some(DistortionArg::PlumbBob), _) => DistortionModel::PlumbBob,
+        (Some(DistortionArg::RationalPolynomial), _) => DistortionModel::RationalPolynomial,
+        (None, Some(camera)) => camera.distortion.model(),
+        (None, None) => DistortionModel::PlumbBob,
+    };
+    let fixed = FixedIntrinsics {
+        k3: args.fix.contains(&FixArg::K3),
+        tangential: args.fix.contains(&FixArg::Tangential),
+        aspect: args.fix.contains(&FixArg::Aspect),
+        principal_point: args.fix.contains(&FixArg::PrincipalPoint),
+    };
+    Ok(IntrinsicsOptions { distortion, fixed, initial, ..IntrinsicsOptions::default() })
+}
+
+/// The held intrinsics' names, as `--fix` takes them.
+fn fixed_names(fixed: &FixedIntrinsics) -> Vec<&'static str> {
+    [
+        (fixed.k3, "k3"),
+        (fixed.tangential, "tangential"),
+        (fixed.aspect, "aspect"),
+        (fixed.principal_point, "principal-point"),
+    ]
+    .into_iter()
+    .filter_map(|(held, name)| held.then_some(name))
+    .collect()
+}
+
 /// Runs `alacs calibrate camera`.
 pub fn camera(args: &CalibrateCameraArgs) -> CmdResult {
     let session = Session::read(&args.session)?;
+    let options = intrinsics_options(args)?;
     let bar = output::progress_bar(args.json, "board corners");
     output::start_progress(&bar, session.views.len(), "views: board corners");
-    let fit = calibrate_camera_session(&session, &IntrinsicsOptions::default(), &|| bar.inc(1));
+    let fit = calibrate_camera_session(&session, &options, &|| bar.inc(1));
     bar.finish_and_clear();
     let mut fit = fit.map_err(|e| {
         let code = Failure::from(e);
@@ -188,15 +223,17 @@ pub fn camera(args: &CalibrateCameraArgs) -> CmdResult {
             "rms_px": fit.rms_px, "views_used": fit.views_used(), "views_rejected": rejected,
             "board_poses": fit.views_used(), "images": fit.images,
             "width_px": c.width_px, "height_px": c.height_px,
-            "fx_std_px": fit.std_dev.map(|s| s[0]), "fy_std_px": fit.std_dev.map(|s| s[1]),
-            "cx_std_px": fit.std_dev.map(|s| s[2]), "cy_std_px": fit.std_dev.map(|s| s[3]),
-            "dist_std": fit.std_dev.map(|s| s[4..9].to_vec()),
+            "fx_std_px": fit.std_dev.as_ref().map(|s| s[0]), "fy_std_px": fit.std_dev.as_ref().map(|s| s[1]),
+            "cx_std_px": fit.std_dev.as_ref().map(|s| s[2]), "cy_std_px": fit.std_dev.as_ref().map(|s| s[3]),
+            "dist_std": fit.std_dev.as_ref().map(|s| s[4..].to_vec()),
+            "fixed": fixed_names(&options.fixed),
             "views": fit.views.iter().map(|v| json!({
                 "image": v.name, "rms_px": v.rms_px, "rejected": v.rejected,
             })).collect::<Vec<_>>(),
         }))?;
     } else {
-        let sd = |i: usize| fit.std_dev.map(|s| format!(" +- {:.2}", s[i])).unwrap_or_default();
+        let sd =
+            |i: usize| fit.std_dev.as_ref().map(|s| format!(" +- {:.2}", s[i])).unwrap_or_default();
         outln!(
             "camera {} x {} px from {} board poses ({} images; views rejected: {})",
             c.width_px,

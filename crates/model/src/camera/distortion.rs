@@ -11,7 +11,7 @@
 //! for undistorted normalized coordinates (x, y) = (X/Z, Y/Z); the
 //! denominator is 1 for `plumb_bob`.
 
-use nalgebra::{Matrix2, Point2};
+use nalgebra::{Matrix2, Point2, Vector2};
 
 /// Lens distortion in normalized image coordinates, with OpenCV's
 /// coefficient order.
@@ -23,6 +23,35 @@ pub enum Distortion {
     PlumbBob([f64; 5]),
     /// OpenCV / ROS `rational_polynomial`: [k1, k2, p1, p2, k3, k4, k5, k6].
     RationalPolynomial([f64; 8]),
+}
+
+/// The two distortion models a camera calibration can fit (OpenCV's
+/// default and its `CALIB_RATIONAL_MODEL`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum DistortionModel {
+    /// `plumb_bob`: k1, k2, p1, p2, k3.
+    #[default]
+    PlumbBob,
+    /// `rational_polynomial`: k1, k2, p1, p2, k3, k4, k5, k6.
+    RationalPolynomial,
+}
+
+impl DistortionModel {
+    /// The ROS / camera.yaml name.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            DistortionModel::PlumbBob => "plumb_bob",
+            DistortionModel::RationalPolynomial => "rational_polynomial",
+        }
+    }
+
+    /// Number of coefficients: 5 or 8.
+    pub fn coefficient_count(self) -> usize {
+        match self {
+            DistortionModel::PlumbBob => 5,
+            DistortionModel::RationalPolynomial => 8,
+        }
+    }
 }
 
 /// The coefficients of either model in the rational form, the others 0.
@@ -62,6 +91,36 @@ impl Distortion {
             Distortion::None => &[],
             Distortion::PlumbBob(c) => c,
             Distortion::RationalPolynomial(c) => c,
+        }
+    }
+
+    /// d(x_d, y_d) / d(coefficients) at the undistorted normalized point
+    /// `normalized`: one column per coefficient of this model, in
+    /// [`Self::coefficients`]' order (none for `None`). What a camera
+    /// calibration needs for its distortion parameters.
+    pub fn coefficient_jacobian(&self, normalized: &Point2<f64>) -> Vec<Vector2<f64>> {
+        let all = self.unpack().coefficient_jacobian(normalized);
+        all[..self.coefficients().len()].to_vec()
+    }
+
+    /// This distortion in `model`'s form: plumb_bob padded with zeros to
+    /// rational_polynomial, rational_polynomial cut to its first five
+    /// coefficients (exact where k4 = k5 = k6 = 0), `None` as zeros.
+    pub fn to_model(&self, model: DistortionModel) -> Distortion {
+        let c = self.unpack();
+        match model {
+            DistortionModel::PlumbBob => Distortion::PlumbBob([c.k1, c.k2, c.p1, c.p2, c.k3]),
+            DistortionModel::RationalPolynomial => {
+                Distortion::RationalPolynomial([c.k1, c.k2, c.p1, c.p2, c.k3, c.k4, c.k5, c.k6])
+            }
+        }
+    }
+
+    /// Which model this is (`None` counts as plumb_bob, as ROS writes it).
+    pub fn model(&self) -> DistortionModel {
+        match self {
+            Distortion::RationalPolynomial(_) => DistortionModel::RationalPolynomial,
+            Distortion::None | Distortion::PlumbBob(_) => DistortionModel::PlumbBob,
         }
     }
 
@@ -127,6 +186,33 @@ impl Coefficients {
             x * cdist * icdist2 + self.p1 * a1 + self.p2 * a2,
             y * cdist * icdist2 + self.p1 * a3 + self.p2 * a1,
         )
+    }
+
+    /// d(x_d, y_d) / d(k1, k2, p1, p2, k3, k4, k5, k6) of
+    /// [`Coefficients::distort`] at `normalized`: one column per
+    /// coefficient, in OpenCV's order.
+    fn coefficient_jacobian(&self, normalized: &Point2<f64>) -> [Vector2<f64>; 8] {
+        let (x, y) = (normalized.x, normalized.y);
+        let r2 = x * x + y * y;
+        let (r4, r6) = (r2 * r2, r2 * r2 * r2);
+        let radial = self.radial(r2);
+        let d = radial.denominator;
+        // x_d = x N / D + ..., N = 1 + k1 r2 + k2 r4 + k3 r6, D = 1 + k4 r2 + k5 r4 + k6 r6.
+        let numerator_term = |power: f64| Vector2::new(x * power / d, y * power / d);
+        let denominator_term = |power: f64| {
+            let scale = -radial.numerator * power / (d * d);
+            Vector2::new(x * scale, y * scale)
+        };
+        [
+            numerator_term(r2),
+            numerator_term(r4),
+            Vector2::new(2.0 * x * y, r2 + 2.0 * y * y),
+            Vector2::new(r2 + 2.0 * x * x, 2.0 * x * y),
+            numerator_term(r6),
+            denominator_term(r2),
+            denominator_term(r4),
+            denominator_term(r6),
+        ]
     }
 
     /// The 2x2 Jacobian of [`Coefficients::distort`].

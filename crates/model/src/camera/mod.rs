@@ -19,7 +19,7 @@ use nalgebra::{Matrix2, Matrix2x3, Point2, Point3, Vector2, Vector3};
 
 use crate::{Error, Result};
 
-pub use distortion::Distortion;
+pub use distortion::{Distortion, DistortionModel};
 pub use yaml::CameraFileFormat;
 
 /// A pinhole camera with OpenCV lens distortion; pixels (u, v) = (column,

@@ -189,6 +189,47 @@ fn project_jacobian_matches_finite_differences() {
     }
 }
 
+/// A distortion as a map of its own coefficients at a fixed point: what a
+/// camera calibration differentiates.
+struct DistortionOfCoefficients(Distortion, Point2<f64>);
+
+impl DistortionOfCoefficients {
+    fn with(&self, x: &DVector<f64>) -> Distortion {
+        match self.0 {
+            Distortion::PlumbBob(_) => Distortion::PlumbBob(std::array::from_fn(|i| x[i])),
+            _ => Distortion::RationalPolynomial(std::array::from_fn(|i| x[i])),
+        }
+    }
+}
+
+impl Differentiable for DistortionOfCoefficients {
+    fn name(&self) -> String {
+        format!("distortion coefficients {:?} at {}", self.0, self.1)
+    }
+    fn eval(&self, x: &DVector<f64>) -> Option<DVector<f64>> {
+        let camera = Camera { distortion: self.with(x), ..pinhole_camera() };
+        Some(vector2(&camera.distort(&self.1)))
+    }
+    fn jacobian(&self, x: &DVector<f64>) -> Option<DMatrix<f64>> {
+        let columns = self.with(x).coefficient_jacobian(&self.1);
+        Some(DMatrix::from_fn(2, columns.len(), |r, c| columns[c][r]))
+    }
+}
+
+#[test]
+fn distortion_coefficient_jacobian_matches_finite_differences() {
+    let rational =
+        Distortion::RationalPolynomial([-0.3, 0.1, 1e-3, -5e-4, -0.02, 0.05, -0.01, 0.002]);
+    for distortion in [strong_barrel_camera().distortion, rational] {
+        let x = DVector::from_column_slice(distortion.coefficients());
+        for normalized in [Point2::new(0.1, -0.2), Point2::new(-0.6, 0.45), Point2::new(0.9, 0.7)] {
+            let map = DistortionOfCoefficients(distortion, normalized);
+            assert_finite(&map, &x);
+            assert_jacobian(&map, &x, 1e-7);
+        }
+    }
+}
+
 #[test]
 fn distort_jacobian_matches_finite_differences() {
     for camera in all_cameras() {
