@@ -852,6 +852,34 @@ fn refine(
     Ok((camera, poses, std_dev))
 }
 
+/// Standard deviations of a given `camera`'s intrinsics on `views` (one
+/// observation per board pose): each view's pose by PnP with the camera,
+/// then sigma^2 (J^T J)^-1 of the reprojection problem over the intrinsics
+/// the camera shows were fitted ([`FixedIntrinsics::inferred_from`]) and
+/// the poses, at the camera. In the order of [`IntrinsicsFit::std_dev`]: fx,
+/// fy, cx, cy, then the distortion coefficients (0 for held ones). `None`
+/// with fewer than 3 poses or a singular problem. What a report needs for a
+/// camera read from a file, whose own calibration's are not at hand.
+pub fn intrinsics_std_dev_at(camera: &Camera, views: &[&BoardObservation]) -> Option<Vec<f64>> {
+    let posed: Vec<(&BoardObservation, Isometry3<f64>)> = views
+        .iter()
+        .filter_map(|view| board_pose(camera, view).ok().map(|(pose, _)| (*view, pose)))
+        .collect();
+    if posed.len() < 3 {
+        return None;
+    }
+    let views: Vec<&BoardObservation> = posed.iter().map(|(view, _)| *view).collect();
+    let poses: Vec<Isometry3<f64>> = posed.iter().map(|(_, pose)| *pose).collect();
+    let layout = IntrinsicsLayout::new(camera, FixedIntrinsics::inferred_from(camera));
+    let problem = Reprojection {
+        views: &views,
+        layout: Some(&layout),
+        params: Reprojection::pack(Some(&layout), camera, &poses),
+        template: camera.clone(),
+    };
+    intrinsics_std_dev(&problem)
+}
+
 /// A camera calibration linearized at its optimum, for a bootstrap over its
 /// board poses: per pose, its part of the normal equations over the
 /// intrinsics and its own pose. A replicate (each pose counted as often as

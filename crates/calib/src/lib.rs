@@ -61,7 +61,7 @@ pub use calibrate::{
 pub use error::{Error, Result};
 pub use intrinsics::{
     BoardObservation, FixedIntrinsics, IntrinsicsFit, IntrinsicsOptions, ViewFit, board_pose,
-    calibrate_intrinsics,
+    calibrate_intrinsics, intrinsics_std_dev_at,
 };
 pub use output::CalibrationOutput;
 pub use refine::Residual;
@@ -71,4 +71,4 @@ pub use session::{
     calibrate_camera_session, calibrate_laser_session, detect_session_boards, rejection_note,
     session_view_samples, view_samples,
 };
-pub use uncertainty::{BOOTSTRAP_REPLICATES, MIN_BOOTSTRAP_POSES, StdSource};
+pub use uncertainty::{BOOTSTRAP_REPLICATES, MIN_BOOTSTRAP_POSES, StdSource, laser_std_dev_at};

@@ -207,6 +207,27 @@ fn pose_bootstrap(
     Some((std, StdSource::PoseBootstrap { poses: poses.len(), replicates, camera: false }))
 }
 
+/// Standard deviations of a given `laser` on `samples` that name their
+/// board poses (`pose`): the samples within `threshold_mm` of it, a
+/// bootstrap over their poses with each replicate one Gauss-Newton step
+/// from the laser (the linearized bootstrap), over alpha, L0, beta (high
+/// fidelity) and the slide scale k (where the samples span two or more
+/// slide positions). `None` with fewer than [`MIN_BOOTSTRAP_POSES`] poses.
+/// What a report needs for a laser read from a file.
+pub fn laser_std_dev_at(
+    samples: &[LaserSample],
+    laser: &LaserModel,
+    threshold_mm: f64,
+) -> Option<crate::ParameterStdDev> {
+    let inliers: Vec<usize> = (0..samples.len())
+        .filter(|&i| crate::depth_error_mm(laser, &samples[i]).abs() <= threshold_mm)
+        .collect();
+    let inlier_samples: Vec<LaserSample> = inliers.iter().map(|&i| samples[i]).collect();
+    let layout = crate::linear::LinearForm::new(laser.fidelity, &inlier_samples, true).layout();
+    let (std, source) = pose_bootstrap(samples, &inliers, laser, layout, Residual::Depth, 0, true)?;
+    crate::ParameterStdDev::from_parameters(&std, layout, source)
+}
+
 /// One board pose of a session as the bootstrap needs it.
 #[derive(Debug, Clone)]
 pub(crate) struct PoseData {

@@ -311,6 +311,8 @@ impl Figure for BoxPlots<'_> {
 struct Residuals<'a> {
     eval: &'a MethodEvaluation,
     depths_mm: &'a [f64],
+    /// Each sample's slide position, mm (the colours).
+    slides_mm: &'a [f64],
     /// At most this many points drawn ([`MAX_PLOT_POINTS`]).
     max_points: usize,
 }
@@ -351,6 +353,49 @@ fn decimate<I: Iterator<Item = (f64, f64)>>(
     kept
 }
 
+/// Distinct slide positions of `slides_mm` (to 0.1 mm), ascending.
+fn distinct_slides(slides_mm: &[f64]) -> Vec<f64> {
+    let mut distinct: Vec<f64> = slides_mm.iter().map(|d| (d * 10.0).round() / 10.0).collect();
+    distinct.sort_by(f64::total_cmp);
+    distinct.dedup();
+    distinct
+}
+
+/// The colour of slide position `index`.
+fn slide_colour(index: usize) -> RGBColor {
+    let c = Palette99::pick(index).to_rgba();
+    RGBColor(c.0, c.1, c.2)
+}
+
+/// The residual axis of a plot zoomed to `shown` (the inliers) and the
+/// threshold band +-`threshold_mm` where there is one, padded.
+fn zoomed_range(shown: impl Iterator<Item = f64>, threshold_mm: Option<f64>) -> (f64, f64) {
+    let band = threshold_mm.unwrap_or(0.0);
+    let (lo, hi) = shown.fold((-band, band), |(lo, hi), r| (lo.min(r), hi.max(r)));
+    padded(lo, hi, 0.01)
+}
+
+/// Draws the threshold band +-`threshold_mm` across `x_range`.
+fn draw_band<DB: DrawingBackend, CT: CoordTranslate<From = (f64, f64)>>(
+    chart: &mut ChartContext<'_, DB, CT>,
+    x_range: (f64, f64),
+    threshold_mm: f64,
+) -> Drawn
+where
+    DB::ErrorType: 'static,
+{
+    chart
+        .draw_series(std::iter::once(Rectangle::new(
+            [(x_range.0, -threshold_mm), (x_range.1, threshold_mm)],
+            PREDICTED.mix(0.12).filled(),
+        )))?
+        .label(format!("inlier threshold +-{threshold_mm:.2} mm"))
+        .legend(|(x, y)| {
+            Rectangle::new([(x, y - 5), (x + 20, y + 5)], PREDICTED.mix(0.3).filled())
+        });
+    Ok(())
+}
+
 impl Figure for Residuals<'_> {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Drawn
     where
@@ -362,13 +407,19 @@ impl Figure for Residuals<'_> {
             .depths_mm
             .iter()
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &z| (lo.min(z), hi.max(z)));
-        let (r_lo, r_hi) = self
+        // Zoomed to the fitted samples (and the threshold band of a robust
+        // fit): the inliers' structure shows; outliers beyond are drawn at
+        // the edge.
+        let band = c.ransac_iterations.is_some().then_some(c.threshold_mm);
+        let inlier_residuals = self
             .eval
             .residuals_mm
             .iter()
-            .fold((0.0f64, 0.0f64), |(lo, hi), &r| (lo.min(r), hi.max(r)));
+            .zip(&self.eval.is_inlier)
+            .filter(|(_, inlier)| **inlier)
+            .map(|(r, _)| *r);
         let (z_lo, z_hi) = padded(z_lo, z_hi, 1.0);
-        let (r_lo, r_hi) = padded(r_lo, r_hi, 0.01);
+        let (r_lo, r_hi) = zoomed_range(inlier_residuals, band);
         let mut chart = ChartBuilder::on(root)
             .margin(14)
             .caption(
@@ -395,39 +446,199 @@ impl Figure for Residuals<'_> {
             .label_style((FAMILY, 15))
             .axis_desc_style((FAMILY, 16))
             .draw()?;
+        if let Some(threshold_mm) = band {
+            draw_band(&mut chart, (z_lo, z_hi), threshold_mm)?;
+        }
         chart.draw_series(std::iter::once(PathElement::new(
             vec![(z_lo, 0.0), (z_hi, 0.0)],
             BLACK.mix(0.4),
         )))?;
-        let points = |inlier: bool| {
+        let slides = distinct_slides(self.slides_mm);
+        let slide_of = |i: usize| {
+            let d = (self.slides_mm.get(i).copied().unwrap_or(0.0) * 10.0).round() / 10.0;
+            slides.iter().position(|&s| s == d).unwrap_or(0)
+        };
+        let points = |inlier: bool, slide: Option<usize>| {
             self.depths_mm
                 .iter()
                 .zip(&self.eval.residuals_mm)
                 .zip(&self.eval.is_inlier)
-                .filter(move |(_, flag)| **flag == inlier)
-                .map(|((&z, &r), _)| (z, r))
+                .enumerate()
+                .filter(move |(i, (_, flag))| {
+                    **flag == inlier && slide.is_none_or(|k| slide_of(*i) == k)
+                })
+                .map(|(_, ((&z, &r), _))| (z, r.clamp(r_lo, r_hi)))
         };
-        let per_series = self.max_points / 2;
-        let n_in = points(true).count();
-        let n_out = points(false).count();
         let drawn = |n: usize, shown: usize| {
             if shown < n { format!("{n} ({shown} drawn)") } else { n.to_string() }
         };
-        let inliers = decimate(|| points(true), n_in, (z_lo, z_hi), per_series);
-        chart
-            .draw_series(inliers.iter().map(|&p| Circle::new(p, 2, BOX_LINE.filled())))?
-            .label(format!("fitted (inlier), {}", drawn(n_in, inliers.len())))
-            .legend(|(x, y)| Circle::new((x + 10, y), 3, BOX_LINE.filled()));
+        // The inliers coloured by slide position, the cap shared among them.
+        let per_slide = self.max_points / 2 / slides.len().max(1);
+        for (k, &slide_mm) in slides.iter().enumerate() {
+            let n = points(true, Some(k)).count();
+            if n == 0 {
+                continue;
+            }
+            let shown = decimate(|| points(true, Some(k)), n, (z_lo, z_hi), per_slide);
+            let colour = slide_colour(k);
+            chart
+                .draw_series(shown.iter().map(|&p| Circle::new(p, 2, colour.filled())))?
+                .label(format!("fitted, slide {slide_mm} mm: {}", drawn(n, shown.len())))
+                .legend(move |(x, y)| Circle::new((x + 10, y), 3, colour.filled()));
+        }
+        let n_out = points(false, None).count();
         if n_out > 0 {
-            let outliers = decimate(|| points(false), n_out, (z_lo, z_hi), per_series);
+            let beyond = self
+                .eval
+                .residuals_mm
+                .iter()
+                .zip(&self.eval.is_inlier)
+                .filter(|(r, inlier)| !**inlier && !(r_lo..=r_hi).contains(*r))
+                .count();
+            let outliers =
+                decimate(|| points(false, None), n_out, (z_lo, z_hi), self.max_points / 2);
             chart
                 .draw_series(outliers.iter().map(|&p| Cross::new(p, 4, RED.stroke_width(2))))?
-                .label(format!("rejected (outlier), {}", drawn(n_out, outliers.len())))
+                .label(format!(
+                    "rejected (outlier), {}; {beyond} beyond the range, at its edge",
+                    drawn(n_out, outliers.len())
+                ))
                 .legend(|(x, y)| Cross::new((x + 10, y), 4, RED.stroke_width(2)));
         }
         draw_legend(&mut chart, SeriesLabelPosition::UpperRight, 14)?;
         Ok(())
     }
+}
+
+/// One view in [`write_view_plots`]: its board pose's reprojection RMS,
+/// its slide position, its samples' residuals under the reported laser and
+/// whether it is flagged.
+#[derive(Debug, Clone)]
+pub struct ViewDiagnostics {
+    /// The board pose's RMS reprojection error, px (`None`: no pose).
+    pub pose_rms_px: Option<f64>,
+    /// Slide travel d of the view, mm.
+    pub slide_mm: f64,
+    /// z - z_hat of each sample, mm.
+    pub residuals_mm: Vec<f64>,
+    /// Whether the report flags the view.
+    pub flagged: bool,
+}
+
+/// Size of the per-view figure, px.
+const VIEWS_SIZE: (u32, u32) = (1100, 820);
+
+/// Most residuals drawn per view (an even stride beyond).
+const MAX_POINTS_PER_VIEW: usize = 400;
+
+/// The per-view figure: the board poses' RMS as bars (flagged views red),
+/// and under them each view's residuals as a strip coloured by slide
+/// position, zoomed to the threshold band.
+struct Views<'a> {
+    views: &'a [ViewDiagnostics],
+    threshold_mm: f64,
+}
+
+impl Figure for Views<'_> {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Drawn
+    where
+        DB::ErrorType: 'static,
+    {
+        root.fill(&WHITE)?;
+        let (top, bottom) = root.split_vertically(VIEWS_SIZE.1 * 2 / 5);
+        let n = self.views.len().max(1) as f64;
+        let x_range = 0.5..n + 0.5;
+        let rms_max = self.views.iter().filter_map(|v| v.pose_rms_px).fold(0.0_f64, f64::max);
+        let mut bars = ChartBuilder::on(&top)
+            .margin(12)
+            .caption("Board pose reprojection RMS per view", (FAMILY, 18))
+            .x_label_area_size(30)
+            .y_label_area_size(70)
+            .build_cartesian_2d(x_range.clone(), 0.0..(rms_max * 1.15).max(0.01))?;
+        bars.configure_mesh()
+            .light_line_style(WHITE)
+            .x_label_formatter(&|x| format!("{x:.0}"))
+            .y_label_formatter(&tick_label)
+            .y_desc("RMS (px)")
+            .label_style((FAMILY, 14))
+            .axis_desc_style((FAMILY, 15))
+            .draw()?;
+        bars.draw_series(self.views.iter().enumerate().filter_map(|(i, v)| {
+            let x = i as f64 + 1.0;
+            let colour = if v.flagged { RED } else { BOX_LINE };
+            v.pose_rms_px
+                .map(|rms| Rectangle::new([(x - 0.35, 0.0), (x + 0.35, rms)], colour.filled()))
+        }))?;
+
+        let slides_of_views: Vec<f64> = self.views.iter().map(|v| v.slide_mm).collect();
+        let slides = distinct_slides(&slides_of_views);
+        let (r_lo, r_hi) = zoomed_range(
+            self.views
+                .iter()
+                .flat_map(|v| &v.residuals_mm)
+                .copied()
+                .filter(|r| r.abs() <= self.threshold_mm),
+            Some(self.threshold_mm),
+        );
+        let mut strips = ChartBuilder::on(&bottom)
+            .margin(12)
+            .caption(
+                "Residuals z - z_hat of the reported laser per view (beyond the band: at its edge)",
+                (FAMILY, 18),
+            )
+            .x_label_area_size(40)
+            .y_label_area_size(70)
+            .build_cartesian_2d(x_range, r_lo..r_hi)?;
+        strips
+            .configure_mesh()
+            .light_line_style(WHITE)
+            .x_label_formatter(&|x| format!("{x:.0}"))
+            .y_label_formatter(&tick_label)
+            .x_desc("view")
+            .y_desc("z - z_hat (mm)")
+            .label_style((FAMILY, 14))
+            .axis_desc_style((FAMILY, 15))
+            .draw()?;
+        draw_band(&mut strips, (0.5, n + 0.5), self.threshold_mm)?;
+        for (k, &slide_mm) in slides.iter().enumerate() {
+            let colour = slide_colour(k);
+            let points: Vec<(f64, f64)> = self
+                .views
+                .iter()
+                .enumerate()
+                .filter(|(_, v)| (v.slide_mm * 10.0).round() / 10.0 == slide_mm)
+                .flat_map(|(i, v)| {
+                    let step = v.residuals_mm.len().div_ceil(MAX_POINTS_PER_VIEW).max(1);
+                    let count = v.residuals_mm.len().max(1) as f64;
+                    v.residuals_mm.iter().enumerate().step_by(step).map(move |(j, r)| {
+                        // Spread across the view's column so the strip shows density.
+                        let x = i as f64 + 1.0 + 0.6 * (j as f64 / count - 0.5);
+                        (x, r.clamp(r_lo, r_hi))
+                    })
+                })
+                .collect();
+            if points.is_empty() {
+                continue;
+            }
+            strips
+                .draw_series(points.into_iter().map(|p| Circle::new(p, 1, colour.filled())))?
+                .label(format!("slide {slide_mm} mm"))
+                .legend(move |(x, y)| Circle::new((x + 10, y), 3, colour.filled()));
+        }
+        draw_legend(&mut strips, SeriesLabelPosition::UpperRight, 13)?;
+        Ok(())
+    }
+}
+
+/// Writes the per-view figure (board pose RMS bars, residual strips
+/// coloured by slide, the threshold band) to `stem`.png and `stem`.svg.
+pub fn write_view_plots(
+    out: &mut OutputDir,
+    stem: &str,
+    views: &[ViewDiagnostics],
+    threshold_mm: f64,
+) -> Result<Vec<PathBuf>> {
+    write_png_and_svg(out, stem, VIEWS_SIZE, &Views { views, threshold_mm })
 }
 
 /// Writes the accuracy box plots to `stem`.png and `stem`.svg in `out`.
@@ -439,19 +650,21 @@ pub fn write_accuracy_boxplots(
     write_png_and_svg(out, stem, BOXPLOT_SIZE, &BoxPlots { eval })
 }
 
-/// Writes one method's residual scatter (z - z_hat against z, inliers and
-/// outliers marked) to `stem`.png and `stem`.svg in `out`.
+/// Writes one method's residual scatter (z - z_hat against z; the inliers
+/// coloured by slide position, the outliers marked; zoomed to the inliers
+/// with a robust fit's threshold band) to `stem`.png and `stem`.svg in `out`.
 pub fn write_residual_plot(
     out: &mut OutputDir,
     stem: &str,
     method: &MethodEvaluation,
     depths_mm: &[f64],
+    slides_mm: &[f64],
 ) -> Result<Vec<PathBuf>> {
     write_png_and_svg(
         out,
         stem,
         RESIDUAL_SIZE,
-        &Residuals { eval: method, depths_mm, max_points: MAX_PLOT_POINTS },
+        &Residuals { eval: method, depths_mm, slides_mm, max_points: MAX_PLOT_POINTS },
     )
 }
 

@@ -30,9 +30,10 @@ pub fn write_calibration_report(
         out.write("calibration.json", format!("{:#}\n", eval.to_json()))?,
     ];
     let depths_mm: Vec<f64> = eval.samples.iter().map(|s| s.z_mm).collect();
+    let slides_mm: Vec<f64> = eval.samples.iter().map(|s| s.slide_mm).collect();
     for method in &eval.methods {
         let stem = format!("calibration_residuals_method{}", method.calibration.method.number());
-        files.extend(write_residual_plot(out, &stem, method, &depths_mm)?);
+        files.extend(write_residual_plot(out, &stem, method, &depths_mm, &slides_mm)?);
     }
     Ok(files)
 }

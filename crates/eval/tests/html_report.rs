@@ -103,9 +103,23 @@ fn calibration_report_is_self_contained_and_flags_a_bad_view() {
     for i in 1..=8 {
         assert!(refs.contains(&format!("images/view{i:02}.jpg")), "view {i}");
     }
-    for plot in ["calibration_residuals_method4.png", "accuracy_boxplots.png"] {
+    for plot in [
+        "calibration_residuals_method4.png",
+        "accuracy_boxplots.png",
+        "calibration_views.png",
+        "images/corner_coverage.jpg",
+    ] {
         assert!(refs.iter().any(|r| r == plot), "{plot}");
     }
+    // Issue 17's diagnostics: the coverage counted, the distortion
+    // coefficients named, standard deviations beside the camera's values
+    // (4 board poses: too few for the laser's bootstrap, and the page says so).
+    assert!(html.contains("corner coverage (8 x 6 cells)"), "coverage");
+    assert!(html.contains("k1 ") && html.contains("p2 "), "coefficient names");
+    assert!(report.camera_std.is_some() && html.contains(" +- "), "standard deviations");
+    assert!(report.laser_std.is_none() && html.contains("fewer than 5 board poses"));
+    // The quarter-scale images are narrower than the page's: no full-size copies.
+    assert!(!refs.iter().any(|r| r.ends_with("_full.jpg")));
     assert!(html.contains("session &lt;&amp;&gt;") && !html.contains("session <&>"));
     assert!(html.contains("Method 4") && html.contains("class=\"bad\""));
     std::fs::remove_dir_all(&dir).ok();

@@ -5,8 +5,9 @@
 use std::path::{Path, PathBuf};
 
 use alacs_calib::{
-    CalibrationOptions, LaserSample, ViewSamples, depth_error_mm, detect_session_boards,
-    session_view_samples,
+    BoardObservation, CalibrationOptions, LaserSample, ParameterStdDev, ViewSamples,
+    board_pose_groups, depth_error_mm, detect_session_boards, intrinsics_std_dev_at,
+    laser_std_dev_at, session_view_samples,
 };
 use alacs_model::io::OutputDir;
 use alacs_model::{Camera, LaserModel, Session};
@@ -14,12 +15,12 @@ use alacs_vision::{StripeOptions, read_image};
 use nalgebra::Point2;
 use rayon::prelude::*;
 
-use super::draw::{BLUE, Canvas, GREEN, RED};
+use super::draw::{BLUE, Canvas, GREEN, GREY, RED, palette};
 use super::page::{Page, fixed, num, txt};
 use crate::accuracy::accuracy_from_views;
 use crate::{
-    AccuracyEvaluation, AccuracyOptions, CalibrationEvaluation, Result, evaluate_calibration,
-    write_accuracy_report, write_calibration_report,
+    AccuracyEvaluation, AccuracyOptions, CalibrationEvaluation, Result, ViewDiagnostics,
+    evaluate_calibration, write_accuracy_report, write_calibration_report, write_view_plots,
 };
 
 /// Widest view image on the page (px): half the 5 MP camera's width.
@@ -77,6 +78,14 @@ pub struct CalibrationReport {
     pub accuracy: std::result::Result<AccuracyEvaluation, String>,
     /// The inlier threshold of Table 1 and of the views' flags, mm.
     pub threshold_mm: f64,
+    /// Standard deviations of the reported camera on this session's
+    /// corners (fx, fy, cx, cy, then the distortion coefficients), where
+    /// defined ([`alacs_calib::intrinsics_std_dev_at`]).
+    pub camera_std: Option<Vec<f64>>,
+    /// Standard deviations of the reported laser on this session's samples
+    /// (a bootstrap over board poses at the laser,
+    /// [`alacs_calib::laser_std_dev_at`]), where defined.
+    pub laser_std: Option<ParameterStdDev>,
 }
 
 impl CalibrationReport {
@@ -175,6 +184,27 @@ pub fn calibration_report_from_views(
         });
         samples.extend_from_slice(view_samples);
     }
+    // One observation per board pose for the camera's standard deviations;
+    // every sample named by its pose for the laser's.
+    let observations: Vec<Option<&BoardObservation>> =
+        per_view.iter().map(|(_, view)| view.observation.as_ref()).collect();
+    let groups = board_pose_groups(&observations);
+    let mut first_of_pose: Vec<&BoardObservation> = Vec::new();
+    let mut seen = Vec::new();
+    for (observation, group) in observations.iter().zip(&groups) {
+        if let (Some(observation), Some(group)) = (observation, group)
+            && !seen.contains(group)
+        {
+            seen.push(*group);
+            first_of_pose.push(observation);
+        }
+    }
+    let camera_std = intrinsics_std_dev_at(camera, &first_of_pose);
+    let mut posed_samples = Vec::with_capacity(samples.len());
+    for ((view_samples, _), group) in per_view.iter().zip(&groups) {
+        posed_samples.extend(view_samples.iter().map(|s| LaserSample { pose: *group, ..*s }));
+    }
+    let laser_std = laser_std_dev_at(&posed_samples, laser, threshold_mm);
     let table_1 = evaluate_calibration(&samples, &options).map_err(|e| e.to_string());
     let accuracy = accuracy_from_views(per_view, camera, laser, &AccuracyOptions::default())
         .map_err(|e| e.to_string());
@@ -187,28 +217,117 @@ pub fn calibration_report_from_views(
         table_1,
         accuracy,
         threshold_mm,
+        camera_std,
+        laser_std,
     })
 }
 
 /// The page's images of one view: its image with the corners (green
 /// crosses) and the stripe samples (red: within the threshold of the
-/// reported laser, blue: beyond) drawn over it.
+/// reported laser, blue: beyond) drawn over it, at most
+/// [`MAX_VIEW_WIDTH_PX`] wide, and at full size when the image is wider.
 fn view_image(
     session: &Session,
     spec_image: &Path,
     view: &CalibrationReportView,
     threshold_mm: f64,
-    path: &Path,
-) -> Result<Vec<u8>> {
+    paths: (&Path, &Path),
+) -> Result<(Vec<u8>, Option<Vec<u8>>)> {
     let image = read_image(&session.path_of(spec_image)).map_err(alacs_calib::Error::from)?;
-    let mut canvas = Canvas::whole(&image.to_rgb8(), MAX_VIEW_WIDTH_PX);
-    for (p, r) in view.stripe_px.iter().zip(&view.residuals_mm) {
-        canvas.dot(p, 1, if r.abs() <= threshold_mm { RED } else { BLUE });
+    let image = image.to_rgb8();
+    let draw = |max_width_px: u32, path: &Path| {
+        let mut canvas = Canvas::whole(&image, max_width_px);
+        for (p, r) in view.stripe_px.iter().zip(&view.residuals_mm) {
+            canvas.dot(p, 1, if r.abs() <= threshold_mm { RED } else { BLUE });
+        }
+        for p in &view.corners_px {
+            canvas.cross(p, 5.0, GREEN);
+        }
+        canvas.jpeg(path)
+    };
+    let full = (image.width() > MAX_VIEW_WIDTH_PX).then(|| draw(image.width(), paths.1));
+    Ok((draw(MAX_VIEW_WIDTH_PX, paths.0)?, full.transpose()?))
+}
+
+/// Cells across and down the image in which corner coverage is counted.
+const COVERAGE_CELLS: (usize, usize) = (8, 6);
+
+/// Where the board corners of the used views fell and how well the camera
+/// reprojects them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CornerCoverage {
+    /// Cells of an 8 x 6 grid over the image holding a corner.
+    pub cells_covered: usize,
+    /// Cells in the grid (48).
+    pub cells: usize,
+    /// Corners of the views with a board pose.
+    pub corners: usize,
+    /// Largest corner reprojection error, px.
+    pub max_error_px: f64,
+    /// How many times the error vectors are drawn enlarged.
+    pub magnification: f64,
+}
+
+impl CalibrationReport {
+    /// Every used view's corners as (view index, detected pixel,
+    /// reprojection error vector: reprojected - detected, px).
+    pub fn corner_errors(&self) -> Vec<(usize, Point2<f64>, nalgebra::Vector2<f64>)> {
+        self.views
+            .iter()
+            .enumerate()
+            .filter_map(|(i, v)| Some((i, v.view.observation.as_ref()?, v.view.camera_from_board?)))
+            .flat_map(|(i, observation, pose)| {
+                observation.points_in_board.iter().zip(&observation.pixels).filter_map(
+                    move |(point, pixel)| {
+                        let projected = self.camera.project(&(pose * point)).ok()?;
+                        Some((i, *pixel, projected - pixel))
+                    },
+                )
+            })
+            .collect()
     }
-    for p in &view.corners_px {
-        canvas.cross(p, 5.0, GREEN);
+}
+
+/// The coverage image: every used view's corners over the image (one
+/// colour per view), each with its reprojection error vector enlarged, the
+/// 8 x 6 grid the coverage is counted in; and the counts.
+fn coverage_image(report: &CalibrationReport, path: &Path) -> Result<(Vec<u8>, CornerCoverage)> {
+    let camera = &report.camera;
+    let errors = report.corner_errors();
+    let max_error_px = errors.iter().map(|(_, _, e)| e.norm()).fold(0.0, f64::max);
+    // The largest vector drawn 3 % of the image's width long.
+    let magnification =
+        (0.03 * f64::from(camera.width_px) / max_error_px.max(1e-9)).clamp(1.0, 1000.0).round();
+    let background =
+        image::RgbImage::from_pixel(camera.width_px, camera.height_px, image::Rgb([40, 40, 40]));
+    let mut canvas = Canvas::whole(&background, MAX_VIEW_WIDTH_PX);
+    let (cols, rows) = COVERAGE_CELLS;
+    let (w, h) = (f64::from(camera.width_px), f64::from(camera.height_px));
+    for c in 1..cols {
+        let x = w * c as f64 / cols as f64;
+        canvas.polyline(&[Point2::new(x, 0.0), Point2::new(x, h)], false, GREY);
     }
-    canvas.jpeg(path)
+    for r in 1..rows {
+        let y = h * r as f64 / rows as f64;
+        canvas.polyline(&[Point2::new(0.0, y), Point2::new(w, y)], false, GREY);
+    }
+    let mut covered = vec![false; cols * rows];
+    for (view, pixel, error) in &errors {
+        let colour = palette(*view);
+        canvas.polyline(&[*pixel, pixel + error * magnification], false, colour);
+        canvas.dot(pixel, 1, colour);
+        let c = ((pixel.x / w * cols as f64).floor().max(0.0) as usize).min(cols - 1);
+        let r = ((pixel.y / h * rows as f64).floor().max(0.0) as usize).min(rows - 1);
+        covered[r * cols + c] = true;
+    }
+    let coverage = CornerCoverage {
+        cells_covered: covered.iter().filter(|c| **c).count(),
+        cells: cols * rows,
+        corners: errors.len(),
+        max_error_px,
+        magnification,
+    };
+    Ok((canvas.jpeg(path)?, coverage))
 }
 
 /// Writes the report as `dir`/index.html with its images (`images/`) and
@@ -221,19 +340,25 @@ pub fn write_calibration_html(
     report: &CalibrationReport,
     source: &str,
 ) -> Result<Vec<PathBuf>> {
-    let image_names: Vec<String> =
-        (0..report.views.len()).map(|i| format!("images/view{:02}.jpg", i + 1)).collect();
+    let image_names: Vec<(String, String)> = (0..report.views.len())
+        .map(|i| {
+            (format!("images/view{:02}.jpg", i + 1), format!("images/view{:02}_full.jpg", i + 1))
+        })
+        .collect();
     // Every image encoded first: one that fails leaves the folder as it was.
     let dir = out.path().to_path_buf();
-    let images: Vec<Vec<u8>> = session
+    let images: Vec<(Vec<u8>, Option<Vec<u8>>)> = session
         .views
         .par_iter()
         .zip(&report.views)
         .zip(&image_names)
-        .map(|((spec, view), name)| {
-            view_image(session, &spec.image, view, report.threshold_mm, &dir.join(name))
+        .map(|((spec, view), (name, full))| {
+            let paths = (dir.join(name), dir.join(full));
+            view_image(session, &spec.image, view, report.threshold_mm, (&paths.0, &paths.1))
         })
         .collect::<Result<_>>()?;
+    let coverage_name = "images/corner_coverage.jpg";
+    let (coverage_bytes, coverage) = coverage_image(report, &dir.join(coverage_name))?;
     let mut files = Vec::new();
     if let Ok(eval) = &report.table_1 {
         files.extend(write_calibration_report(out, eval)?);
@@ -241,8 +366,28 @@ pub fn write_calibration_html(
     if let Ok(eval) = &report.accuracy {
         files.extend(write_accuracy_report(out, eval)?);
     }
-    for (name, bytes) in image_names.iter().zip(images) {
+    let diagnostics: Vec<ViewDiagnostics> = report
+        .views
+        .iter()
+        .map(|v| ViewDiagnostics {
+            pose_rms_px: v.view.pose_rms_px,
+            slide_mm: v.view.slide_mm,
+            residuals_mm: v.residuals_mm.clone(),
+            flagged: v.flag.is_some(),
+        })
+        .collect();
+    files.extend(write_view_plots(out, "calibration_views", &diagnostics, report.threshold_mm)?);
+    files.push(out.write(coverage_name, coverage_bytes)?);
+    let mut links = Vec::with_capacity(image_names.len());
+    for ((name, full), (bytes, full_bytes)) in image_names.iter().zip(images) {
         files.push(out.write(name, bytes)?);
+        match full_bytes {
+            Some(full_bytes) => {
+                files.push(out.write(full, full_bytes)?);
+                links.push((name.as_str(), full.as_str()));
+            }
+            None => links.push((name.as_str(), name.as_str())),
+        }
     }
 
     let title = "alacs calibration report";
@@ -260,15 +405,36 @@ pub fn write_calibration_html(
         ),
         None,
     );
-    summary(&mut page, report);
+    summary(&mut page, report, &coverage);
     views_table(&mut page, report);
+    page.heading("Corner coverage and reprojection errors");
+    page.linked_figure(
+        &[(coverage_name, coverage_name)],
+        &format!(
+            "The {} corners of the views with a board pose over the {} x {} px image, one colour per view, each with its reprojection error vector (reprojected - detected) drawn {} x enlarged (largest {:.3} px); they fall in {} of the {} cells of the {} x {} grid.",
+            coverage.corners,
+            report.camera.width_px,
+            report.camera.height_px,
+            coverage.magnification,
+            coverage.max_error_px,
+            coverage.cells_covered,
+            coverage.cells,
+            COVERAGE_CELLS.0,
+            COVERAGE_CELLS.1
+        ),
+        (coverage.cells_covered * 2 < coverage.cells).then_some(
+            "the corners cover less than half of the image: distortion is extrapolated where there are none",
+        ),
+    );
+    page.plot("calibration_views.png", "per-view board pose RMS and residuals");
     plots(&mut page, report);
     page.heading("Views");
     page.raw(
         "<p class=\"legend\"><span style=\"color:#0a0\">+ detected corner</span><span style=\"color:#e22\">&bull; stripe sample within the threshold</span><span style=\"color:#28f\">&bull; stripe sample beyond it</span></p>",
     );
+    page.paragraph("Each image links to its full-size copy.", Some("note"));
     page.grid_start();
-    for (i, (view, name)) in report.views.iter().zip(&image_names).enumerate() {
+    for (i, (view, link)) in report.views.iter().zip(&links).enumerate() {
         let caption = format!(
             "{}. {} (slide {:.1} mm): {} corners, pose RMS {} px, {} samples, mean |residual| {} mm",
             i + 1,
@@ -279,29 +445,48 @@ pub fn write_calibration_html(
             view.view.n_samples,
             fixed(view.mean_abs_residual_mm(), 3)
         );
-        page.figure(&[name], &caption, view.flag.as_deref());
+        page.linked_figure(&[*link], &caption, view.flag.as_deref());
     }
     page.grid_end();
     files.insert(0, page.write(out, title)?);
     Ok(files)
 }
 
+/// The names of a distortion model's coefficients, in OpenCV's order.
+const COEFFICIENT_NAMES: [&str; 8] = ["k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"];
+
 /// The summary: camera, views, laser and Table 1.
-fn summary(page: &mut Page, report: &CalibrationReport) {
+fn summary(page: &mut Page, report: &CalibrationReport, coverage: &CornerCoverage) {
     let camera = &report.camera;
     page.heading("Camera");
     let (model, coefficients) = camera.distortion.ros_model();
-    let coefficients: Vec<String> = coefficients.iter().map(|c| format!("{c:.5}")).collect();
+    let std = |i: usize| report.camera_std.as_ref().and_then(|s| s.get(i).copied());
+    let pm = |value: f64, i: usize, digits: usize| match std(i) {
+        Some(s) => format!("{value:.digits$} +- {s:.digits$}"),
+        None => format!("{value:.digits$}"),
+    };
+    let coefficients: Vec<String> = coefficients
+        .iter()
+        .zip(COEFFICIENT_NAMES)
+        .enumerate()
+        .map(|(i, (c, name))| format!("{name} {}", pm(*c, 4 + i, 5)))
+        .collect();
     let used = report.views.iter().filter(|v| v.view.camera_from_board.is_some()).count();
     page.table(
         &[txt(""), num("value")],
         &[
             (
-                vec![txt("fx, fy (px)"), num(format!("{:.2}, {:.2}", camera.fx_px, camera.fy_px))],
+                vec![
+                    txt("fx, fy (px)"),
+                    num(format!("{}, {}", pm(camera.fx_px, 0, 2), pm(camera.fy_px, 1, 2))),
+                ],
                 false,
             ),
             (
-                vec![txt("cx, cy (px)"), num(format!("{:.2}, {:.2}", camera.cx_px, camera.cy_px))],
+                vec![
+                    txt("cx, cy (px)"),
+                    num(format!("{}, {}", pm(camera.cx_px, 2, 2), pm(camera.cy_px, 3, 2))),
+                ],
                 false,
             ),
             (vec![txt(format!("distortion ({model})")), num(coefficients.join(", "))], false),
@@ -316,6 +501,16 @@ fn summary(page: &mut Page, report: &CalibrationReport) {
                 ],
                 used < report.views.len(),
             ),
+            (
+                vec![
+                    txt(format!(
+                        "corner coverage ({} x {} cells)",
+                        COVERAGE_CELLS.0, COVERAGE_CELLS.1
+                    )),
+                    num(format!("{} of {}", coverage.cells_covered, coverage.cells)),
+                ],
+                coverage.cells_covered * 2 < coverage.cells,
+            ),
         ],
     );
     let rejected: Vec<String> = report
@@ -328,6 +523,11 @@ fn summary(page: &mut Page, report: &CalibrationReport) {
     }
     page.heading("Laser");
     let laser = &report.laser;
+    let std = report.laser_std;
+    let pm = |value: f64, sd: Option<f64>, digits: usize| match sd {
+        Some(s) => format!("{value:.digits$} +- {s:.digits$}"),
+        None => format!("{value:.digits$}"),
+    };
     page.table(
         &[
             txt(""),
@@ -342,10 +542,10 @@ fn summary(page: &mut Page, report: &CalibrationReport) {
         &[(
             vec![
                 txt(format!("reported ({})", laser.fidelity.as_str())),
-                num(format!("{:.3}", laser.alpha_deg())),
-                num(format!("{:.3}", laser.beta_deg())),
-                num(format!("{:.2}", laser.l0_mm)),
-                num(format!("{:.5}", laser.slide_scale)),
+                num(pm(laser.alpha_deg(), std.map(|s| s.alpha_deg), 3)),
+                num(pm(laser.beta_deg(), std.and_then(|s| s.beta_deg), 3)),
+                num(pm(laser.l0_mm, std.map(|s| s.l0_mm), 2)),
+                num(pm(laser.slide_scale, std.and_then(|s| s.slide_scale), 5)),
                 num(report.samples.len().to_string()),
                 num(fixed(report.mean_abs_residual_mm(), 3)),
                 num({
@@ -360,6 +560,14 @@ fn summary(page: &mut Page, report: &CalibrationReport) {
             ],
             false,
         )],
+    );
+    page.paragraph(
+        &format!(
+            "+- one standard deviation on this session: the camera's from its corners (sigma^2 (J^T J)^-1 over the intrinsics and the board poses at the reported camera; {}), the laser's a bootstrap over the board poses at the reported laser with the camera taken as exact, so smaller than calibrate laser's, which re-calibrates the camera in each replicate ({}).",
+            if report.camera_std.is_some() { "held intrinsics 0" } else { "not defined here" },
+            std.map_or("not defined here: fewer than 5 board poses".to_string(), |s| s.source.describe())
+        ),
+        Some("note"),
     );
     page.heading("Table 1: the four methods on this session's samples");
     match &report.table_1 {

@@ -32,6 +32,29 @@ pub const ORANGE: Rgb<u8> = Rgb([255, 150, 0]);
 pub const CYAN: Rgb<u8> = Rgb([0, 240, 240]);
 /// The answer.
 pub const WHITE: Rgb<u8> = Rgb([255, 255, 255]);
+/// Grid lines.
+pub const GREY: Rgb<u8> = Rgb([110, 110, 110]);
+
+/// Colours told apart at a glance, for one thing each (views of a session).
+const PALETTE: [Rgb<u8>; 12] = [
+    Rgb([230, 25, 75]),
+    Rgb([60, 180, 75]),
+    Rgb([255, 225, 25]),
+    Rgb([67, 99, 216]),
+    Rgb([245, 130, 49]),
+    Rgb([145, 30, 180]),
+    Rgb([66, 212, 244]),
+    Rgb([240, 50, 230]),
+    Rgb([191, 239, 69]),
+    Rgb([250, 190, 212]),
+    Rgb([70, 153, 144]),
+    Rgb([220, 190, 255]),
+];
+
+/// The `index`-th colour of a cycle of twelve.
+pub fn palette(index: usize) -> Rgb<u8> {
+    PALETTE[index % PALETTE.len()]
+}
 
 /// A region of a frame to draw on: frame pixel (u, v) maps to canvas
 /// ((u - u0 + 1/2) scale - 1/2, (v - v0 + 1/2) scale - 1/2).

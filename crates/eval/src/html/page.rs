@@ -138,13 +138,21 @@ impl Page {
     /// A figure: images (relative `src`) and an escaped caption; a flagged
     /// figure is framed in red with `flag` in its caption.
     pub fn figure(&mut self, sources: &[&str], caption: &str, flag: Option<&str>) {
+        let linked: Vec<(&str, &str)> = sources.iter().map(|s| (*s, *s)).collect();
+        self.linked_figure(&linked, caption, flag);
+    }
+
+    /// [`Self::figure`] with each image (`src`, first) linking to another
+    /// file (second: e.g. the full-size image).
+    pub fn linked_figure(&mut self, sources: &[(&str, &str)], caption: &str, flag: Option<&str>) {
         let class = if flag.is_some() { " class=\"bad\"" } else { "" };
         let _ = write!(self.body, "<figure{class}>");
-        for src in sources {
+        for (src, target) in sources {
             let _ = write!(
                 self.body,
-                "<a href=\"{0}\"><img src=\"{0}\" alt=\"{0}\" loading=\"lazy\"></a>",
-                escape(src)
+                "<a href=\"{1}\"><img src=\"{0}\" alt=\"{0}\" loading=\"lazy\"></a>",
+                escape(src),
+                escape(target)
             );
         }
         let _ = write!(self.body, "<figcaption>{}", escape(caption));
