@@ -117,21 +117,17 @@ fn triangulated_points_reproject_to_their_normalized_coordinates() {
 #[test]
 fn triangulated_points_lie_on_the_laser_plane_and_invert_to_their_slide() {
     for laser in [paper_laser(), paper_laser().with_slide_scale(0.99)] {
-        assert_points_lie_on_the_plane_and_invert(&laser);
-    }
-}
-
-fn assert_points_lie_on_the_plane_and_invert(laser: &LaserModel) {
-    for slide_mm in [0.0, 10.0, 123.4, 200.0] {
-        let plane = laser.plane_in_camera(slide_mm);
-        assert!(plane.signed_distance_mm(&laser.origin_in_camera(slide_mm)).abs() < 1e-9);
-        for n in normalized_grid() {
-            let p = laser.triangulate(&n, slide_mm).unwrap();
-            assert!(plane.signed_distance_mm(&p).abs() < 1e-9, "{p} off the plane");
-            assert!((laser.slide_for_point(&p) - slide_mm).abs() < 1e-9);
-            let target = laser.slide_target(&p, SLIDE_STROKE_MM);
-            assert!(target.within_stroke);
-            assert!((target.clamped_mm - target.slide_mm).abs() < 1e-9);
+        for slide_mm in [0.0, 10.0, 123.4, 200.0] {
+            let plane = laser.plane_in_camera(slide_mm);
+            assert!(plane.signed_distance_mm(&laser.origin_in_camera(slide_mm)).abs() < 1e-9);
+            for n in normalized_grid() {
+                let p = laser.triangulate(&n, slide_mm).unwrap();
+                assert!(plane.signed_distance_mm(&p).abs() < 1e-9, "{p} off the plane");
+                assert!((laser.slide_for_point(&p) - slide_mm).abs() < 1e-9);
+                let target = laser.slide_target(&p, SLIDE_STROKE_MM);
+                assert!(target.within_stroke);
+                assert!((target.clamped_mm - target.slide_mm).abs() < 1e-9);
+            }
         }
     }
 }
