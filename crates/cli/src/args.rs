@@ -375,7 +375,7 @@ pub struct CalibrateCameraArgs {
     pub output: Option<PathBuf>,
     /// The layout of --output: ROS camera_calibration_parsers YAML, or
     /// OpenCV FileStorage YAML (cv2.FileStorage reads it; alacs reads both).
-    #[arg(long, value_enum, default_value_t = CameraFormatArg::Ros)]
+    #[arg(long, value_enum, default_value_t = CameraFormatArg::Ros, requires = "output")]
     pub format: CameraFormatArg,
     /// The distortion model fitted (default: the --initial camera's, else
     /// plumb_bob).

@@ -431,6 +431,11 @@ fn calibrate_camera_json_has_the_formats_md_keys() {
     assert_eq!((dist[2], dist[3], dist[4]), (0.0, 0.0, 0.0));
     assert_eq!(json["dist_std"].as_array().unwrap().len(), 8);
     assert_eq!(json["fixed"], serde_json::json!(["k3", "tangential"]));
+    // --format names the layout of -o: without -o it is refused (exit 2),
+    // not silently unused.
+    let output = alacs(&cmdline("calibrate camera --session {} --format opencv", &[&opencv_right()]));
+    assert_eq!(output.status.code(), Some(2));
+    assert!(stderr(&output).contains("--output"), "{}", stderr(&output));
     // An unknown control is refused naming it (exit 2).
     let output = alacs(&cmdline("calibrate camera --session {} --fix k9", &[&opencv_right()]));
     assert_eq!(output.status.code(), Some(2));

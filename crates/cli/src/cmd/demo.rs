@@ -349,7 +349,7 @@ pub fn run(args: &DemoArgs) -> CmdResult {
 
     if args.json {
         let value = json!({
-            "truth": {"alpha_deg": TRUE_ALPHA_DEG, "beta_deg": TRUE_BETA_DEG, "l0_mm": TRUE_L0_MM},
+            "truth": {"alpha_deg": TRUE_ALPHA_DEG, "beta_deg": TRUE_BETA_DEG, "l0_mm": TRUE_L0_MM, "slide_scale": 1.0},
             "n_samples": sim.samples.len(),
             "outliers": sim.outliers,
             "methods": results.iter().map(output::calibration_json).collect::<Vec<Value>>(),
@@ -362,7 +362,7 @@ pub fn run(args: &DemoArgs) -> CmdResult {
             "images": {
                 "camera_rms_px": pipeline.camera_rms_px,
                 "fx_px": pipeline.camera.fx_px,
-                "laser": {"alpha_deg": pipeline.laser.alpha_deg(), "beta_deg": pipeline.laser.beta_deg(), "l0_mm": pipeline.laser.l0_mm},
+                "laser": {"alpha_deg": pipeline.laser.alpha_deg(), "beta_deg": pipeline.laser.beta_deg(), "l0_mm": pipeline.laser.l0_mm, "slide_scale": pipeline.laser.slide_scale},
                 "laser_samples": pipeline.laser_samples,
                 "localization": pipeline.conditions.iter().map(condition_json).collect::<Vec<Value>>(),
                 "accuracy": pipeline.accuracy.to_json(),
@@ -412,13 +412,15 @@ pub fn run(args: &DemoArgs) -> CmdResult {
     outln!(
         "From images: a rendered session (10 board poses x slides {SESSION_SLIDES_MM:?} mm) calibrated\n\
          the camera to {:.3} px RMS (fx {:.2} px, truth 2320) and the laser from {} stripe samples:\n\
-         alpha {:.3} deg (truth {TRUE_ALPHA_DEG}), beta {:.3} deg ({TRUE_BETA_DEG}), L0 {:.2} mm ({TRUE_L0_MM}).",
+         alpha {:.3} deg (truth {TRUE_ALPHA_DEG}), beta {:.3} deg ({TRUE_BETA_DEG}), L0 {:.2} mm ({TRUE_L0_MM}),\n\
+         slide scale k {:.5} (1).",
         pipeline.camera_rms_px,
         pipeline.camera.fx_px,
         pipeline.laser_samples,
         pipeline.laser.alpha_deg(),
         pipeline.laser.beta_deg(),
-        pipeline.laser.l0_mm
+        pipeline.laser.l0_mm,
+        pipeline.laser.slide_scale
     );
     let accuracy = &pipeline.accuracy;
     outln!(
