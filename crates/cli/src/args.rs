@@ -624,6 +624,23 @@ pub struct SimulateSessionArgs {
     /// Largest board tilt away from facing the camera, degrees.
     #[arg(long, default_value_t = 40.0, value_parser = number_in(0.0, 89.0))]
     pub max_tilt_deg: f64,
+    /// The simulated slide.
+    #[command(flatten)]
+    pub slide: SlideArgs,
+    /// How images are rendered.
+    #[command(flatten)]
+    pub render: RenderArgs,
+    /// The true camera and laser.
+    #[command(flatten)]
+    pub truth: TruthArgs,
+    /// Print a JSON summary on standard output.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// The simulated slide's own error.
+#[derive(Debug, Args)]
+pub struct SlideArgs {
     /// The slide's scale error: the laser's travel per commanded mm along
     /// the slide's axis (1: the seed paper's perfect slide).
     #[arg(long, value_name = "S", default_value_t = 1.0, value_parser = number_in(0.8, 1.25))]
@@ -634,15 +651,12 @@ pub struct SimulateSessionArgs {
     #[arg(long, value_name = "DEG", default_value_t = 0.0, allow_hyphen_values = true,
           value_parser = number_in(-alacs::sim::MAX_SLIDE_ANGLE_DEG, alacs::sim::MAX_SLIDE_ANGLE_DEG))]
     pub slide_angle_deg: f64,
-    /// How images are rendered.
-    #[command(flatten)]
-    pub render: RenderArgs,
-    /// The true camera and laser.
-    #[command(flatten)]
-    pub truth: TruthArgs,
-    /// Print a JSON summary on standard output.
-    #[arg(long)]
-    pub json: bool,
+}
+
+impl From<&SlideArgs> for alacs::sim::SlideError {
+    fn from(args: &SlideArgs) -> Self {
+        alacs::sim::SlideError { scale: args.slide_scale, angle_deg: args.slide_angle_deg }
+    }
 }
 
 /// A simulated orchard scene: an apple behind leaves, in shade or sun.
@@ -741,6 +755,9 @@ pub struct SimulateScanArgs {
     /// The frames' analogue gain, dB.
     #[arg(long, value_name = "DB", default_value_t = 0.0, value_parser = number_in(0.0, alacs::sim::MAX_GAIN_DB))]
     pub gain_db: f64,
+    /// The simulated slide.
+    #[command(flatten)]
+    pub slide: SlideArgs,
     /// How images are rendered.
     #[command(flatten)]
     pub render: RenderArgs,

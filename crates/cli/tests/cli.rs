@@ -433,7 +433,8 @@ fn calibrate_camera_json_has_the_formats_md_keys() {
     assert_eq!(json["fixed"], serde_json::json!(["k3", "tangential"]));
     // --format names the layout of -o: without -o it is refused (exit 2),
     // not silently unused.
-    let output = alacs(&cmdline("calibrate camera --session {} --format opencv", &[&opencv_right()]));
+    let output =
+        alacs(&cmdline("calibrate camera --session {} --format opencv", &[&opencv_right()]));
     assert_eq!(output.status.code(), Some(2));
     assert!(stderr(&output).contains("--output"), "{}", stderr(&output));
     // An unknown control is refused naming it (exit 2).

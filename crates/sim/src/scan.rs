@@ -33,7 +33,7 @@ use crate::render::{
     AmbientCache, Exposure, LaserLight, LaserStripe, Lighting, RayMap, RenderOptions, Scene,
     Sensor, SurfaceHit, mix_seed,
 };
-use crate::{Error, Result, camera_to_json, laser_to_json};
+use crate::{Error, Result, SlideError, camera_to_json, laser_to_json};
 
 /// How to simulate a scan. `Default`: an unoccluded apple at 0.6-1.2 m in
 /// diffuse light, the seed's 5-frame strategy, full resolution, PNG.
@@ -70,6 +70,9 @@ pub struct ScanOptions {
     pub neighbours_as_targets: bool,
     /// Seed: same seed, same scene and same bytes.
     pub seed: u64,
+    /// The slide's own error (scale and axis angle); the default is the
+    /// seed's perfect slide.
+    pub slide: SlideError,
 }
 
 impl Default for ScanOptions {
@@ -96,6 +99,7 @@ impl Default for ScanOptions {
             within_reach: true,
             neighbours_as_targets: false,
             seed: 0,
+            slide: SlideError::default(),
         }
     }
 }
@@ -162,8 +166,10 @@ pub struct ScanFrame {
 pub struct SimulatedScan {
     /// The camera rendered (scaled).
     pub camera: Camera,
-    /// The true laser.
+    /// The true laser: the laser given, with the slide's k (see [`SlideError`]).
     pub laser: LaserModel,
+    /// The slide's own error.
+    pub slide: SlideError,
     /// The orchard scene; the fruit is `scene.objects[0]`.
     pub scene: OrchardScene,
     /// The rough fruit position the scan started from (camera frame, mm).
@@ -286,6 +292,9 @@ pub fn simulate_scan(
 ) -> Result<SimulatedScan> {
     check_options(options)?;
     laser.validate()?;
+    options.slide.validate()?;
+    let laser = &options.slide.apply(laser);
+    laser.validate()?;
     let camera = camera.scaled(options.scale);
     camera.validate()?;
     options.render.validate()?;
@@ -340,6 +349,7 @@ pub fn simulate_scan(
     Ok(SimulatedScan {
         camera,
         laser: *laser,
+        slide: options.slide,
         scene,
         rough_position_mm,
         more_targets,
@@ -444,7 +454,9 @@ impl SimulatedScan {
         if !slide_mm.is_finite() {
             return Err(Error::InvalidOptions(format!("slide travel {slide_mm} mm is not finite")));
         }
-        let stripe = LaserStripe::new(&self.laser, slide_mm, &self.render.laser, self.camera.fx_px);
+        let mut stripe =
+            LaserStripe::new(&self.laser, slide_mm, &self.render.laser, self.camera.fx_px);
+        stripe.origin = self.slide.origin_in_camera(&self.laser, slide_mm);
         let stream = if laser_on {
             frame_index_for_noise
         } else {
@@ -512,6 +524,7 @@ impl SimulatedScan {
         json!({
             "camera": camera_to_json(&self.camera),
             "laser": laser_to_json(&self.laser),
+            "slide": self.slide.to_json(),
             "fruit": {"position_mm": [c.x, c.y, c.z], "radius_mm": self.scene.fruit_radius_mm},
             "occlusion": self.scene.occlusion,
             "rough_position_mm": [self.rough_position_mm.x, self.rough_position_mm.y, self.rough_position_mm.z],

@@ -181,7 +181,7 @@ pub fn session(args: &SimulateSessionArgs) -> CmdResult {
                 })
             })
             .transpose()?,
-        slide: SlideError { scale: args.slide_scale, angle_deg: args.slide_angle_deg },
+        slide: SlideError::from(&args.slide),
         ..SessionOptions::default()
     };
     let bar = output::progress_bar(args.json, "computing the camera's rays");
@@ -227,6 +227,7 @@ pub fn scan(args: &SimulateScanArgs) -> CmdResult {
         render,
         jpeg_quality: args.jpeg,
         within_reach: !args.anywhere,
+        slide: SlideError::from(&args.slide),
         ..defaults
     };
     let bar = output::progress_bar(args.json, "building the scene and the camera's rays");
