@@ -1302,6 +1302,19 @@ fn bad_command_lines_are_refused_naming_the_flag() {
     for value in ["nan", "inf", "1e308", "abc", "", "-1e308"] {
         suite.refused(&format!("triangulate --slide-mm {value}"), &triangulate(value), &["slide"]);
     }
+    // The simulated slide's error: the scale within 0.8-1.25, the angle within +-30 deg.
+    for (flag, value) in [
+        ("--slide-scale", "0"),
+        ("--slide-scale", "2"),
+        ("--slide-scale", "nan"),
+        ("--slide-angle-deg", "45"),
+        ("--slide-angle-deg", "-inf"),
+    ] {
+        for kind in ["session", "scan"] {
+            let command = a(&["simulate", kind, "--out", &out, flag, value]);
+            suite.refused(&format!("simulate {kind} {flag} {value}"), &command, &[flag]);
+        }
+    }
     for value in bad_numbers {
         let expect = if value == "1e308" { Expect::Any } else { Expect::Refused };
         let command = a(&["calibrate", "laser", "--samples", &samples, "--threshold-mm", value]);

@@ -467,9 +467,22 @@ fn calibrate_from_a_simulated_session_end_to_end() {
     assert!(csv.starts_with("u_n,v_n,z_mm,slide_mm"));
     assert_eq!(csv.lines().count() as u64, n + 1);
     assert!(std::fs::read_to_string(&laser).unwrap().contains("alpha_deg"));
+    // Three slide positions: the slide scale k fitted, with its standard
+    // deviation, and written to laser.yaml.
+    assert_eq!(json["slide_scale_fitted"], true, "{json}");
+    assert!((json["slide_scale"].as_f64().unwrap() - 1.0).abs() < 0.002, "{json}");
+    assert!(json["slide_scale_std"].as_f64().unwrap() > 0.0, "{json}");
+    assert!(std::fs::read_to_string(&laser).unwrap().contains("slide_scale:"));
     // The exported samples calibrate to the same laser.
     let again = stdout_json(&alacs(&cmdline("calibrate laser --samples {} --json", &[&samples])));
     assert_eq!(again["alpha_deg"], json["alpha_deg"]);
+    assert_eq!(again["slide_scale"], json["slide_scale"]);
+    // --hold-slide-scale: the seed's model, k = 1 and no standard deviation.
+    let template = "calibrate laser --samples {} --hold-slide-scale --json";
+    let held = stdout_json(&alacs(&cmdline(template, &[&samples])));
+    assert_eq!(held["slide_scale"], 1.0);
+    assert_eq!(held["slide_scale_fitted"], false);
+    assert!(held["slide_scale_std"].is_null(), "{held}");
     // Evaluate: Table 1 on the session's samples, then the accuracy experiment.
     let eval_dir = dir.join("evaluation");
     let eval_out = eval_dir.to_str().unwrap();
