@@ -232,8 +232,21 @@ pub fn camera(args: &CalibrateCameraArgs) -> CmdResult {
             })).collect::<Vec<_>>(),
         }))?;
     } else {
-        let sd =
-            |i: usize| fit.std_dev.as_ref().map(|s| format!(" +- {:.2}", s[i])).unwrap_or_default();
+        let held = [
+            false,
+            options.fixed.aspect,
+            options.fixed.principal_point,
+            options.fixed.principal_point,
+        ];
+        let sd = |i: usize| {
+            if i == 1 && held[1] {
+                return format!(" (fx x {:.5}: aspect held)", c.fy_px / c.fx_px);
+            }
+            if held[i] {
+                return " (held)".to_string();
+            }
+            fit.std_dev.as_ref().map(|s| format!(" +- {:.2}", s[i])).unwrap_or_default()
+        };
         outln!(
             "camera {} x {} px from {} board poses ({} images; views rejected: {})",
             c.width_px,
@@ -245,6 +258,10 @@ pub fn camera(args: &CalibrateCameraArgs) -> CmdResult {
         outln!("  fx {:.2}{} px, fy {:.2}{} px", c.fx_px, sd(0), c.fy_px, sd(1));
         outln!("  cx {:.2}{} px, cy {:.2}{} px", c.cx_px, sd(2), c.cy_px, sd(3));
         outln!("  {model} {:?}", dist.iter().map(|d| (d * 1e5).round() / 1e5).collect::<Vec<_>>());
+        let fixed = fixed_names(&options.fixed);
+        if !fixed.is_empty() {
+            outln!("  held: {}", fixed.join(", "));
+        }
         outln!("  reprojection RMS {:.3} px", fit.rms_px);
         for view in &fit.views {
             let rms = view.rms_px.map(|r| format!("{r:.3} px")).unwrap_or_else(|| "-".into());
