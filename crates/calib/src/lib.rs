@@ -13,7 +13,8 @@
 //!   samples name their poses (samples of one pose share its error), else
 //!   the fit's covariance.
 //!
-//! Samples may carry `slide_mm`: L = L0 - d per sample, L0 fitted jointly.
+//! Samples may carry `slide_mm`: L = L0 - k d per sample, L0 and the slide
+//! scale k fitted jointly where the samples span two or more slide positions.
 //!
 //! # Example
 //! ```

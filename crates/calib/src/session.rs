@@ -10,7 +10,8 @@
 //!    stripe's profile there (the reflectance step biases its centre),
 //!
 //! and the robust calibration (Algorithm 1, method 4 by default) over the
-//! samples of all views, L0 fitted jointly when the slide positions differ.
+//! samples of all views, L0 and the slide scale k fitted jointly when the
+//! slide positions differ.
 
 use std::path::Path;
 

@@ -228,6 +228,9 @@ pub struct EvaluateCalibrationArgs {
     /// from the session's board views first).
     #[arg(long, value_name = "FILE", requires = "session")]
     pub camera: Option<PathBuf>,
+    /// The controls of that camera calibration (without --camera).
+    #[command(flatten)]
+    pub controls: CameraControlArgs,
     /// Folder for the artefacts (created): calibration_table1.txt,
     /// calibration.json, calibration_residuals_method{1..4}.png and .svg.
     #[arg(long, value_name = "DIR", default_value = "evaluation")]
@@ -377,6 +380,18 @@ pub struct CalibrateCameraArgs {
     /// OpenCV FileStorage YAML (cv2.FileStorage reads it; alacs reads both).
     #[arg(long, value_enum, default_value_t = CameraFormatArg::Ros, requires = "output")]
     pub format: CameraFormatArg,
+    /// OpenCV's camera calibration controls.
+    #[command(flatten)]
+    pub controls: CameraControlArgs,
+    /// Print one JSON object (docs/FORMATS.md) on standard output instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// OpenCV's camera calibration controls (`calibrate camera`, and
+/// `evaluate calibration --session` when it calibrates the camera).
+#[derive(Debug, Args)]
+pub struct CameraControlArgs {
     /// The distortion model fitted (default: the --initial camera's, else
     /// plumb_bob).
     #[arg(long, value_enum)]
@@ -392,9 +407,13 @@ pub struct CalibrateCameraArgs {
     /// intrinsics and distortion start the fit and give the held values.
     #[arg(long, value_name = "FILE")]
     pub initial: Option<PathBuf>,
-    /// Print one JSON object (docs/FORMATS.md) on standard output instead of text.
-    #[arg(long)]
-    pub json: bool,
+}
+
+impl CameraControlArgs {
+    /// Whether any control was given.
+    pub fn any(&self) -> bool {
+        self.distortion.is_some() || !self.fix.is_empty() || self.initial.is_some()
+    }
 }
 
 /// A distortion model `calibrate camera` fits.
@@ -526,7 +545,7 @@ pub struct TriangulateArgs {
     /// laser.yaml.
     #[arg(long, value_name = "FILE")]
     pub laser: PathBuf,
-    /// Slide travel d in mm (L = L0 - d).
+    /// Slide travel d in mm (L = L0 - k d).
     #[arg(long, value_name = "D", value_parser = slide_mm)]
     pub slide_mm: f64,
     /// Pixels CSV with header u_px,v_px.

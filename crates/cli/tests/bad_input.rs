@@ -1302,6 +1302,23 @@ fn bad_command_lines_are_refused_naming_the_flag() {
     for value in ["nan", "inf", "1e308", "abc", "", "-1e308"] {
         suite.refused(&format!("triangulate --slide-mm {value}"), &triangulate(value), &["slide"]);
     }
+    // The camera calibration's controls where no camera is calibrated.
+    let command =
+        a(&["evaluate", "calibration", "--samples", &samples, "--fix", "k3", "--out", &out]);
+    suite.refused("evaluate calibration --samples --fix", &command, &["--samples"]);
+    let command = a(&[
+        "evaluate",
+        "calibration",
+        "--session",
+        &session,
+        "--camera",
+        &camera,
+        "--fix",
+        "k3",
+        "--out",
+        &out,
+    ]);
+    suite.refused("evaluate calibration --camera --fix", &command, &["--camera"]);
     // The simulated slide's error: the scale within 0.8-1.25, the angle within +-30 deg.
     for (flag, value) in [
         ("--slide-scale", "0"),

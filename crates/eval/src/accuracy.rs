@@ -5,7 +5,7 @@
 //!   board pose (PnP), as `alacs-calib`'s laser samples are made
 //!   ([`alacs_calib::view_samples`]),
 //! - the estimated point: the laser model's triangulation of the same pixel
-//!   (eqs. (7)-(8) with L = L0 - d),
+//!   (eqs. (7)-(8) with L = L0 - k d),
 //!
 //! and per slide position the distribution of the errors in x, y and z.
 //!
@@ -14,7 +14,7 @@
 //! since z = L / D with dD/du_n = -cos(alpha) (eq. (7)), the depth by
 //!
 //! ```text
-//! sigma_z = z^2 cos(alpha) sigma_px / (f L),    L = L0 - d,
+//! sigma_z = z^2 cos(alpha) sigma_px / (f L),    L = L0 - k d,
 //! ```
 //!
 //! which grows as the laser slides towards the camera (L shrinks). Each

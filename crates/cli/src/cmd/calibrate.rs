@@ -12,7 +12,8 @@ use anyhow::anyhow;
 use serde_json::json;
 
 use crate::args::{
-    CalibrateCameraArgs, CalibrateLaserArgs, CalibrateRgbdArgs, DistortionArg, FixArg, ResidualArg,
+    CalibrateCameraArgs, CalibrateLaserArgs, CalibrateRgbdArgs, CameraControlArgs, DistortionArg,
+    FixArg, ResidualArg,
 };
 use crate::failure::{CmdResult, Failure};
 use crate::output;
@@ -162,7 +163,7 @@ fn session_samples(
 }
 
 /// The camera calibration's controls from the command line.
-fn intrinsics_options(args: &CalibrateCameraArgs) -> CmdResult<IntrinsicsOptions> {
+pub(crate) fn intrinsics_options(args: &CameraControlArgs) -> CmdResult<IntrinsicsOptions> {
     let initial = args.initial.as_deref().map(Camera::from_yaml_file).transpose()?;
     let distortion = match (args.distortion, &initial) {
         (Some(DistortionArg::PlumbBob), _) => DistortionModel::PlumbBob,
@@ -195,7 +196,7 @@ fn fixed_names(fixed: &FixedIntrinsics) -> Vec<&'static str> {
 /// Runs `alacs calibrate camera`.
 pub fn camera(args: &CalibrateCameraArgs) -> CmdResult {
     let session = Session::read(&args.session)?;
-    let options = intrinsics_options(args)?;
+    let options = intrinsics_options(&args.controls)?;
     let bar = output::progress_bar(args.json, "board corners");
     output::start_progress(&bar, session.views.len(), "views: board corners");
     let fit = calibrate_camera_session(&session, &options, &|| bar.inc(1));

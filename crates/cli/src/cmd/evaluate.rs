@@ -2,8 +2,8 @@
 //! paper's experiments as reports (crate `alacs-eval`).
 
 use alacs::calib::{
-    CalibrationOptions, IntrinsicsOptions, LaserSessionOptions, calibrate_camera_session,
-    calibrate_laser_session, read_samples_csv,
+    CalibrationOptions, LaserSessionOptions, calibrate_camera_session, calibrate_laser_session,
+    read_samples_csv,
 };
 use alacs::eval::{
     AccuracyOptions, OutputKind, PointsPerView, evaluate_accuracy, evaluate_calibration,
@@ -25,12 +25,17 @@ fn session_samples(
 ) -> CmdResult<Vec<LaserSample>> {
     let session = Session::read(dir)?;
     let camera = match &args.camera {
+        Some(_) if args.controls.any() => {
+            return Err(Failure::bad_input(anyhow!(
+                "--distortion, --fix and --initial control the camera calibration that --camera replaces: give one or the other"
+            )));
+        }
         Some(path) => Camera::from_yaml_file(path)?,
         None => {
+            let options = crate::cmd::calibrate::intrinsics_options(&args.controls)?;
             let bar = output::progress_bar(args.json, "board corners");
             output::start_progress(&bar, session.views.len(), "views: board corners (camera)");
-            let fit =
-                calibrate_camera_session(&session, &IntrinsicsOptions::default(), &|| bar.inc(1));
+            let fit = calibrate_camera_session(&session, &options, &|| bar.inc(1));
             bar.finish_and_clear();
             let fit = fit.map_err(|e| Failure::from(e).with_context(dir))?;
             eprintln!(
@@ -61,6 +66,11 @@ pub fn calibration(args: &EvaluateCalibrationArgs) -> CmdResult {
         return Err(Failure::bad_input(anyhow!(
             "--threshold-mm must be a positive number of mm, got {}",
             args.threshold_mm
+        )));
+    }
+    if args.samples.is_some() && args.controls.any() {
+        return Err(Failure::bad_input(anyhow!(
+            "--distortion, --fix and --initial control the camera calibration of --session; --samples has no camera to calibrate"
         )));
     }
     let (samples, source) = match (&args.samples, &args.session) {
