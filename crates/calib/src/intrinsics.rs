@@ -102,13 +102,19 @@ impl FixedIntrinsics {
         let zero = |i: usize| c.get(i).is_none_or(|&v| v == 0.0);
         let (cx, cy) = image_centre(camera.width_px, camera.height_px);
         FixedIntrinsics {
-            k3: zero(4),
-            tangential: zero(2) && zero(3),
+            k3: zero(K3),
+            tangential: TANGENTIAL.clone().all(zero),
             aspect: camera.fx_px == camera.fy_px,
             principal_point: camera.cx_px == cx && camera.cy_px == cy,
         }
     }
 }
+
+/// Where k3 sits among the distortion coefficients (OpenCV's order).
+const K3: usize = 4;
+
+/// Where p1 and p2 sit among the distortion coefficients.
+const TANGENTIAL: std::ops::Range<usize> = 2..4;
 
 /// OpenCV's image centre, ((w - 1) / 2, (h - 1) / 2).
 fn image_centre(width_px: u32, height_px: u32) -> (f64, f64) {
@@ -152,10 +158,20 @@ impl IntrinsicsLayout {
         let coefficients = start.distortion.coefficients().len();
         free.extend(
             (0..coefficients)
-                .filter(|&i| !(fixed.tangential && (i == 2 || i == 3)) && !(fixed.k3 && i == 4))
+                .filter(|&i| {
+                    let held =
+                        (fixed.tangential && TANGENTIAL.contains(&i)) || (fixed.k3 && i == K3);
+                    !held
+                })
                 .map(Intrinsic::Coefficient),
         );
         IntrinsicsLayout { free, coefficients }
+    }
+
+    /// The layout of the intrinsics `camera` shows were fitted
+    /// ([`FixedIntrinsics::inferred_from`]), for re-calibrations of it.
+    pub(crate) fn inferred(camera: &Camera) -> Self {
+        Self::new(camera, FixedIntrinsics::inferred_from(camera))
     }
 
     fn len(&self) -> usize {
@@ -178,7 +194,6 @@ impl IntrinsicsLayout {
     /// `template` with the free intrinsics set to `values`.
     fn camera(&self, values: &[f64], template: &Camera) -> Camera {
         let mut camera = template.clone();
-        let mut coefficients = camera.distortion.coefficients().to_vec();
         for (p, &v) in self.free.iter().zip(values) {
             match *p {
                 Intrinsic::Fx => camera.fx_px = v,
@@ -190,21 +205,12 @@ impl IntrinsicsLayout {
                 Intrinsic::Cx => camera.cx_px = v,
                 Intrinsic::Cy => camera.cy_px = v,
                 Intrinsic::Coefficient(i) => {
-                    if let Some(slot) = coefficients.get_mut(i) {
+                    if let Some(slot) = camera.distortion.coefficients_mut().get_mut(i) {
                         *slot = v;
                     }
                 }
             }
         }
-        camera.distortion = match camera.distortion {
-            Distortion::RationalPolynomial(_) => {
-                Distortion::RationalPolynomial(std::array::from_fn(|i| coefficients[i]))
-            }
-            Distortion::PlumbBob(_) => {
-                Distortion::PlumbBob(std::array::from_fn(|i| coefficients[i]))
-            }
-            Distortion::None => Distortion::None,
-        };
         camera
     }
 
@@ -483,11 +489,12 @@ fn initial_guess(
         }
         None => zhang_guess(width_px, height_px, views)?,
     };
-    let mut coefficients = camera.distortion.to_model(options.distortion);
-    if options.fixed.tangential {
-        coefficients = zero_tangential(coefficients);
+    camera.distortion = camera.distortion.to_model(options.distortion);
+    if options.fixed.tangential
+        && let Some(tangential) = camera.distortion.coefficients_mut().get_mut(TANGENTIAL)
+    {
+        tangential.fill(0.0);
     }
-    camera.distortion = coefficients;
     if options.initial.is_none() {
         if options.fixed.aspect {
             camera.fy_px = camera.fx_px;
@@ -497,17 +504,6 @@ fn initial_guess(
         }
     }
     Ok((camera, poses))
-}
-
-/// `distortion` with p1 = p2 = 0.
-fn zero_tangential(distortion: Distortion) -> Distortion {
-    match distortion {
-        Distortion::PlumbBob([k1, k2, _, _, k3]) => Distortion::PlumbBob([k1, k2, 0.0, 0.0, k3]),
-        Distortion::RationalPolynomial([k1, k2, _, _, k3, k4, k5, k6]) => {
-            Distortion::RationalPolynomial([k1, k2, 0.0, 0.0, k3, k4, k5, k6])
-        }
-        Distortion::None => Distortion::None,
-    }
 }
 
 /// K of `camera`.
@@ -870,7 +866,7 @@ pub fn intrinsics_std_dev_at(camera: &Camera, views: &[&BoardObservation]) -> Op
     }
     let views: Vec<&BoardObservation> = posed.iter().map(|(view, _)| *view).collect();
     let poses: Vec<Isometry3<f64>> = posed.iter().map(|(_, pose)| *pose).collect();
-    let layout = IntrinsicsLayout::new(camera, FixedIntrinsics::inferred_from(camera));
+    let layout = IntrinsicsLayout::inferred(camera);
     let problem = Reprojection {
         views: &views,
         layout: Some(&layout),
@@ -905,7 +901,7 @@ impl CameraLinearization {
         poses: Vec<Isometry3<f64>>,
         views: &[&BoardObservation],
     ) -> Result<CameraLinearization> {
-        let layout = IntrinsicsLayout::new(&camera, FixedIntrinsics::inferred_from(&camera));
+        let layout = IntrinsicsLayout::inferred(&camera);
         let (camera, poses, _) = refine(camera, poses, views, &layout)?;
         let n_intrinsics = layout.len();
         let problem = Reprojection {

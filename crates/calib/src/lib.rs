@@ -69,7 +69,7 @@ pub use refine::Residual;
 pub use rgbd::{RgbdCalibration, RgbdPose, calibrate_rgbd};
 pub use session::{
     LaserSessionCalibration, LaserSessionOptions, ViewBoard, ViewSamples, board_pose_groups,
-    calibrate_camera_session, calibrate_laser_session, detect_session_boards, rejection_note,
-    session_view_samples, view_samples,
+    calibrate_camera_session, calibrate_laser_session, detect_session_boards, pose_observations,
+    rejection_note, session_view_samples, view_samples,
 };
 pub use uncertainty::{BOOTSTRAP_REPLICATES, MIN_BOOTSTRAP_POSES, StdSource, laser_std_dev_at};

@@ -44,13 +44,17 @@ pub(crate) struct LinearForm {
 impl LinearForm {
     /// The form for `samples`; several slide positions add the k/L0 column,
     /// and free k where `fit_slide_scale`.
-    pub(crate) fn new(fidelity: Fidelity, samples: &[LaserSample], fit_slide_scale: bool) -> Self {
-        let (min, max, sum) =
-            samples.iter().fold((f64::INFINITY, f64::NEG_INFINITY, 0.0), |(lo, hi, sum), s| {
-                (lo.min(s.slide_mm), hi.max(s.slide_mm), sum + s.slide_mm)
+    pub(crate) fn new<'a>(
+        fidelity: Fidelity,
+        samples: impl IntoIterator<Item = &'a LaserSample>,
+        fit_slide_scale: bool,
+    ) -> Self {
+        let (min, max, sum, n) = samples
+            .into_iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY, 0.0, 0usize), |(lo, hi, sum, n), s| {
+                (lo.min(s.slide_mm), hi.max(s.slide_mm), sum + s.slide_mm, n + 1)
             });
-        let common_slide_mm =
-            (max - min < MIN_SLIDE_SPREAD_MM).then(|| sum / samples.len().max(1) as f64);
+        let common_slide_mm = (max - min < MIN_SLIDE_SPREAD_MM).then(|| sum / n.max(1) as f64);
         Self { fidelity, common_slide_mm, fit_slide_scale }
     }
 

@@ -193,6 +193,30 @@ fn observation(session: &Session, name: &str, corners: &BoardCorners) -> BoardOb
     BoardObservation { name: name.to_string(), points_in_board, pixels }
 }
 
+/// One observation per board pose of a session's images (`observations`,
+/// `None` where an image has no board): the images of one pose at several
+/// slide positions are one view of the board, not several, with each
+/// corner at the median of where they saw it. Returns each image's pose
+/// ([`board_pose_groups`]) and the poses' observations, in pose order.
+pub fn pose_observations(
+    observations: &[Option<&BoardObservation>],
+) -> (Vec<Option<u32>>, Vec<BoardObservation>) {
+    let groups = board_pose_groups(observations);
+    let n_poses = groups.iter().flatten().map(|&g| g as usize + 1).max().unwrap_or(0);
+    let merged = (0..n_poses)
+        .filter_map(|g| {
+            let members: Vec<&BoardObservation> = observations
+                .iter()
+                .zip(&groups)
+                .filter(|(_, group)| **group == u32::try_from(g).ok())
+                .filter_map(|(o, _)| *o)
+                .collect();
+            merge_pose(&members)
+        })
+        .collect();
+    (groups, merged)
+}
+
 /// Calibrates the camera from a session's board views (the laser is
 /// ignored). Views without a board are listed as rejected with the reason.
 pub fn calibrate_camera_session(
@@ -205,21 +229,8 @@ pub fn calibrate_camera_session(
         .iter()
         .map(|b| b.corners.as_ref().ok().map(|c| observation(session, &b.image, c)))
         .collect();
-    // One observation per board pose: the images of one pose at several
-    // slide positions are one view of the board, not several.
-    let groups = board_pose_groups(&found.iter().map(Option::as_ref).collect::<Vec<_>>());
-    let n_poses = groups.iter().flatten().map(|&g| g as usize + 1).max().unwrap_or(0);
-    let observations: Vec<BoardObservation> = (0..n_poses)
-        .filter_map(|g| {
-            let members: Vec<&BoardObservation> = found
-                .iter()
-                .zip(&groups)
-                .filter(|(_, group)| **group == u32::try_from(g).ok())
-                .filter_map(|(o, _)| o.as_ref())
-                .collect();
-            merge_pose(&members)
-        })
-        .collect();
+    let (_, observations) =
+        pose_observations(&found.iter().map(Option::as_ref).collect::<Vec<_>>());
     let no_board = || {
         boards
             .iter()

@@ -222,8 +222,8 @@ pub fn laser_std_dev_at(
     let inliers: Vec<usize> = (0..samples.len())
         .filter(|&i| crate::depth_error_mm(laser, &samples[i]).abs() <= threshold_mm)
         .collect();
-    let inlier_samples: Vec<LaserSample> = inliers.iter().map(|&i| samples[i]).collect();
-    let layout = crate::linear::LinearForm::new(laser.fidelity, &inlier_samples, true).layout();
+    let inlier_samples = inliers.iter().map(|&i| &samples[i]);
+    let layout = crate::linear::LinearForm::new(laser.fidelity, inlier_samples, true).layout();
     let (std, source) = pose_bootstrap(samples, &inliers, laser, layout, Residual::Depth, 0, true)?;
     crate::ParameterStdDev::from_parameters(&std, layout, source)
 }

@@ -353,9 +353,14 @@ fn decimate<I: Iterator<Item = (f64, f64)>>(
     kept
 }
 
-/// Distinct slide positions of `slides_mm` (to 0.1 mm), ascending.
+/// A slide position to 0.1 mm: the key the plots colour by.
+fn slide_key(slide_mm: f64) -> f64 {
+    (slide_mm * 10.0).round() / 10.0
+}
+
+/// Distinct slide positions of `slides_mm` ([`slide_key`]), ascending.
 fn distinct_slides(slides_mm: &[f64]) -> Vec<f64> {
-    let mut distinct: Vec<f64> = slides_mm.iter().map(|d| (d * 10.0).round() / 10.0).collect();
+    let mut distinct: Vec<f64> = slides_mm.iter().map(|&d| slide_key(d)).collect();
     distinct.sort_by(f64::total_cmp);
     distinct.dedup();
     distinct
@@ -455,7 +460,7 @@ impl Figure for Residuals<'_> {
         )))?;
         let slides = distinct_slides(self.slides_mm);
         let slide_of = |i: usize| {
-            let d = (self.slides_mm.get(i).copied().unwrap_or(0.0) * 10.0).round() / 10.0;
+            let d = slide_key(self.slides_mm.get(i).copied().unwrap_or(0.0));
             slides.iter().position(|&s| s == d).unwrap_or(0)
         };
         let points = |inlier: bool, slide: Option<usize>| {
@@ -606,7 +611,7 @@ impl Figure for Views<'_> {
                 .views
                 .iter()
                 .enumerate()
-                .filter(|(_, v)| (v.slide_mm * 10.0).round() / 10.0 == slide_mm)
+                .filter(|(_, v)| slide_key(v.slide_mm) == slide_mm)
                 .flat_map(|(i, v)| {
                     let step = v.residuals_mm.len().div_ceil(MAX_POINTS_PER_VIEW).max(1);
                     let count = v.residuals_mm.len().max(1) as f64;

@@ -362,7 +362,7 @@ pub fn run(args: &DemoArgs) -> CmdResult {
             "images": {
                 "camera_rms_px": pipeline.camera_rms_px,
                 "fx_px": pipeline.camera.fx_px,
-                "laser": {"alpha_deg": pipeline.laser.alpha_deg(), "beta_deg": pipeline.laser.beta_deg(), "l0_mm": pipeline.laser.l0_mm, "slide_scale": pipeline.laser.slide_scale},
+                "laser": pipeline.laser.to_file(),
                 "laser_samples": pipeline.laser_samples,
                 "localization": pipeline.conditions.iter().map(condition_json).collect::<Vec<Value>>(),
                 "accuracy": pipeline.accuracy.to_json(),

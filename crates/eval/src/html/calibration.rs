@@ -6,8 +6,8 @@ use std::path::{Path, PathBuf};
 
 use alacs_calib::{
     BoardObservation, CalibrationOptions, LaserSample, ParameterStdDev, ViewSamples,
-    board_pose_groups, depth_error_mm, detect_session_boards, intrinsics_std_dev_at,
-    laser_std_dev_at, session_view_samples,
+    depth_error_mm, detect_session_boards, intrinsics_std_dev_at, laser_std_dev_at,
+    pose_observations, session_view_samples,
 };
 use alacs_model::io::OutputDir;
 use alacs_model::{Camera, LaserModel, Session};
@@ -184,22 +184,13 @@ pub fn calibration_report_from_views(
         });
         samples.extend_from_slice(view_samples);
     }
-    // One observation per board pose for the camera's standard deviations;
-    // every sample named by its pose for the laser's.
+    // One observation per board pose for the camera's standard deviations
+    // (as calibrate camera takes them); every sample named by its pose for
+    // the laser's.
     let observations: Vec<Option<&BoardObservation>> =
         per_view.iter().map(|(_, view)| view.observation.as_ref()).collect();
-    let groups = board_pose_groups(&observations);
-    let mut first_of_pose: Vec<&BoardObservation> = Vec::new();
-    let mut seen = Vec::new();
-    for (observation, group) in observations.iter().zip(&groups) {
-        if let (Some(observation), Some(group)) = (observation, group)
-            && !seen.contains(group)
-        {
-            seen.push(*group);
-            first_of_pose.push(observation);
-        }
-    }
-    let camera_std = intrinsics_std_dev_at(camera, &first_of_pose);
+    let (groups, per_pose) = pose_observations(&observations);
+    let camera_std = intrinsics_std_dev_at(camera, &per_pose.iter().collect::<Vec<_>>());
     let mut posed_samples = Vec::with_capacity(samples.len());
     for ((view_samples, _), group) in per_view.iter().zip(&groups) {
         posed_samples.extend(view_samples.iter().map(|s| LaserSample { pose: *group, ..*s }));

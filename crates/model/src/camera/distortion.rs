@@ -44,14 +44,6 @@ impl DistortionModel {
             DistortionModel::RationalPolynomial => "rational_polynomial",
         }
     }
-
-    /// Number of coefficients: 5 or 8.
-    pub fn coefficient_count(self) -> usize {
-        match self {
-            DistortionModel::PlumbBob => 5,
-            DistortionModel::RationalPolynomial => 8,
-        }
-    }
 }
 
 /// The coefficients of either model in the rational form, the others 0.
@@ -78,11 +70,11 @@ impl Distortion {
     /// holds for this distortion; `None` is written as `plumb_bob` with five
     /// zeros, as ROS does for an undistorted camera.
     pub fn ros_model(&self) -> (&'static str, Vec<f64>) {
-        match self {
-            Distortion::None => ("plumb_bob", vec![0.0; 5]),
-            Distortion::PlumbBob(c) => ("plumb_bob", c.to_vec()),
-            Distortion::RationalPolynomial(c) => ("rational_polynomial", c.to_vec()),
-        }
+        let coefficients = match self {
+            Distortion::None => vec![0.0; 5],
+            _ => self.coefficients().to_vec(),
+        };
+        (self.model().as_str(), coefficients)
     }
 
     /// The coefficients in OpenCV's order (empty for `None`).
@@ -121,6 +113,15 @@ impl Distortion {
         match self {
             Distortion::RationalPolynomial(_) => DistortionModel::RationalPolynomial,
             Distortion::None | Distortion::PlumbBob(_) => DistortionModel::PlumbBob,
+        }
+    }
+
+    /// The coefficients in OpenCV's order, to change in place (empty for `None`).
+    pub fn coefficients_mut(&mut self) -> &mut [f64] {
+        match self {
+            Distortion::None => &mut [],
+            Distortion::PlumbBob(c) => c,
+            Distortion::RationalPolynomial(c) => c,
         }
     }
 

@@ -195,10 +195,9 @@ struct DistortionOfCoefficients(Distortion, Point2<f64>);
 
 impl DistortionOfCoefficients {
     fn with(&self, x: &DVector<f64>) -> Distortion {
-        match self.0 {
-            Distortion::PlumbBob(_) => Distortion::PlumbBob(std::array::from_fn(|i| x[i])),
-            _ => Distortion::RationalPolynomial(std::array::from_fn(|i| x[i])),
-        }
+        let mut distortion = self.0;
+        distortion.coefficients_mut().copy_from_slice(x.as_slice());
+        distortion
     }
 }
 
