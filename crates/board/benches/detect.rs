@@ -15,7 +15,7 @@ fn detection(c: &mut Criterion) {
     let photo =
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../../testdata/opencv_right/right01.jpg");
     let photo = board_gray(&read_image(&photo).unwrap());
-    let board_9x6 = BoardSpec { cols: 9, rows: 6, square_x_mm: 25.0, square_y_mm: 25.0 };
+    let board_9x6 = BoardSpec::checkerboard(9, 6, 25.0, 25.0);
     c.bench_function("checkerboard_640x480_photo", |b| {
         b.iter(|| detect_checkerboard(&photo, &board_9x6).unwrap())
     });
@@ -27,7 +27,7 @@ fn detection(c: &mut Criterion) {
     let gray = board_gray(&image::DynamicImage::ImageRgb8(view.clone()));
     let (cols, rows) = session.board.inner_corners;
     let (square_x_mm, square_y_mm) = session.board.square_mm;
-    let board = BoardSpec { cols, rows, square_x_mm, square_y_mm };
+    let board = BoardSpec::checkerboard(cols, rows, square_x_mm, square_y_mm);
     let mut group = c.benchmark_group("5mp");
     group.sample_size(10);
     group.bench_function("checkerboard_5mp_view", |b| {

@@ -58,7 +58,7 @@ fn run(args: &[String]) -> Result<(), String> {
         "board" => {
             let cols = number(args.get(2), "COLS")?;
             let rows = number(args.get(3), "ROWS")?;
-            let board = BoardSpec { cols, rows, square_x_mm: 1.0, square_y_mm: 1.0 };
+            let board = BoardSpec::checkerboard(cols, rows, 1.0, 1.0);
             for file in &args[4..] {
                 let image =
                     read_image(std::path::Path::new(file)).map_err(|e| format!("{file}: {e}"))?;

@@ -40,10 +40,10 @@ pub const MAX_MISSING_FRACTION: f64 = 0.1;
 /// 0.2, 0.25, 0.3 and 0.35 gave a calibration RMS of 0.219, 0.199, 0.191,
 /// 0.236 and 0.357 px; on a simulated 5 MP session 0.043, 0.037, 0.034,
 /// 0.034, 0.034 px (the window capped at 15 px from 0.3 on).
-const REFINE_WINDOW_PER_CELL: f64 = 0.25;
+pub(crate) const REFINE_WINDOW_PER_CELL: f64 = 0.25;
 
 /// Largest half window of the corner refinement (px).
-const MAX_REFINE_HALF_WINDOW_PX: f64 = 15.0;
+pub(crate) const MAX_REFINE_HALF_WINDOW_PX: f64 = 15.0;
 
 /// A board found in an image: every inner corner in OpenCV's order.
 #[derive(Debug, Clone, PartialEq)]
@@ -95,7 +95,12 @@ pub fn board_gray(image: &DynamicImage) -> GrayImage {
 
 /// Finds the `board.cols x board.rows` inner corners in a grey image.
 pub fn detect_checkerboard(gray: &GrayImage, board: &BoardSpec) -> Result<BoardCorners> {
-    let no_board = |reason: String| Error::NoBoard { cols: board.cols, rows: board.rows, reason };
+    let no_board = |reason: String| Error::NoBoard {
+        kind: "checkerboard",
+        cols: board.cols,
+        rows: board.rows,
+        reason,
+    };
     let configs = ChessboardParams::sweep_default();
     let detection = detect::detect_chessboard_best(gray, &detect::default_chess_config(), &configs)
         .map_err(|e| no_board(format!("no corner grid ({e})")))?;
@@ -284,6 +289,18 @@ fn min_max(values: impl Iterator<Item = i64>) -> (i64, i64) {
 /// A corner whose refinement wanders off by more than a window is kept where
 /// it was.
 pub fn refine_corners(gray: &GrayImage, corners: &mut BoardCorners, half_window_px: u32) {
+    refine_corners_within(gray, corners, half_window_px, f64::INFINITY);
+}
+
+/// [`refine_corners`] using only the window's pixels within `max_radius_px`
+/// of the corner (a ChArUco board's markers must stay out of it).
+pub(crate) fn refine_corners_within(
+    gray: &GrayImage,
+    corners: &mut BoardCorners,
+    half_window_px: u32,
+    max_radius_px: f64,
+) {
+    let max_radius_sq = max_radius_px * max_radius_px;
     let (width, height) = (gray.width() as i64, gray.height() as i64);
     let w = i64::from(half_window_px.max(2));
     let sigma = w as f64 / 2.0;
@@ -300,6 +317,9 @@ pub fn refine_corners(gray: &GrayImage, corners: &mut BoardCorners, half_window_
             for v in cv - w..=cv + w {
                 for u in cu - w..=cu + w {
                     let (du, dv) = (u as f64 - q.x, v as f64 - q.y);
+                    if du * du + dv * dv > max_radius_sq {
+                        continue;
+                    }
                     let weight = (-(du * du + dv * dv) / (2.0 * sigma * sigma)).exp();
                     let gx = (at(u + 1, v) - at(u - 1, v)) / 2.0;
                     let gy = (at(u, v + 1) - at(u, v - 1)) / 2.0;

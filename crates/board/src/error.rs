@@ -7,9 +7,11 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum Error {
-    /// No checkerboard of the requested size was found in an image.
-    #[error("no {cols} x {rows} checkerboard found: {reason}")]
+    /// No board of the requested size was found in an image.
+    #[error("no {cols} x {rows} {kind} found: {reason}")]
     NoBoard {
+        /// "checkerboard" or "ChArUco board".
+        kind: &'static str,
         /// Inner corners per row the search was for.
         cols: usize,
         /// Inner corners per column the search was for.
@@ -17,12 +19,23 @@ pub enum Error {
         /// Why the detection was refused.
         reason: String,
     },
+    /// The board of session.yaml cannot be searched for (a ChArUco board
+    /// the detector cannot describe).
+    #[error("invalid board: {reason}")]
+    InvalidBoard {
+        /// What is wrong with it.
+        reason: String,
+    },
 }
 
 impl Error {
     /// Whether the error is about unreadable or invalid input rather than a
-    /// job that failed on readable input: a board not found is a failed job.
+    /// job that failed on readable input: a board not found is a failed job,
+    /// a board that cannot be described is bad input.
     pub fn class(&self) -> alacs_model::ErrorClass {
-        alacs_model::ErrorClass::JobFailed
+        match self {
+            Error::NoBoard { .. } => alacs_model::ErrorClass::JobFailed,
+            Error::InvalidBoard { .. } => alacs_model::ErrorClass::BadInput,
+        }
     }
 }

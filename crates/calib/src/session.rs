@@ -15,7 +15,7 @@
 
 use std::path::Path;
 
-use alacs_board::{BoardCorners, board_gray, detect_checkerboard};
+use alacs_board::{BoardCorners, board_gray, detect_board};
 use alacs_model::{Camera, Session, SessionView};
 use alacs_vision::{Region, StripeOptions, extract_stripe_rgb, read_image};
 use nalgebra::{Isometry3, Point2};
@@ -58,10 +58,11 @@ const WARN_RMS_MM: f64 = 1.0;
 /// a pixel, and a board moved by hand moves its corners by many pixels.
 const SAME_POSE_PX: f64 = 1.0;
 
-/// Whether two images' corners show one board pose: at least half of each
-/// one's corners in common (by their board points), and nine in ten of the
-/// common corners within [`SAME_POSE_PX`] (a laser line over a corner in
-/// one image may move that corner further).
+/// Whether two images' corners show one board pose: at least half of the
+/// smaller one's corners in common (by their board points; a ChArUco board
+/// cut by the border may show different parts in two images of one pose),
+/// and nine in ten of the common corners within [`SAME_POSE_PX`] (a laser
+/// line over a corner in one image may move that corner further).
 fn same_pose(a: &BoardObservation, b: &BoardObservation) -> bool {
     let (mut common, mut close) = (0usize, 0usize);
     for (point, pixel) in a.points_in_board.iter().zip(&a.pixels) {
@@ -70,7 +71,7 @@ fn same_pose(a: &BoardObservation, b: &BoardObservation) -> bool {
             close += usize::from((b.pixels[k] - pixel).norm() < SAME_POSE_PX);
         }
     }
-    common >= 4 && 2 * common >= a.pixels.len().max(b.pixels.len()) && 10 * close >= 9 * common
+    common >= 4 && 2 * common >= a.pixels.len().min(b.pixels.len()) && 10 * close >= 9 * common
 }
 
 /// The board pose of each image, numbered 0, 1, ... in order of first
@@ -159,7 +160,7 @@ pub fn detect_session_boards(
             let decoded = read_image(&session.path_of(image))?;
             let size = (decoded.width(), decoded.height());
             let gray = board_gray(&decoded);
-            let corners = detect_checkerboard(&gray, &session.board).map_err(|e| e.to_string());
+            let corners = detect_board(&gray, &session.board).map_err(|e| e.to_string());
             progress();
             Ok((size, ViewBoard { image: image.display().to_string(), corners }))
         })
@@ -400,7 +401,7 @@ pub fn view_samples(
     }
     let board_image = off.as_ref().unwrap_or(&on);
     let gray = board_gray(board_image);
-    let corners = match detect_checkerboard(&gray, &session.board) {
+    let corners = match detect_board(&gray, &session.board) {
         Ok(corners) => corners,
         Err(e) => {
             report.rejected = Some(e.to_string());
@@ -418,9 +419,12 @@ pub fn view_samples(
     report.camera_from_board = Some(camera_from_board);
     report.pose_rms_px = Some(rms);
     report.observation = Some(observation);
-    let Some(outline) = corners.outline_px() else {
-        report.rejected = Some("an outer corner of the board was not found".into());
-        return Ok((Vec::new(), report));
+    // The squares between the found corners: the four outer corners where
+    // all were found, else (a ChArUco board cut by the border, a corner
+    // under the laser) the convex hull of the corners found.
+    let outline = match corners.outline_px() {
+        Some(outline) => outline.to_vec(),
+        None => convex_hull(corners.found().map(|(_, p)| p).collect()),
     };
     let region =
         Region::convex_polygon(&outline, BOARD_MARGIN_PX, camera.width_px, camera.height_px);
@@ -469,14 +473,46 @@ pub fn view_samples(
 
 /// The printed shade at a point on the board (board frame, mm): 0 or 1 for
 /// the two colours of the squares, 2 for the margin around them (a third
-/// shade, so that the pattern's border always counts as an edge).
-fn board_shade(board: &alacs_model::BoardSpec, point_in_board: &nalgebra::Point3<f64>) -> u8 {
-    // The squares span -1 ..= cols (rows) squares from the first inner corner.
-    let col = (point_in_board.x / board.square_x_mm).floor();
-    let row = (point_in_board.y / board.square_y_mm).floor();
-    let inside =
-        (-1.0..board.cols as f64).contains(&col) && (-1.0..board.rows as f64).contains(&row);
-    if inside { ((col + row).rem_euclid(2.0)) as u8 } else { 2 }
+/// shade, so that the pattern's border always counts as an edge); `None` on
+/// a ChArUco board's marker, whose bits are no one shade.
+fn board_shade(
+    board: &alacs_model::BoardSpec,
+    point_in_board: &nalgebra::Point3<f64>,
+) -> Option<u8> {
+    if board.marker_cell_at(point_in_board.x, point_in_board.y).is_some() {
+        return None;
+    }
+    Some(match board.square_at(point_in_board.x, point_in_board.y) {
+        Some((i, j)) => ((i + j) % 2) as u8,
+        None => 2,
+    })
+}
+
+/// The convex hull of points, counter-clockwise in the image's (u, v)
+/// (Andrew's monotone chain); fewer than three points give no polygon.
+fn convex_hull(mut points: Vec<Point2<f64>>) -> Vec<Point2<f64>> {
+    points.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+    points.dedup();
+    if points.len() < 3 {
+        return Vec::new();
+    }
+    let cross = |o: &Point2<f64>, a: &Point2<f64>, b: &Point2<f64>| {
+        (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x)
+    };
+    let mut hull: Vec<Point2<f64>> = Vec::with_capacity(2 * points.len());
+    for pass in [points.clone(), points.into_iter().rev().collect()] {
+        let start = hull.len();
+        for p in pass {
+            while hull.len() >= start + 2
+                && cross(&hull[hull.len() - 2], &hull[hull.len() - 1], &p) <= 0.0
+            {
+                hull.pop();
+            }
+            hull.push(p);
+        }
+        hull.pop();
+    }
+    hull
 }
 
 /// Calibrates the laser from a session's views with a calibrated camera,
@@ -639,8 +675,7 @@ mod tests {
 
     #[test]
     fn board_shades_alternate_and_the_margin_is_its_own() {
-        let board =
-            alacs_model::BoardSpec { cols: 3, rows: 2, square_x_mm: 10.0, square_y_mm: 20.0 };
+        let board = alacs_model::BoardSpec::checkerboard(3, 2, 10.0, 20.0);
         let shade = |x: f64, y: f64| board_shade(&board, &nalgebra::Point3::new(x, y, 0.0));
         // The square left of and above the first inner corner, and its neighbours.
         assert_eq!(shade(-5.0, -10.0), shade(5.0, 10.0));
@@ -648,9 +683,35 @@ mod tests {
         assert_ne!(shade(-5.0, -10.0), shade(-5.0, 10.0));
         // The squares span -10..30 mm along x and -20..40 mm along y.
         assert_eq!(shade(29.0, 0.0), shade(9.0, 0.0));
-        assert_eq!(shade(31.0, 0.0), 2);
-        assert_eq!(shade(-11.0, 0.0), 2);
-        assert_eq!(shade(0.0, 41.0), 2);
-        assert_eq!(shade(0.0, -21.0), 2);
+        assert_eq!(shade(31.0, 0.0), Some(2));
+        assert_eq!(shade(-11.0, 0.0), Some(2));
+        assert_eq!(shade(0.0, 41.0), Some(2));
+        assert_eq!(shade(0.0, -21.0), Some(2));
+    }
+
+    #[test]
+    fn a_charuco_markers_square_is_no_shade_but_its_white_margin_is() {
+        let mut board = alacs_model::BoardSpec::checkerboard(3, 2, 10.0, 10.0);
+        board.markers = Some(alacs_model::CharucoMarkers {
+            marker_mm: 6.0,
+            dictionary: alacs_model::ArucoDictionary::Dict4x4_50,
+        });
+        let shade = |x: f64, y: f64| board_shade(&board, &nalgebra::Point3::new(x, y, 0.0));
+        // Square (1, 0) (x 0..10, y -10..0) is white with its marker at 2..8.
+        assert_eq!(shade(5.0, -5.0), None);
+        assert_eq!(shade(1.0, -5.0), shade(5.0, 5.0), "the white margin");
+        assert_ne!(shade(-5.0, -5.0), shade(1.0, -5.0));
+    }
+
+    #[test]
+    fn the_hull_of_a_partial_board_holds_its_corners() {
+        let points: Vec<Point2<f64>> =
+            [(0.0, 0.0), (2.0, 0.0), (1.0, 1.0), (2.0, 2.0), (0.0, 2.0), (1.0, 0.0)]
+                .iter()
+                .map(|&(x, y)| Point2::new(x, y))
+                .collect();
+        let hull = convex_hull(points);
+        assert_eq!(hull.len(), 4, "{hull:?}");
+        assert!(convex_hull(vec![Point2::new(0.0, 0.0), Point2::new(1.0, 1.0)]).is_empty());
     }
 }

@@ -158,6 +158,13 @@ pub struct SessionInitArgs {
     /// at different slide positions).
     #[arg(long, value_name = "D", default_value_t = 0.0, value_parser = slide_mm)]
     pub slide_mm: f64,
+    /// A ChArUco board: its markers' OpenCV dictionary (e.g. DICT_5X5_100);
+    /// --board still counts inner corners (squares - 1 each way).
+    #[arg(long, value_name = "DICTIONARY", requires = "marker_mm")]
+    pub charuco: Option<String>,
+    /// A ChArUco marker's side in mm (OpenCV's markerLength).
+    #[arg(long, value_name = "M", requires = "charuco")]
+    pub marker_mm: Option<f64>,
     /// Replace an existing session.yaml.
     #[arg(long)]
     pub force: bool,
@@ -643,6 +650,14 @@ pub struct SimulateSessionArgs {
     /// Largest board tilt away from facing the camera, degrees.
     #[arg(long, default_value_t = 40.0, value_parser = number_in(0.0, 89.0))]
     pub max_tilt_deg: f64,
+    /// Render a ChArUco board: an ArUco marker of this OpenCV dictionary
+    /// (e.g. DICT_5X5_100) in every white square, its side 0.75 of a square.
+    #[arg(long, value_name = "DICTIONARY")]
+    pub charuco: Option<String>,
+    /// Let the board reach past the image's border (poses anywhere in the
+    /// image, at least 40 % of the inner corners in it): needs --charuco.
+    #[arg(long, requires = "charuco")]
+    pub cut_by_border: bool,
     /// The simulated slide.
     #[command(flatten)]
     pub slide: SlideArgs,

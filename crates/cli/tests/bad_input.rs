@@ -1497,6 +1497,30 @@ fn bad_command_lines_are_refused_naming_the_flag() {
         );
         let _ = std::fs::remove_file(Path::new(&images).join("session.yaml"));
     }
+    for (charuco, needle) in [
+        ("--charuco DICT_9X9_7 --marker-mm 18", "DICT_9X9_7"),
+        ("--charuco DICT_5X5_100", "required arguments"),
+        ("--marker-mm 18", "required arguments"),
+        ("--charuco DICT_5X5_100 --marker-mm 30", "marker_mm"),
+        ("--charuco DICT_5X5_100 --marker-mm nan", "marker_mm"),
+        ("--charuco DICT_APRILTAG_16h5 --marker-mm 18", "needs 35"),
+    ] {
+        let command =
+            cmdline(&format!("session init {{}} --board 9x6 --square-mm 25 {charuco}"), &[&images]);
+        suite.refused(&format!("session init {charuco}"), &command, &[needle]);
+        let _ = std::fs::remove_file(Path::new(&images).join("session.yaml"));
+    }
+    for (options, needle) in [
+        ("--cut-by-border", "required arguments"),
+        ("--charuco 5X5_99", "5X5_99"),
+        ("--charuco DICT_4X4_50", "needs 54"),
+    ] {
+        let command = cmdline(
+            &format!("simulate session --out {{}} --views 1 --scale 0.1 {options}"),
+            &[&arg(&dir.join("charuco_session"))],
+        );
+        suite.refused(&format!("simulate session {options}"), &command, &[needle]);
+    }
     for slide in ["nan", "inf", "1e308", "abc"] {
         let command =
             cmdline("session init {} --board 9x6 --square-mm 25 --slide-mm {}", &[&images, &slide]);

@@ -756,6 +756,11 @@ fn session_init_lists_the_folders_images_and_refuses_to_overwrite() {
     let bad = alacs(&["session", "init", d, "--board", "nine", "--square-mm", "25", "--force"]);
     assert_eq!(bad.status.code(), Some(2));
     assert!(stderr(&bad).contains("--board"), "{}", stderr(&bad));
+    let template =
+        "session init {} --board 9x6 --square-mm 25 --charuco 5x5_100 --marker-mm 18.75 --force";
+    assert_eq!(alacs(&cmdline(template, &[&d])).status.code(), Some(0));
+    let markers = alacs::Session::read(&dir).unwrap().board.markers.unwrap();
+    assert_eq!((markers.marker_mm, markers.dictionary.as_str()), (18.75, "DICT_5X5_100"));
 }
 
 /// A scan naming several fruit (scan.yaml's `targets`: a cluster of three

@@ -5,8 +5,16 @@
 //! corners are at (col * square_x, row * square_y, 0). As in OpenCV's
 //! pattern, the square at the top-left of the board (up and left of the
 //! origin) is black, and a white border surrounds the squares.
+//!
+//! A ChArUco board ([`Checkerboard::markers`]) carries an ArUco marker in
+//! every white square, laid out and numbered as OpenCV lays them out
+//! ([`BoardSpec::marker_cell_at`], the model's one copy of that layout), its
+//! bits from calib-targets' copy of OpenCV's dictionaries (a bit of 1 is
+//! black), with a black border ring of one cell.
 
-use alacs_model::Ray;
+use std::sync::OnceLock;
+
+use alacs_model::{ArucoDictionary, BoardSpec, CharucoMarkers, Ray};
 use nalgebra::{Isometry3, Point3, Vector3};
 
 use crate::render::{Scene, SurfaceHit};
@@ -26,6 +34,8 @@ pub struct Checkerboard {
     pub black_reflectance: f64,
     /// Albedo of the white squares and the border (all channels and the laser's red).
     pub white_reflectance: f64,
+    /// The markers of a ChArUco board; `None` for a plain checkerboard.
+    pub markers: Option<CharucoMarkers>,
 }
 
 impl Default for Checkerboard {
@@ -39,8 +49,28 @@ impl Default for Checkerboard {
             border_mm: 30.0,
             black_reflectance: 0.05,
             white_reflectance: 0.85,
+            markers: None,
         }
     }
+}
+
+/// The marker codes of a dictionary (one `u64` a marker, bits row-major,
+/// 1 black), looked up once per dictionary: the renderer asks for every
+/// sub-pixel ray.
+fn marker_codes(dictionary: ArucoDictionary) -> &'static [u64] {
+    static TABLE: OnceLock<Vec<&'static [u64]>> = OnceLock::new();
+    let table = TABLE.get_or_init(|| {
+        ArucoDictionary::ALL
+            .iter()
+            .map(|d| {
+                calib_targets_aruco::builtins::builtin_dictionary(d.as_str())
+                    .filter(|found| found.marker_size() == d.marker_bits())
+                    .map_or(&[][..], |found| found.codes())
+            })
+            .collect()
+    });
+    let index = ArucoDictionary::ALL.iter().position(|d| *d == dictionary).unwrap_or(usize::MAX);
+    table.get(index).copied().unwrap_or(&[])
 }
 
 impl Checkerboard {
@@ -67,7 +97,33 @@ impl Checkerboard {
                 return invalid(format!("{name} reflectance {value} must lie in 0..1"));
             }
         }
+        if let Some(markers) = self.markers {
+            let spec = self.spec();
+            let codes = marker_codes(markers.dictionary).len();
+            if codes < spec.marker_count() {
+                return invalid(format!(
+                    "a {} x {}-square ChArUco board needs {} markers; {} has {codes}",
+                    cols + 1,
+                    rows + 1,
+                    spec.marker_count(),
+                    markers.dictionary
+                ));
+            }
+            if !(markers.marker_mm > 0.0 && markers.marker_mm < sx.min(sy)) {
+                return invalid(format!(
+                    "marker side {} mm must be positive and smaller than a square",
+                    markers.marker_mm
+                ));
+            }
+        }
         Ok(())
+    }
+
+    /// The board as session.yaml describes it.
+    pub fn spec(&self) -> BoardSpec {
+        let (cols, rows) = self.inner_corners;
+        let (sx, sy) = self.square_mm;
+        BoardSpec { markers: self.markers, ..BoardSpec::checkerboard(cols, rows, sx, sy) }
     }
 
     /// The inner corners in OpenCV's order (row-major from the top-left), in
@@ -131,8 +187,26 @@ impl Checkerboard {
         let j = floor_to_i64(y_mm / sy) + 1;
         let on_squares = (0..=cols as i64).contains(&i) && (0..=rows as i64).contains(&j);
         // The top-left square (0, 0) is black, as in OpenCV's pattern.
-        let black = on_squares && (i + j) % 2 == 0;
+        let black = on_squares && ((i + j) % 2 == 0 || self.marker_is_black_at(x_mm, y_mm));
         Some(if black { self.black_reflectance } else { self.white_reflectance })
+    }
+}
+
+impl Checkerboard {
+    /// Whether a ChArUco marker is black at board point (x, y), mm: its
+    /// border ring, or a bit of 1.
+    fn marker_is_black_at(&self, x_mm: f64, y_mm: f64) -> bool {
+        let Some(markers) = self.markers else { return false };
+        let Some((id, cell_x, cell_y)) = self.spec().marker_cell_at(x_mm, y_mm) else {
+            return false;
+        };
+        let bits = markers.dictionary.marker_bits();
+        let (cx, cy) = (cell_x.floor() as usize, cell_y.floor() as usize);
+        if cx == 0 || cy == 0 || cx > bits || cy > bits {
+            return true;
+        }
+        let code = marker_codes(markers.dictionary).get(id).copied().unwrap_or(0);
+        (code >> ((cy - 1) * bits + (cx - 1))) & 1 == 1
     }
 }
 

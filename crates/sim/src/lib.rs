@@ -65,6 +65,9 @@ pub use samples::{SampleOptions, SimulatedSamples, simulate_samples};
 pub use scan::{
     RenderedScan, ScanFrame, ScanOptions, SimulatedScan, simulate_rendered_scan, simulate_scan,
 };
-pub use session::{RgbdOptions, SessionOptions, SessionView, SimulatedSession, simulate_session};
+pub use session::{
+    MIN_VISIBLE_CORNER_FRACTION, RgbdOptions, SessionOptions, SessionView, SimulatedSession,
+    simulate_session,
+};
 pub use slide::{MAX_SLIDE_ANGLE_DEG, SlideError};
 pub use truth::{camera_to_json, laser_to_json};

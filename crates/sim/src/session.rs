@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use alacs_model::io::OutputDir;
-use alacs_model::{BoardSpec, Camera, LaserModel, SESSION_FILE, Session};
+use alacs_model::{Camera, LaserModel, SESSION_FILE, Session};
 use image::RgbImage;
 use nalgebra::{Isometry3, Point2, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use rand::{Rng, SeedableRng};
@@ -55,6 +55,11 @@ pub struct SessionOptions {
     /// The slide's own error (scale and axis angle); the default is the
     /// seed's perfect slide.
     pub slide: SlideError,
+    /// Let the board reach past the image's border (a ChArUco board only):
+    /// poses anywhere in the image with at least
+    /// [`MIN_VISIBLE_CORNER_FRACTION`] of the inner corners inside it, so
+    /// that the corners cover the image's edges and corners.
+    pub cut_by_border: bool,
 }
 
 /// A second camera beside the ALACS camera: an RGB-D camera's colour camera.
@@ -99,6 +104,7 @@ impl Default for SessionOptions {
             seed: 0,
             rgbd: None,
             slide: SlideError::default(),
+            cut_by_border: false,
         }
     }
 }
@@ -124,6 +130,13 @@ impl SessionOptions {
         check_scale(self.scale)?;
         self.slide.validate()?;
         self.board.validate()?;
+        if self.cut_by_border && self.board.markers.is_none() {
+            return invalid(
+                "boards cut by the image's border need a ChArUco board: a checkerboard must be \
+                 seen whole"
+                    .into(),
+            );
+        }
         self.render.validate()
     }
 }
@@ -182,6 +195,10 @@ const OUTLINE_POINTS_PER_SIDE: usize = 16;
 
 /// Margin the board's outline keeps from the image border, px.
 const IMAGE_MARGIN_PX: f64 = 2.0;
+
+/// With [`SessionOptions::cut_by_border`], the fewest of a board's inner
+/// corners that must lie in the image.
+pub const MIN_VISIBLE_CORNER_FRACTION: f64 = 0.4;
 
 /// The laser line must cross the inner-corner rectangle over at least this
 /// fraction of its shorter side, so every view has laser pixels on the squares.
@@ -294,8 +311,14 @@ fn sample_pose(
         let z = rng.random_range(options.depth_mm.0..=options.depth_mm.1);
         let normal = &middle_plane.normal;
         let x_laser = (middle_plane.offset_mm - normal.z * z) / normal.x;
-        let x = x_laser + rng.random_range(-0.45..=0.45) * inner_width_mm;
-        let y_room = (z * half_image_height_n - (y1 - y0) / 2.0).max(0.0);
+        // A board cut by the border may sit anywhere: its centre up to the
+        // image's edge.
+        let (reach, y_room) = if options.cut_by_border {
+            (0.9, z * half_image_height_n)
+        } else {
+            (0.45, (z * half_image_height_n - (y1 - y0) / 2.0).max(0.0))
+        };
+        let x = x_laser + rng.random_range(-reach..=reach) * inner_width_mm;
         let y = rng.random_range(-1.0..=1.0) * y_room;
         let rotation = random_tilt(rng, options.max_tilt_deg)
             * Rotation3::from_axis_angle(
@@ -330,29 +353,41 @@ fn pose_is_usable(
     if normal.dot(&centre.coords) <= 0.0 {
         return false;
     }
-    let outline = board.outline_in_board();
     let margin = IMAGE_MARGIN_PX;
     let (width, height) = (f64::from(camera.width_px), f64::from(camera.height_px));
+    // Whether a board point is in front of the camera (first) and in the image (second).
+    let in_image = |point_in_board: Point3<f64>| {
+        let point = camera_from_board * point_in_board;
+        if point.z <= 0.0 {
+            return (false, false);
+        }
+        let normalized = Point2::new(point.x / point.z, point.y / point.z);
+        if !camera.is_distortion_invertible_at(&normalized) {
+            return (true, false);
+        }
+        let pixel = camera.normalized_to_pixel(&normalized);
+        let inside = pixel.x >= margin - 0.5
+            && pixel.x <= width - 0.5 - margin
+            && pixel.y >= margin - 0.5
+            && pixel.y <= height - 0.5 - margin;
+        (true, inside)
+    };
+    let outline = board.outline_in_board();
     for (k, corner) in outline.iter().enumerate() {
         let next = outline[(k + 1) % 4];
         for i in 0..OUTLINE_POINTS_PER_SIDE {
             let t = i as f64 / OUTLINE_POINTS_PER_SIDE as f64;
-            let point = camera_from_board * (corner + (next - corner) * t);
-            if point.z <= 0.0 {
+            let (in_front, inside) = in_image(corner + (next - corner) * t);
+            if !in_front || (!inside && !options.cut_by_border) {
                 return false;
             }
-            let normalized = Point2::new(point.x / point.z, point.y / point.z);
-            if !camera.is_distortion_invertible_at(&normalized) {
-                return false;
-            }
-            let pixel = camera.normalized_to_pixel(&normalized);
-            let inside = pixel.x >= margin - 0.5
-                && pixel.x <= width - 0.5 - margin
-                && pixel.y >= margin - 0.5
-                && pixel.y <= height - 0.5 - margin;
-            if !inside {
-                return false;
-            }
+        }
+    }
+    if options.cut_by_border {
+        let corners = board.object_points();
+        let visible = corners.iter().filter(|p| in_image(**p).1).count();
+        if (visible as f64) < MIN_VISIBLE_CORNER_FRACTION * corners.len() as f64 {
+            return false;
         }
     }
     options
@@ -486,11 +521,9 @@ impl SimulatedSession {
 
     /// session.yaml (FORMATS.md).
     pub fn session_yaml(&self) -> String {
-        let (cols, rows) = self.board.inner_corners;
-        let (square_x_mm, square_y_mm) = self.board.square_mm;
         let session = Session {
             dir: PathBuf::new(),
-            board: BoardSpec { cols, rows, square_x_mm, square_y_mm },
+            board: self.board.spec(),
             views: self
                 .views
                 .iter()
@@ -548,6 +581,8 @@ impl SimulatedSession {
                 "border_mm": board.border_mm,
                 "black_reflectance": board.black_reflectance,
                 "white_reflectance": board.white_reflectance,
+                "marker_mm": board.markers.map(|m| m.marker_mm),
+                "dictionary": board.markers.map(|m| m.dictionary.as_str()),
             },
             "seed": self.seed,
             "supersampling": self.render.supersampling,

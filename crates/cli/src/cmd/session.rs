@@ -2,12 +2,12 @@
 
 use alacs::Session;
 use alacs::model::io::write_file;
-use alacs::model::{BoardSpec, SESSION_FILE};
+use alacs::model::{BoardSpec, CharucoMarkers, SESSION_FILE};
 use anyhow::anyhow;
 use serde_json::json;
 
 use crate::args::SessionInitArgs;
-use crate::cmd::simulate::parse_list;
+use crate::cmd::simulate::{parse_dictionary, parse_list};
 use crate::failure::{CmdResult, Failure};
 use crate::output;
 
@@ -36,7 +36,11 @@ pub fn init(args: &SessionInitArgs) -> CmdResult {
             )));
         }
     };
-    let board = BoardSpec { cols, rows, square_x_mm, square_y_mm };
+    let mut board = BoardSpec::checkerboard(cols, rows, square_x_mm, square_y_mm);
+    if let (Some(name), Some(marker_mm)) = (&args.charuco, args.marker_mm) {
+        let dictionary = parse_dictionary(name)?;
+        board.markers = Some(CharucoMarkers { marker_mm, dictionary });
+    }
     let session = Session::from_image_folder(&args.dir, board, args.slide_mm)?;
     let text = session.to_yaml_string(&format!(
         "Written by `alacs session init`: {} views at slide {} mm. Edit slide_mm per view\n\

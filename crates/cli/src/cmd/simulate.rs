@@ -1,8 +1,9 @@
 //! `alacs simulate samples`, `alacs simulate session` and `alacs simulate scan`.
 
 use alacs::sim::{
-    Exposure, LaserLight, OrchardOptions, RenderOptions, RgbdOptions, SampleOptions, ScanOptions,
-    Sensor, SessionOptions, SlideError, simulate_samples, simulate_scan, simulate_session,
+    Checkerboard, Exposure, LaserLight, OrchardOptions, RenderOptions, RgbdOptions, SampleOptions,
+    ScanOptions, Sensor, SessionOptions, SlideError, simulate_samples, simulate_scan,
+    simulate_session,
 };
 use alacs::{Camera, Fidelity, LaserModel};
 use anyhow::anyhow;
@@ -158,6 +159,33 @@ pub fn samples(args: &SimulateSamplesArgs) -> CmdResult {
     Ok(())
 }
 
+/// Parses `--charuco`: one of OpenCV's dictionary names.
+pub fn parse_dictionary(name: &str) -> CmdResult<alacs::model::ArucoDictionary> {
+    use alacs::model::ArucoDictionary;
+    ArucoDictionary::from_name(name).ok_or_else(|| {
+        Failure::bad_input(anyhow!(
+            "--charuco: `{name}` is not one of OpenCV's dictionaries ({})",
+            ArucoDictionary::ALL.iter().map(|d| d.as_str()).collect::<Vec<_>>().join(", ")
+        ))
+    })
+}
+
+/// A ChArUco marker's side per square side in `simulate session --charuco`.
+const CHARUCO_MARKER_PER_SQUARE: f64 = 0.75;
+
+/// The simulated board: the default checkerboard, with markers of
+/// `dictionary` (`--charuco`) if given.
+fn charuco_board(dictionary: Option<&str>) -> CmdResult<Checkerboard> {
+    let board = Checkerboard::default();
+    let Some(name) = dictionary else { return Ok(board) };
+    let dictionary = parse_dictionary(name)?;
+    let marker_mm = CHARUCO_MARKER_PER_SQUARE * board.square_mm.0.min(board.square_mm.1);
+    Ok(Checkerboard {
+        markers: Some(alacs::model::CharucoMarkers { marker_mm, dictionary }),
+        ..board
+    })
+}
+
 /// Runs `alacs simulate session`.
 pub fn session(args: &SimulateSessionArgs) -> CmdResult {
     let (camera, laser) = args.truth.camera_and_laser()?;
@@ -182,6 +210,8 @@ pub fn session(args: &SimulateSessionArgs) -> CmdResult {
             })
             .transpose()?,
         slide: SlideError::from(&args.slide),
+        board: charuco_board(args.charuco.as_deref())?,
+        cut_by_border: args.cut_by_border,
         ..SessionOptions::default()
     };
     let bar = output::progress_bar(args.json, "computing the camera's rays");

@@ -163,7 +163,8 @@ pub fn calibration_report_from_views(
             .then(|| residuals_mm.iter().map(|r| r.abs()).sum::<f64>() / residuals_mm.len() as f64);
         let flag = if let Some(reason) = &view.rejected {
             Some(format!("not used: {reason}"))
-        } else if corners_px.len() < total_corners {
+        } else if session.board.markers.is_none() && corners_px.len() < total_corners {
+            // (A ChArUco board's corners label themselves: a part is a good view.)
             Some(format!("only {} of {total_corners} corners found", corners_px.len()))
         } else if let Some(rms) = view.pose_rms_px.filter(|&rms| rms > FLAG_POSE_RMS_PX) {
             Some(format!(
