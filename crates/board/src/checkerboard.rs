@@ -24,7 +24,7 @@
 //! barely shows there, so it cannot break the corner pattern.
 
 use alacs_model::BoardSpec;
-use calib_targets::chessboard::ChessboardParams;
+use calib_targets::chessboard::{self, ChessboardParams};
 use calib_targets::detect;
 use image::{DynamicImage, GrayImage};
 use nalgebra::{Point2, Vector2};
@@ -101,26 +101,115 @@ pub fn detect_checkerboard(gray: &GrayImage, board: &BoardSpec) -> Result<BoardC
         rows: board.rows,
         reason,
     };
-    let configs = ChessboardParams::sweep_default();
-    let detection = detect::detect_chessboard_best(gray, &detect::default_chess_config(), &configs)
-        .map_err(|e| no_board(format!("no corner grid ({e})")))?;
-    let grid: Vec<((i64, i64), Point2<f64>)> = detection
-        .corners
-        .iter()
-        .map(|c| {
-            (
-                (i64::from(c.grid.u), i64::from(c.grid.v)),
-                Point2::new(f64::from(c.position.x), f64::from(c.position.y)),
-            )
-        })
-        .filter(|(_, p)| p.x.is_finite() && p.y.is_finite())
-        .collect();
-    let mut corners = label_grid(&grid, board, gray.width(), gray.height()).map_err(no_board)?;
+    // The corner grid is searched at half resolution first (the ChESS
+    // response, which dominates the cost, over a quarter of the pixels),
+    // positions mapped back and refined at full resolution below. The half
+    // image's search is kept only if it labels every corner; else (squares
+    // under ~10 px there, a blurred corner) the full image is searched, and
+    // the better labelling kept. (A quarter-resolution level was tried: the
+    // grid's assembly, not the response, dominates there, and no faster.)
+    let half = half_size(gray);
+    let mut levels: Vec<(f64, &GrayImage)> = vec![(1.0, gray)];
+    if half.width().min(half.height()) >= MIN_SEARCH_SIDE_PX {
+        levels.push((2.0, &half));
+    }
+    let mut best: Option<BoardCorners> = None;
+    let mut full_error = None;
+    for &(scale, level) in levels.iter().rev() {
+        match labelled_grid(level, scale, board, gray) {
+            Ok(corners) if corners.found_count() == board.corner_count() => {
+                best = Some(corners);
+                break;
+            }
+            Ok(corners) => {
+                if best.as_ref().is_none_or(|b| b.found_count() < corners.found_count()) {
+                    best = Some(corners);
+                }
+            }
+            // The full-resolution search's reason is the one reported.
+            Err(e) if scale == 1.0 => full_error = Some(e),
+            Err(_) => {}
+        }
+    }
+    let found = best.ok_or_else(|| full_error.unwrap_or_else(|| "no corner grid".into()));
+    let mut corners = found.map_err(no_board)?;
     let cell_px = corners.cell_size_px().unwrap_or(0.0);
     let half_window =
         (REFINE_WINDOW_PER_CELL * cell_px).round().clamp(2.0, MAX_REFINE_HALF_WINDOW_PX);
     refine_corners(gray, &mut corners, half_window as u32);
     Ok(corners)
+}
+
+/// A coarse search level's shorter side is at least this (px).
+const MIN_SEARCH_SIDE_PX: u32 = 120;
+
+/// The image at half size, each pixel the mean of a 2 x 2 block (its centre
+/// at (2 u + 0.5, 2 v + 0.5) of the original).
+fn half_size(gray: &GrayImage) -> GrayImage {
+    let (width, height) = (gray.width() / 2, gray.height() / 2);
+    let row = gray.width() as usize;
+    let pixels = gray.as_raw();
+    let mut half = Vec::with_capacity(width as usize * height as usize);
+    for v in 0..height as usize {
+        let (top, bottom) = (&pixels[2 * v * row..][..row], &pixels[(2 * v + 1) * row..][..row]);
+        half.extend(top.chunks_exact(2).zip(bottom.chunks_exact(2)).take(width as usize).map(
+            |(t, b)| {
+                let sum = u16::from(t[0]) + u16::from(t[1]) + u16::from(b[0]) + u16::from(b[1]);
+                ((sum + 2) / 4) as u8
+            },
+        ));
+    }
+    GrayImage::from_raw(width, height, half).unwrap_or_default()
+}
+
+/// The board's corners from calib-targets' corner grids of `level`, an
+/// image `1 / scale` of `gray`'s size (positions in `gray`'s pixels): the
+/// ChESS corners once, then the grid of each of calib-targets' three
+/// chessboard settings (canonical, tighter, looser) until one labels every
+/// corner, else the labelling with the most.
+fn labelled_grid(
+    level: &GrayImage,
+    scale: f64,
+    board: &BoardSpec,
+    gray: &GrayImage,
+) -> std::result::Result<BoardCorners, String> {
+    let frame =
+        chessboard::detect_corner_frame(&detect::gray_view(level), &detect::default_chess_config());
+    // Pixel centres: u = scale u' + (scale - 1) / 2.
+    let shift = (scale - 1.0) / 2.0;
+    let mut best: Option<BoardCorners> = None;
+    let mut last_error = String::from("no corner grid");
+    for params in ChessboardParams::sweep_default() {
+        let Some(detection) =
+            chessboard::ChessboardDetector::new(params).ok().and_then(|d| d.detect(&frame.corners))
+        else {
+            continue;
+        };
+        let grid: Vec<((i64, i64), Point2<f64>)> = detection
+            .corners
+            .iter()
+            .map(|c| {
+                (
+                    (i64::from(c.grid.u), i64::from(c.grid.v)),
+                    Point2::new(
+                        scale * f64::from(c.position.x) + shift,
+                        scale * f64::from(c.position.y) + shift,
+                    ),
+                )
+            })
+            .filter(|(_, p)| p.x.is_finite() && p.y.is_finite())
+            .collect();
+        match label_grid(&grid, board, gray.width(), gray.height()) {
+            Ok(corners) if corners.found_count() == board.corner_count() => return Ok(corners),
+            Ok(corners) => {
+                if best.as_ref().is_none_or(|b| b.found_count() < corners.found_count()) {
+                    best = Some(corners);
+                }
+            }
+            Err(e) => last_error = e,
+        }
+    }
+    best.ok_or(last_error)
 }
 
 /// Fits a labelled corner grid (grid coordinates, pixel) to the board:
@@ -304,23 +393,43 @@ pub(crate) fn refine_corners_within(
     let (width, height) = (gray.width() as i64, gray.height() as i64);
     let w = i64::from(half_window_px.max(2));
     let sigma = w as f64 / 2.0;
-    let at = |u: i64, v: i64| f64::from(gray.get_pixel(u as u32, v as u32)[0]);
+    // The Gaussian weights by offset from the window's centre pixel,
+    // computed once (as OpenCV's cornerSubPix does): the same pixels with
+    // the same weights give the same answer, so an iteration that stays on
+    // its pixel has converged.
+    let side = (2 * w + 1) as usize;
+    let mask: Vec<f64> = (0..side * side)
+        .map(|k| {
+            let (du, dv) = ((k % side) as f64 - w as f64, (k / side) as f64 - w as f64);
+            (-(du * du + dv * dv) / (2.0 * sigma * sigma)).exp()
+        })
+        .collect();
+    let pixels = gray.as_raw();
+    let row = gray.width() as usize;
+    let at = |u: i64, v: i64| f64::from(pixels[v as usize * row + u as usize]);
     for corner in corners.corners_px.iter_mut().flatten() {
         let start = *corner;
         let mut q = start;
+        let mut last_centre = None;
         for _ in 0..20 {
             let (cu, cv) = (q.x.round() as i64, q.y.round() as i64);
             if cu - w - 1 < 0 || cv - w - 1 < 0 || cu + w + 1 >= width || cv + w + 1 >= height {
                 break;
             }
+            // The radius (a ChArUco board's markers) is about q itself, so
+            // the pixels used change with q's sub-pixel position only then.
+            if last_centre == Some((cu, cv)) && max_radius_px.is_infinite() {
+                break;
+            }
+            last_centre = Some((cu, cv));
             let (mut a11, mut a12, mut a22, mut b1, mut b2) = (0.0, 0.0, 0.0, 0.0, 0.0);
             for v in cv - w..=cv + w {
-                for u in cu - w..=cu + w {
+                let mask_row = &mask[((v - cv + w) as usize) * side..][..side];
+                for (u, &weight) in (cu - w..=cu + w).zip(mask_row) {
                     let (du, dv) = (u as f64 - q.x, v as f64 - q.y);
                     if du * du + dv * dv > max_radius_sq {
                         continue;
                     }
-                    let weight = (-(du * du + dv * dv) / (2.0 * sigma * sigma)).exp();
                     let gx = (at(u + 1, v) - at(u - 1, v)) / 2.0;
                     let gy = (at(u, v + 1) - at(u, v - 1)) / 2.0;
                     let (gxx, gxy, gyy) = (gx * gx * weight, gx * gy * weight, gy * gy * weight);

@@ -47,7 +47,7 @@ fn charuco_corners_and_calibration_agree_with_opencv() {
     let options = SessionOptions {
         n_views: 8,
         scale: 0.5,
-        seed: 3,
+        seed: 1,
         board,
         cut_by_border: true,
         ..SessionOptions::default()
@@ -73,7 +73,13 @@ fn charuco_corners_and_calibration_agree_with_opencv() {
     let (mut ours_sq, mut n_ours) = (0.0, 0usize);
     for (view, detected) in boards.iter().enumerate() {
         let corners = detected.corners.as_ref().unwrap_or_else(|e| panic!("view {view}: {e}"));
-        cut += usize::from(corners.found_count() < spec.corner_count());
+        let outside = (0..spec.corner_count()).any(|id| {
+            let p = truth(view, id);
+            let (w, h) =
+                (f64::from(simulated.camera.width_px), f64::from(simulated.camera.height_px));
+            !(0.0..w).contains(&p.x) || !(0.0..h).contains(&p.y)
+        });
+        cut += usize::from(outside);
         for (id, p) in corners.found() {
             ours_sq += (p - truth(view, id)).norm_squared();
             n_ours += 1;
