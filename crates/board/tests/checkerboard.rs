@@ -64,3 +64,56 @@ fn every_view_opencv_detects_is_detected_with_its_labels() {
         }
     }
 }
+
+/// Issue 16: boards whose outer squares touch the image's border (the
+/// white margin and outer squares cut, every inner corner at least 8 px
+/// inside) are found, every corner, with their sub-pixel accuracy.
+#[test]
+fn boards_whose_outer_squares_are_cut_by_the_border_are_found_whole() {
+    use alacs_model::{Camera, LaserModel};
+    use alacs_sim::{SessionOptions, simulate_session};
+    let (mut found, mut cut, mut sum_sq, mut n, mut worst) = (0, 0, 0.0, 0usize, 0.0_f64);
+    for seed in [1, 2] {
+        let options = SessionOptions {
+            n_views: 8,
+            scale: 0.5,
+            seed,
+            cut_by_border: true,
+            ..SessionOptions::default()
+        };
+        let session =
+            simulate_session(&Camera::blackfly_s_5mp(), &LaserModel::seed_paper(), &options)
+                .unwrap();
+        let spec = session.board.spec();
+        let (width, height) =
+            (f64::from(session.camera.width_px), f64::from(session.camera.height_px));
+        for (index, view) in session.views.iter().enumerate() {
+            let outline_cut = session.board.outline_in_board().iter().any(|p| {
+                let q = session.camera.project(&(view.camera_from_board * p)).unwrap();
+                !(0.0..width).contains(&q.x) || !(0.0..height).contains(&q.y)
+            });
+            cut += usize::from(outline_cut);
+            let image = image::DynamicImage::ImageRgb8(session.render_view(index).unwrap());
+            let corners = detect_checkerboard(&board_gray(&image), &spec)
+                .unwrap_or_else(|e| panic!("seed {seed} view {index} (cut: {outline_cut}): {e}"));
+            assert_eq!(corners.found_count(), spec.corner_count(), "seed {seed} view {index}");
+            found += 1;
+            for (i, p) in corners.found() {
+                let truth = session
+                    .camera
+                    .project(&(view.camera_from_board * spec.corner_in_board(i)))
+                    .unwrap();
+                let e = (p - truth).norm();
+                worst = worst.max(e);
+                sum_sq += e * e;
+                n += 1;
+            }
+        }
+    }
+    let rms = (sum_sq / n as f64).sqrt();
+    println!(
+        "{found} of 16 views ({cut} cut by the border): corner error RMS {rms:.3} px, worst {worst:.3} px"
+    );
+    assert!(cut >= 4, "only {cut} views cut by the border");
+    assert!(rms < 0.08 && worst < 0.4, "RMS {rms} worst {worst}");
+}

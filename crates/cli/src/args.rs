@@ -654,9 +654,11 @@ pub struct SimulateSessionArgs {
     /// (e.g. DICT_5X5_100) in every white square, its side 0.75 of a square.
     #[arg(long, value_name = "DICTIONARY")]
     pub charuco: Option<String>,
-    /// Let the board reach past the image's border (poses anywhere in the
-    /// image, at least 40 % of the inner corners in it): needs --charuco.
-    #[arg(long, requires = "charuco")]
+    /// Let the board reach past the image's border, poses anywhere in the
+    /// image: a ChArUco board with at least 40 % of its inner corners in it,
+    /// a checkerboard with every inner corner 8 px inside (its outer squares
+    /// may be cut).
+    #[arg(long)]
     pub cut_by_border: bool,
     /// The simulated slide.
     #[command(flatten)]

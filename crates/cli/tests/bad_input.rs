@@ -1510,11 +1510,8 @@ fn bad_command_lines_are_refused_naming_the_flag() {
         suite.refused(&format!("session init {charuco}"), &command, &[needle]);
         let _ = std::fs::remove_file(Path::new(&images).join("session.yaml"));
     }
-    for (options, needle) in [
-        ("--cut-by-border", "required arguments"),
-        ("--charuco 5X5_99", "5X5_99"),
-        ("--charuco DICT_4X4_50", "needs 54"),
-    ] {
+    for (options, needle) in [("--charuco 5X5_99", "5X5_99"), ("--charuco DICT_4X4_50", "needs 54")]
+    {
         let command = cmdline(
             &format!("simulate session --out {{}} --views 1 --scale 0.1 {options}"),
             &[&arg(&dir.join("charuco_session"))],

@@ -66,8 +66,8 @@ pub use scan::{
     RenderedScan, ScanFrame, ScanOptions, SimulatedScan, simulate_rendered_scan, simulate_scan,
 };
 pub use session::{
-    MIN_VISIBLE_CORNER_FRACTION, RgbdOptions, SessionOptions, SessionView, SimulatedSession,
-    simulate_session,
+    MIN_CORNER_BORDER_PX, MIN_VISIBLE_CORNER_FRACTION, RgbdOptions, SessionOptions, SessionView,
+    SimulatedSession, simulate_session,
 };
 pub use slide::{MAX_SLIDE_ANGLE_DEG, SlideError};
 pub use truth::{camera_to_json, laser_to_json};

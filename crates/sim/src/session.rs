@@ -55,10 +55,12 @@ pub struct SessionOptions {
     /// The slide's own error (scale and axis angle); the default is the
     /// seed's perfect slide.
     pub slide: SlideError,
-    /// Let the board reach past the image's border (a ChArUco board only):
-    /// poses anywhere in the image with at least
-    /// [`MIN_VISIBLE_CORNER_FRACTION`] of the inner corners inside it, so
-    /// that the corners cover the image's edges and corners.
+    /// Let the board reach past the image's border, poses anywhere in the
+    /// image: a ChArUco board with at least [`MIN_VISIBLE_CORNER_FRACTION`]
+    /// of its inner corners inside it, so that the corners cover the image's
+    /// edges and corners; a checkerboard with every inner corner at least
+    /// [`MIN_CORNER_BORDER_PX`] inside (its white border and outer squares
+    /// may be cut, as in photographs taken near the image's edge).
     pub cut_by_border: bool,
 }
 
@@ -130,13 +132,6 @@ impl SessionOptions {
         check_scale(self.scale)?;
         self.slide.validate()?;
         self.board.validate()?;
-        if self.cut_by_border && self.board.markers.is_none() {
-            return invalid(
-                "boards cut by the image's border need a ChArUco board: a checkerboard must be \
-                 seen whole"
-                    .into(),
-            );
-        }
         self.render.validate()
     }
 }
@@ -196,9 +191,14 @@ const OUTLINE_POINTS_PER_SIDE: usize = 16;
 /// Margin the board's outline keeps from the image border, px.
 const IMAGE_MARGIN_PX: f64 = 2.0;
 
-/// With [`SessionOptions::cut_by_border`], the fewest of a board's inner
-/// corners that must lie in the image.
+/// With [`SessionOptions::cut_by_border`], the fewest of a ChArUco board's
+/// inner corners that must lie in the image.
 pub const MIN_VISIBLE_CORNER_FRACTION: f64 = 0.4;
+
+/// With [`SessionOptions::cut_by_border`], how far inside the image every
+/// inner corner of a checkerboard lies, px (a corner detector needs a few
+/// pixels around a corner).
+pub const MIN_CORNER_BORDER_PX: f64 = 8.0;
 
 /// The laser line must cross the inner-corner rectangle over at least this
 /// fraction of its shorter side, so every view has laser pixels on the squares.
@@ -385,9 +385,28 @@ fn pose_is_usable(
     }
     if options.cut_by_border {
         let corners = board.object_points();
-        let visible = corners.iter().filter(|p| in_image(**p).1).count();
-        if (visible as f64) < MIN_VISIBLE_CORNER_FRACTION * corners.len() as f64 {
-            return false;
+        if board.markers.is_some() {
+            let visible = corners.iter().filter(|p| in_image(**p).1).count();
+            if (visible as f64) < MIN_VISIBLE_CORNER_FRACTION * corners.len() as f64 {
+                return false;
+            }
+        } else {
+            let inside = |p: &Point3<f64>| {
+                let point = camera_from_board * p;
+                let normalized = Point2::new(point.x / point.z, point.y / point.z);
+                if point.z <= 0.0 || !camera.is_distortion_invertible_at(&normalized) {
+                    return false;
+                }
+                let pixel = camera.normalized_to_pixel(&normalized);
+                let m = MIN_CORNER_BORDER_PX;
+                pixel.x >= m - 0.5
+                    && pixel.x <= width - 0.5 - m
+                    && pixel.y >= m - 0.5
+                    && pixel.y <= height - 0.5 - m
+            };
+            if !corners.iter().all(inside) {
+                return false;
+            }
         }
     }
     options
