@@ -3,15 +3,12 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, missing_docs)]
 
 use alacs_board::{MIN_CHARUCO_CORNERS, board_gray, detect_board};
-use alacs_model::{ArucoDictionary, Camera, CharucoMarkers, LaserModel};
+use alacs_model::{ArucoDictionary, Camera, LaserModel};
 use alacs_sim::{Checkerboard, SessionOptions, simulate_session};
 use image::DynamicImage;
 
 fn charuco_session(seed: u64, cut_by_border: bool) -> alacs_sim::SimulatedSession {
-    let board = Checkerboard {
-        markers: Some(CharucoMarkers { marker_mm: 22.5, dictionary: ArucoDictionary::Dict5x5_100 }),
-        ..Checkerboard::default()
-    };
+    let board = Checkerboard::charuco(ArucoDictionary::Dict5x5_100);
     let options = SessionOptions {
         n_views: 8,
         scale: 0.5,

@@ -8,42 +8,20 @@
 //! still runs and the comparison is skipped.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, missing_docs)]
 
-use std::io::Write as _;
-use std::path::Path;
-use std::process::{Command, Stdio};
-
 use alacs_calib::{
     BoardObservation, IntrinsicsOptions, calibrate_intrinsics, detect_session_boards,
     pose_observations,
 };
-use alacs_model::{ArucoDictionary, Camera, CharucoMarkers, LaserModel, Session};
+use alacs_model::{ArucoDictionary, Camera, LaserModel, Session};
 use alacs_sim::{Checkerboard, SessionOptions, simulate_session};
 use nalgebra::Point2;
-use serde_json::{Value, json};
+use serde_json::json;
 
-/// Runs a peer script with a JSON request; `None` without the peer.
-fn peer(script: &str, request: &Value) -> Option<Value> {
-    let python = std::env::var("ALACS_PEER_PYTHON").ok()?;
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/peers").join(script);
-    let mut child = Command::new(python)
-        .arg(script)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    child.stdin.take().unwrap().write_all(request.to_string().as_bytes()).unwrap();
-    let output = child.wait_with_output().unwrap();
-    assert!(output.status.success(), "peer: {}", String::from_utf8_lossy(&output.stderr));
-    Some(serde_json::from_slice(&output.stdout).unwrap())
-}
+mod peers;
 
 #[test]
 fn charuco_corners_and_calibration_agree_with_opencv() {
-    let board = Checkerboard {
-        markers: Some(CharucoMarkers { marker_mm: 22.5, dictionary: ArucoDictionary::Dict5x5_100 }),
-        ..Checkerboard::default()
-    };
+    let board = Checkerboard::charuco(ArucoDictionary::Dict5x5_100);
     let options = SessionOptions {
         n_views: 8,
         scale: 0.5,
@@ -105,7 +83,7 @@ fn charuco_corners_and_calibration_agree_with_opencv() {
         "dictionary": "DICT_5X5_100",
         "images": boards.iter().map(|b| dir.join(&b.image).display().to_string()).collect::<Vec<_>>(),
     });
-    let Some(theirs) = peer("opencv_charuco.py", &request) else {
+    let Some(theirs) = peers::run("opencv_charuco.py", &request) else {
         eprintln!(
             "alacs: corner error {ours_rms:.3} px RMS; SKIPPED OpenCV: set ALACS_PEER_PYTHON"
         );
@@ -136,40 +114,15 @@ fn charuco_corners_and_calibration_agree_with_opencv() {
     let theirs_rms = (theirs_sq / n_theirs.max(1) as f64).sqrt();
 
     // OpenCV's calibrateCamera on alacs's corners: the same minimum.
-    let request = json!({
-        "image_size": [width, height],
-        "object_points": poses.iter().map(|v| v.points_in_board.iter().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>()).collect::<Vec<_>>(),
-        "image_points": poses.iter().map(|v| v.pixels.iter().map(|p| [p.x, p.y]).collect::<Vec<_>>()).collect::<Vec<_>>(),
-        "flags": [],
-        "initial": null,
-    });
-    let calibrated = peer("opencv_calibrate.py", &request).unwrap();
-    let get = |key: &str| calibrated[key].as_f64().unwrap();
-    let c = &fit.camera;
+    let calibrated = peers::calibrate_camera((width, height), &poses, &[], None).unwrap();
     eprintln!(
-        "corners: alacs {n_ours} ({ours_rms:.3} px RMS to the truth), OpenCV {n_theirs} ({theirs_rms:.3} px), {both} in both, {only_theirs} only OpenCV's; \
-         calibration RMS alacs {:.6} OpenCV {:.6} px, fx {:.3} / {:.3}, fy {:.3} / {:.3}, cx {:.3} / {:.3}, cy {:.3} / {:.3} (truth fx {:.1})",
-        fit.rms_px,
-        get("rms_px"),
-        c.fx_px,
-        get("fx"),
-        c.fy_px,
-        get("fy"),
-        c.cx_px,
-        get("cx"),
-        c.cy_px,
-        get("cy"),
+        "corners: alacs {n_ours} ({ours_rms:.3} px RMS to the truth), OpenCV {n_theirs} ({theirs_rms:.3} px), {both} in both, {only_theirs} only OpenCV's; truth fx {:.1}",
         simulated.camera.fx_px
     );
     // alacs finds nearly every corner OpenCV finds, at least as close to the truth.
     assert!(both * 20 >= n_theirs * 19, "{both} of OpenCV's {n_theirs}");
     assert!(ours_rms <= theirs_rms, "alacs {ours_rms} px vs OpenCV {theirs_rms} px");
     // The same minimum on the same corners.
-    assert!(fit.rms_px <= get("rms_px") + 1e-4, "RMS {} vs {}", fit.rms_px, get("rms_px"));
-    let std = fit.std_dev.clone().unwrap();
-    for (k, key) in ["fx", "fy", "cx", "cy"].iter().enumerate() {
-        let ours = [c.fx_px, c.fy_px, c.cx_px, c.cy_px][k];
-        assert!((ours - get(key)).abs() <= 0.1 * std[k], "{key} {ours} vs {}", get(key));
-    }
+    peers::assert_same_minimum("ChArUco, default controls", &fit, &calibrated);
     let _ = std::fs::remove_dir_all(&dir);
 }

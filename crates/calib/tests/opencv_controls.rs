@@ -9,16 +9,16 @@
 //! skipped.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, missing_docs)]
 
-use std::io::Write as _;
 use std::path::Path;
-use std::process::{Command, Stdio};
 
 use alacs_calib::{
     BoardObservation, FixedIntrinsics, IntrinsicsFit, IntrinsicsOptions, calibrate_intrinsics,
 };
 use alacs_model::{Camera, Distortion, DistortionModel};
 use nalgebra::{Point2, Point3};
-use serde_json::{Value, json};
+use serde_json::Value;
+
+mod peers;
 
 /// OpenCV's classic corners of the 13 photographs, as board observations
 /// (corner k at ((k % 9) * 25, (k / 9) * 25, 0) mm, OpenCV's order).
@@ -103,33 +103,6 @@ fn controls() -> Vec<(&'static str, IntrinsicsOptions, Vec<&'static str>)> {
     ]
 }
 
-/// OpenCV's answer for `views` with `flags`, or `None` without the peer.
-fn opencv(views: &[BoardObservation], flags: &[&str], initial: Option<&Camera>) -> Option<Value> {
-    let python = std::env::var("ALACS_PEER_PYTHON").ok()?;
-    let request = json!({
-        "image_size": [640, 480],
-        "object_points": views.iter().map(|v| v.points_in_board.iter().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>()).collect::<Vec<_>>(),
-        "image_points": views.iter().map(|v| v.pixels.iter().map(|p| [p.x, p.y]).collect::<Vec<_>>()).collect::<Vec<_>>(),
-        "flags": flags,
-        "initial": initial.map(|c| json!({
-            "K": [c.fx_px, c.skew_px, c.cx_px, 0.0, c.fy_px, c.cy_px, 0.0, 0.0, 1.0],
-            "dist": c.distortion.coefficients(),
-        })),
-    });
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/peers/opencv_calibrate.py");
-    let mut child = Command::new(python)
-        .arg(script)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    child.stdin.take().unwrap().write_all(request.to_string().as_bytes()).unwrap();
-    let output = child.wait_with_output().unwrap();
-    assert!(output.status.success(), "peer: {}", String::from_utf8_lossy(&output.stderr));
-    Some(serde_json::from_slice(&output.stdout).unwrap())
-}
-
 #[test]
 fn every_camera_control_reaches_opencvs_minimum_on_the_same_corners() {
     let views = opencv_corners();
@@ -157,51 +130,16 @@ fn every_camera_control_reaches_opencvs_minimum_on_the_same_corners() {
         if options.fixed.principal_point {
             assert_eq!((c.cx_px, c.cy_px), (319.5, 239.5), "{name}");
         }
-        let std = fit.std_dev.clone().unwrap();
-        let Some(peer) = opencv(&views, &flags, options.initial.as_ref()) else {
+        let Some(peer) =
+            peers::calibrate_camera((640, 480), &views, &flags, options.initial.as_ref())
+        else {
             eprintln!(
                 "{name}: alacs RMS {:.5} px; SKIPPED OpenCV: set ALACS_PEER_PYTHON",
                 fit.rms_px
             );
             continue;
         };
-        let get = |key: &str| peer[key].as_f64().unwrap();
-        eprintln!(
-            "{name}: RMS alacs {:.6} OpenCV {:.6} px; fx {:.4} / {:.4}, fy {:.4} / {:.4}, cx {:.4} / {:.4}, cy {:.4} / {:.4}",
-            fit.rms_px,
-            get("rms_px"),
-            c.fx_px,
-            get("fx"),
-            c.fy_px,
-            get("fy"),
-            c.cx_px,
-            get("cx"),
-            c.cy_px,
-            get("cy")
-        );
-        // The same minimum: RMS to 1e-4 px (alacs never worse), each
-        // intrinsic within a tenth of its standard deviation.
-        assert!(
-            fit.rms_px <= get("rms_px") + 1e-4,
-            "{name}: RMS {} vs {}",
-            fit.rms_px,
-            get("rms_px")
-        );
-        for (k, key) in ["fx", "fy", "cx", "cy"].iter().enumerate() {
-            let ours = [c.fx_px, c.fy_px, c.cx_px, c.cy_px][k];
-            let bound = (0.1 * std[k]).max(1e-6);
-            assert!((ours - get(key)).abs() <= bound, "{name}: {key} {ours} vs {}", get(key));
-        }
-        let theirs: Vec<f64> =
-            peer["dist"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
-        // OpenCV gives 14 coefficients for the rational model (thin prism
-        // and tilt, not fitted: 0).
-        assert!(theirs.len() >= coefficients.len(), "{name}: {theirs:?}");
-        assert!(theirs[coefficients.len()..].iter().all(|&v| v == 0.0), "{name}: {theirs:?}");
-        for (i, (ours, theirs)) in coefficients.iter().zip(&theirs).enumerate() {
-            let bound = (0.1 * std[4 + i]).max(1e-9);
-            assert!((ours - theirs).abs() <= bound, "{name}: coefficient {i}: {ours} vs {theirs}");
-        }
+        peers::assert_same_minimum(name, &fit, &peer);
         compared += 1;
     }
     eprintln!("{compared} controls compared with OpenCV");

@@ -213,7 +213,7 @@ fn a_slide_scale_error_is_fitted_to_the_noise_floor() {
 /// 105 used 7 of its 8 poses.
 #[test]
 fn a_charuco_session_cut_by_the_border_uses_every_pose() {
-    use alacs_model::{ArucoDictionary, CharucoMarkers};
+    use alacs_model::ArucoDictionary;
     use alacs_sim::{Checkerboard, SlideError};
     for seed in [100, 101] {
         let options = SessionOptions {
@@ -222,13 +222,7 @@ fn a_charuco_session_cut_by_the_border_uses_every_pose() {
             scale: 0.5,
             seed,
             slide: SlideError { scale: 0.99, angle_deg: 0.0 },
-            board: Checkerboard {
-                markers: Some(CharucoMarkers {
-                    marker_mm: 22.5,
-                    dictionary: ArucoDictionary::Dict5x5_100,
-                }),
-                ..Checkerboard::default()
-            },
+            board: Checkerboard::charuco(ArucoDictionary::Dict5x5_100),
             cut_by_border: true,
             ..SessionOptions::default()
         };

@@ -73,7 +73,19 @@ fn marker_codes(dictionary: ArucoDictionary) -> &'static [u64] {
     table.get(index).copied().unwrap_or(&[])
 }
 
+/// A ChArUco marker's side per square side in [`Checkerboard::charuco`]
+/// (OpenCV's examples use 0.5-0.8).
+pub const CHARUCO_MARKER_PER_SQUARE: f64 = 0.75;
+
 impl Checkerboard {
+    /// The default board as a ChArUco board: markers of `dictionary`, each
+    /// [`CHARUCO_MARKER_PER_SQUARE`] of a square.
+    pub fn charuco(dictionary: ArucoDictionary) -> Checkerboard {
+        let board = Checkerboard::default();
+        let marker_mm = CHARUCO_MARKER_PER_SQUARE * board.square_mm.0.min(board.square_mm.1);
+        Checkerboard { markers: Some(CharucoMarkers { marker_mm, dictionary }), ..board }
+    }
+
     /// Checks that the board is printable: at least 2 x 2 inner corners,
     /// positive squares, a non-negative border, reflectances in 0..1.
     pub fn validate(&self) -> Result<()> {

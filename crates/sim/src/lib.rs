@@ -50,7 +50,7 @@ mod session;
 mod slide;
 mod truth;
 
-pub use board::{BoardScene, Checkerboard};
+pub use board::{BoardScene, CHARUCO_MARKER_PER_SQUARE, Checkerboard};
 pub use error::{Error, MAX_SAMPLES, MAX_SCALE, MAX_SESSION_VIEWS, MAX_SLIDE_POSITIONS, Result};
 pub use orchard::{
     CameraRayGrid, Hit, Kind, MAX_CLUSTER, Material, Object, OrchardOptions, OrchardScene, Shape,

@@ -170,19 +170,12 @@ pub fn parse_dictionary(name: &str) -> CmdResult<alacs::model::ArucoDictionary> 
     })
 }
 
-/// A ChArUco marker's side per square side in `simulate session --charuco`.
-const CHARUCO_MARKER_PER_SQUARE: f64 = 0.75;
-
 /// The simulated board: the default checkerboard, with markers of
 /// `dictionary` (`--charuco`) if given.
 fn charuco_board(dictionary: Option<&str>) -> CmdResult<Checkerboard> {
-    let board = Checkerboard::default();
-    let Some(name) = dictionary else { return Ok(board) };
-    let dictionary = parse_dictionary(name)?;
-    let marker_mm = CHARUCO_MARKER_PER_SQUARE * board.square_mm.0.min(board.square_mm.1);
-    Ok(Checkerboard {
-        markers: Some(alacs::model::CharucoMarkers { marker_mm, dictionary }),
-        ..board
+    Ok(match dictionary {
+        Some(name) => Checkerboard::charuco(parse_dictionary(name)?),
+        None => Checkerboard::default(),
     })
 }
 
