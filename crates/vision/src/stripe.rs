@@ -675,12 +675,11 @@ fn local_contrast<T: Copy + Into<f64>>(
     let lo = first.saturating_sub(background.reach());
     let hi = (last + background.reach()).min(row.len() - 1);
     // Prefix sums over lo..=hi: sum(a..b) = prefix[b - lo] - prefix[a - lo].
-    let mut prefix = Vec::with_capacity(hi - lo + 2);
-    prefix.push(0.0_f64);
+    let mut prefix = vec![0.0_f64; hi - lo + 2];
     let mut total = 0.0_f64;
-    for &s in &row[lo..=hi] {
+    for (sum, &s) in prefix[1..].iter_mut().zip(&row[lo..=hi]) {
         total += s.into();
-        prefix.push(total);
+        *sum = total;
     }
     let mean = |a: usize, b: usize| -> Option<f64> {
         // Mean over a..b (exclusive), clipped to lo..=hi.
@@ -708,11 +707,27 @@ fn local_contrast<T: Copy + Into<f64>>(
     }
     out.extend((first..inner_first).map(clipped));
     let size = window as f64;
-    out.extend((inner_first..=inner_last).map(|u| {
-        let left = (prefix[u - gap - lo] - prefix[u - reach - lo]) / size;
-        let right = (prefix[u + reach + 1 - lo] - prefix[u + gap + 1 - lo]) / size;
-        (row[u].into() - left.max(right)).max(0.0) as f32
-    }));
+    // The same arithmetic over slices zipped in step (no index checks, no
+    // call per pixel): pixel u's four prefix sums sit at fixed offsets.
+    let n = inner_last - inner_first + 1;
+    let start = out.len();
+    out.resize(start + n, 0.0);
+    let at = |offset: usize| &prefix[offset..offset + n];
+    let (left_end, left_start) = (at(inner_first - gap - lo), at(inner_first - reach - lo));
+    let (right_end, right_start) =
+        (at(inner_first + reach + 1 - lo), at(inner_first + gap + 1 - lo));
+    let values = &row[inner_first..=inner_last];
+    for (((((out, &value), &le), &ls), &re), &rs) in out[start..]
+        .iter_mut()
+        .zip(values)
+        .zip(left_end)
+        .zip(left_start)
+        .zip(right_end)
+        .zip(right_start)
+    {
+        let (left, right) = ((le - ls) / size, (re - rs) / size);
+        *out = (value.into() - left.max(right)).max(0.0) as f32;
+    }
     out.extend((inner_last + 1..=last).map(clipped));
 }
 
