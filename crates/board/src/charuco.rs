@@ -12,10 +12,11 @@ use alacs_model::{BoardSpec, CharucoMarkers};
 use calib_targets::charuco::{CharucoBoard, CharucoBoardSpec, CharucoParams, MarkerLayout};
 use calib_targets::detect;
 use image::GrayImage;
-use nalgebra::Point2;
 
-use crate::checkerboard::refine_corners_within;
-use crate::checkerboard::{MAX_REFINE_HALF_WINDOW_PX, REFINE_WINDOW_PER_CELL};
+use crate::checkerboard::{
+    MAX_REFINE_HALF_WINDOW_PX, REFINE_WINDOW_PER_CELL, keep_more, level_to_image,
+    refine_corners_within,
+};
 use crate::{BoardCorners, Error, Result};
 
 /// Fewest corners a ChArUco view must show (OpenCV's own interpolation asks
@@ -100,18 +101,14 @@ pub fn detect_charuco(gray: &GrayImage, board: &BoardSpec) -> Result<BoardCorner
         );
         let second = detect::detect_charuco_best(&upscaled, &configs)
             .map(|detection| labelled(&detection.corners, board, gray, UPSCALE));
-        match (first, second) {
-            (Ok(a), Ok(b)) => {
-                if b.found_count() > a.found_count() {
-                    b
-                } else {
-                    a
-                }
-            }
-            (Ok(a), Err(_)) => a,
-            (Err(_), Ok(b)) => b,
-            (Err(e), Err(_)) => return Err(no_board(format!("no ChArUco corners ({e})"))),
+        let first_error = first.as_ref().err().map(ToString::to_string);
+        let mut best = first.ok();
+        if let Ok(second) = second {
+            keep_more(&mut best, second);
         }
+        best.ok_or_else(|| {
+            no_board(format!("no ChArUco corners ({})", first_error.unwrap_or_default()))
+        })?
     } else {
         first.map_err(|e| no_board(format!("no ChArUco corners ({e})")))?
     };
@@ -152,14 +149,10 @@ fn labelled(
     gray: &GrayImage,
     factor: u32,
 ) -> BoardCorners {
-    // Pixel centres: u' = factor u + (factor - 1) / 2.
-    let (scale, shift) = (f64::from(factor), 0.5 * (f64::from(factor) - 1.0));
     let mut corners_px = vec![None; board.corner_count()];
     for corner in found {
-        let position = Point2::new(
-            (f64::from(corner.position.x) - shift) / scale,
-            (f64::from(corner.position.y) - shift) / scale,
-        );
+        let position =
+            level_to_image((corner.position.x, corner.position.y), 1.0 / f64::from(factor));
         let inside = position.x >= -0.5
             && position.y >= -0.5
             && position.x <= f64::from(gray.width()) - 0.5

@@ -117,13 +117,9 @@ pub fn detect_checkerboard(gray: &GrayImage, board: &BoardSpec) -> Result<BoardC
     let mut full_error = None;
     for &(scale, level) in levels.iter().rev() {
         match labelled_grid(level, scale, board, gray) {
-            Ok(corners) if corners.found_count() == board.corner_count() => {
-                best = Some(corners);
-                break;
-            }
             Ok(corners) => {
-                if best.as_ref().is_none_or(|b| b.found_count() < corners.found_count()) {
-                    best = Some(corners);
+                if keep_more(&mut best, corners) == board.corner_count() {
+                    break;
                 }
             }
             // The full-resolution search's reason is the one reported.
@@ -175,8 +171,6 @@ fn labelled_grid(
 ) -> std::result::Result<BoardCorners, String> {
     let frame =
         chessboard::detect_corner_frame(&detect::gray_view(level), &detect::default_chess_config());
-    // Pixel centres: u = scale u' + (scale - 1) / 2.
-    let shift = (scale - 1.0) / 2.0;
     let mut best: Option<BoardCorners> = None;
     let mut last_error = String::from("no corner grid");
     for params in ChessboardParams::sweep_default() {
@@ -191,25 +185,39 @@ fn labelled_grid(
             .map(|c| {
                 (
                     (i64::from(c.grid.u), i64::from(c.grid.v)),
-                    Point2::new(
-                        scale * f64::from(c.position.x) + shift,
-                        scale * f64::from(c.position.y) + shift,
-                    ),
+                    level_to_image((c.position.x, c.position.y), scale),
                 )
             })
             .filter(|(_, p)| p.x.is_finite() && p.y.is_finite())
             .collect();
         match label_grid(&grid, board, gray.width(), gray.height()) {
-            Ok(corners) if corners.found_count() == board.corner_count() => return Ok(corners),
             Ok(corners) => {
-                if best.as_ref().is_none_or(|b| b.found_count() < corners.found_count()) {
-                    best = Some(corners);
+                if keep_more(&mut best, corners) == board.corner_count() {
+                    break;
                 }
             }
             Err(e) => last_error = e,
         }
     }
     best.ok_or(last_error)
+}
+
+/// A position found in an image rescaled from the original, in the
+/// original's pixels; `scale` is original pixels per rescaled pixel (2 for
+/// a half-size image, 0.5 for a double-size one). Pixel centres:
+/// u = scale u' + (scale - 1) / 2.
+pub(crate) fn level_to_image((u, v): (f32, f32), scale: f64) -> Point2<f64> {
+    let shift = (scale - 1.0) / 2.0;
+    Point2::new(scale * f64::from(u) + shift, scale * f64::from(v) + shift)
+}
+
+/// Keeps in `best` whichever of it and `candidate` labels more corners (the
+/// earlier one on a tie); returns how many `best` now labels.
+pub(crate) fn keep_more(best: &mut Option<BoardCorners>, candidate: BoardCorners) -> usize {
+    if best.as_ref().is_none_or(|b| b.found_count() < candidate.found_count()) {
+        *best = Some(candidate);
+    }
+    best.as_ref().map_or(0, BoardCorners::found_count)
 }
 
 /// Fits a labelled corner grid (grid coordinates, pixel) to the board:

@@ -119,6 +119,19 @@ impl ArucoDictionary {
     }
 }
 
+impl ArucoDictionary {
+    /// [`ArucoDictionary::from_name`], or an error that names `name` and
+    /// lists the dictionaries.
+    pub fn parse(name: &str) -> std::result::Result<ArucoDictionary, String> {
+        Self::from_name(name).ok_or_else(|| {
+            format!(
+                "{name:?} is not one of OpenCV's dictionaries ({})",
+                Self::ALL.iter().map(|d| d.as_str()).collect::<Vec<_>>().join(", ")
+            )
+        })
+    }
+}
+
 impl std::fmt::Display for ArucoDictionary {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.as_str())
@@ -143,6 +156,29 @@ impl BoardSpec {
     pub fn corner_in_board(&self, index: usize) -> nalgebra::Point3<f64> {
         let (col, row) = (index % self.cols, index / self.cols);
         nalgebra::Point3::new(col as f64 * self.square_x_mm, row as f64 * self.square_y_mm, 0.0)
+    }
+
+    /// Checks a ChArUco board's markers (a checkerboard passes): each
+    /// smaller than a square, and a dictionary with a marker for every
+    /// white square. The error names the key (`marker_mm`, `dictionary`).
+    pub fn check_markers(&self) -> std::result::Result<(), String> {
+        let Some(CharucoMarkers { marker_mm, dictionary }) = self.markers else {
+            return Ok(());
+        };
+        let square_mm = self.square_x_mm.min(self.square_y_mm);
+        if !(marker_mm.is_finite() && marker_mm > 0.0 && marker_mm < square_mm) {
+            return Err(format!(
+                "`marker_mm` must be positive and smaller than a square ({square_mm} mm), got {marker_mm}"
+            ));
+        }
+        let (needed, (across, down)) = (self.marker_count(), self.squares());
+        if needed > dictionary.size() {
+            return Err(format!(
+                "`dictionary` {dictionary} has {} markers; a {across} x {down}-square board needs {needed}",
+                dictionary.size()
+            ));
+        }
+        Ok(())
     }
 
     /// Squares across and down: `(cols + 1, rows + 1)`.
@@ -310,36 +346,14 @@ fn parse_board(file: BoardFile) -> std::result::Result<BoardSpec, String> {
     board.markers = match (file.marker_mm, file.dictionary) {
         (None, None) => None,
         (Some(marker_mm), Some(name)) => {
-            let dictionary = ArucoDictionary::from_name(&name).ok_or_else(|| {
-                format!(
-                    "`board.dictionary` {name:?} is not one of OpenCV's dictionaries ({})",
-                    ArucoDictionary::ALL.iter().map(|d| d.as_str()).collect::<Vec<_>>().join(", ")
-                )
-            })?;
-            if !(marker_mm.is_finite()
-                && marker_mm > 0.0
-                && marker_mm < square_x_mm.min(square_y_mm))
-            {
-                return Err(format!(
-                    "`board.marker_mm` must be positive and smaller than a square ({} mm), got {marker_mm}",
-                    square_x_mm.min(square_y_mm)
-                ));
-            }
-            let markers = CharucoMarkers { marker_mm, dictionary };
-            let needed = board.marker_count();
-            if needed > dictionary.size() {
-                return Err(format!(
-                    "`board.dictionary` {dictionary} has {} markers; a {} x {}-square board needs {needed}",
-                    dictionary.size(),
-                    cols + 1,
-                    rows + 1
-                ));
-            }
-            Some(markers)
+            let dictionary =
+                ArucoDictionary::parse(&name).map_err(|e| format!("`board.dictionary` {e}"))?;
+            Some(CharucoMarkers { marker_mm, dictionary })
         }
         (Some(_), None) => return Err("`board.marker_mm` needs `board.dictionary`".into()),
         (None, Some(_)) => return Err("`board.dictionary` needs `board.marker_mm`".into()),
     };
+    board.check_markers().map_err(|e| format!("`board`: {e}"))?;
     Ok(board)
 }
 

@@ -109,26 +109,7 @@ impl Checkerboard {
                 return invalid(format!("{name} reflectance {value} must lie in 0..1"));
             }
         }
-        if let Some(markers) = self.markers {
-            let spec = self.spec();
-            let codes = marker_codes(markers.dictionary).len();
-            if codes < spec.marker_count() {
-                return invalid(format!(
-                    "a {} x {}-square ChArUco board needs {} markers; {} has {codes}",
-                    cols + 1,
-                    rows + 1,
-                    spec.marker_count(),
-                    markers.dictionary
-                ));
-            }
-            if !(markers.marker_mm > 0.0 && markers.marker_mm < sx.min(sy)) {
-                return invalid(format!(
-                    "marker side {} mm must be positive and smaller than a square",
-                    markers.marker_mm
-                ));
-            }
-        }
-        Ok(())
+        self.spec().check_markers().or_else(|m| invalid(format!("ChArUco board: {m}")))
     }
 
     /// The board as session.yaml describes it.

@@ -353,10 +353,10 @@ fn pose_is_usable(
     if normal.dot(&centre.coords) <= 0.0 {
         return false;
     }
-    let margin = IMAGE_MARGIN_PX;
     let (width, height) = (f64::from(camera.width_px), f64::from(camera.height_px));
-    // Whether a board point is in front of the camera (first) and in the image (second).
-    let in_image = |point_in_board: Point3<f64>| {
+    // Whether a board point is in front of the camera (first) and in the
+    // image, `margin` px inside its border (second).
+    let in_image = |point_in_board: Point3<f64>, margin: f64| {
         let point = camera_from_board * point_in_board;
         if point.z <= 0.0 {
             return (false, false);
@@ -377,7 +377,7 @@ fn pose_is_usable(
         let next = outline[(k + 1) % 4];
         for i in 0..OUTLINE_POINTS_PER_SIDE {
             let t = i as f64 / OUTLINE_POINTS_PER_SIDE as f64;
-            let (in_front, inside) = in_image(corner + (next - corner) * t);
+            let (in_front, inside) = in_image(corner + (next - corner) * t, IMAGE_MARGIN_PX);
             if !in_front || (!inside && !options.cut_by_border) {
                 return false;
             }
@@ -386,27 +386,12 @@ fn pose_is_usable(
     if options.cut_by_border {
         let corners = board.object_points();
         if board.markers.is_some() {
-            let visible = corners.iter().filter(|p| in_image(**p).1).count();
+            let visible = corners.iter().filter(|p| in_image(**p, IMAGE_MARGIN_PX).1).count();
             if (visible as f64) < MIN_VISIBLE_CORNER_FRACTION * corners.len() as f64 {
                 return false;
             }
-        } else {
-            let inside = |p: &Point3<f64>| {
-                let point = camera_from_board * p;
-                let normalized = Point2::new(point.x / point.z, point.y / point.z);
-                if point.z <= 0.0 || !camera.is_distortion_invertible_at(&normalized) {
-                    return false;
-                }
-                let pixel = camera.normalized_to_pixel(&normalized);
-                let m = MIN_CORNER_BORDER_PX;
-                pixel.x >= m - 0.5
-                    && pixel.x <= width - 0.5 - m
-                    && pixel.y >= m - 0.5
-                    && pixel.y <= height - 0.5 - m
-            };
-            if !corners.iter().all(inside) {
-                return false;
-            }
+        } else if !corners.iter().all(|p| in_image(*p, MIN_CORNER_BORDER_PX).1) {
+            return false;
         }
     }
     options

@@ -161,13 +161,8 @@ pub fn samples(args: &SimulateSamplesArgs) -> CmdResult {
 
 /// Parses `--charuco`: one of OpenCV's dictionary names.
 pub fn parse_dictionary(name: &str) -> CmdResult<alacs::model::ArucoDictionary> {
-    use alacs::model::ArucoDictionary;
-    ArucoDictionary::from_name(name).ok_or_else(|| {
-        Failure::bad_input(anyhow!(
-            "--charuco: `{name}` is not one of OpenCV's dictionaries ({})",
-            ArucoDictionary::ALL.iter().map(|d| d.as_str()).collect::<Vec<_>>().join(", ")
-        ))
-    })
+    alacs::model::ArucoDictionary::parse(name)
+        .map_err(|e| Failure::bad_input(anyhow!("--charuco: {e}")))
 }
 
 /// The simulated board: the default checkerboard, with markers of
