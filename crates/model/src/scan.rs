@@ -101,6 +101,11 @@ pub struct Scan {
     /// writer knew them (extra keys `exposure_us`, `gain_db` written by the
     /// scan controller after metering).
     pub exposure: Option<FrameExposure>,
+    /// The speed of a continuous sweep, mm/s (extra key written by the scan
+    /// controller): the frames were taken with the slide moving, each at
+    /// the slide's position at mid-exposure. `None`: the slide stood still
+    /// for every frame (stop-and-go), or the writer does not say.
+    pub sweep_speed_mm_per_s: Option<f64>,
 }
 
 /// The exposure the frames of a scan were taken at.
@@ -114,6 +119,9 @@ pub struct FrameExposure {
 
 /// Longest exposure time scan.yaml may name, microseconds (10 s).
 const MAX_EXPOSURE_US: f64 = 10.0e6;
+
+/// Fastest sweep scan.yaml may name, mm/s (a slide's stroke in 20 ms).
+const MAX_SWEEP_SPEED_MM_PER_S: f64 = 10_000.0;
 
 /// Largest gain scan.yaml may name, dB.
 const MAX_GAIN_DB: f64 = 60.0;
@@ -134,6 +142,8 @@ struct ScanFile {
     exposure_us: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     gain_db: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    sweep_speed_mm_per_s: Option<f64>,
     frames: Vec<FrameFile>,
 }
 
@@ -197,6 +207,7 @@ impl Scan {
             plan_shifted_into_stroke: self.plan_shifted_into_stroke,
             exposure_us: self.exposure.map(|e| e.exposure_us),
             gain_db: self.exposure.map(|e| e.gain_db),
+            sweep_speed_mm_per_s: self.sweep_speed_mm_per_s,
             frames: self
                 .frames
                 .iter()
@@ -332,6 +343,14 @@ impl Scan {
                 Some(FrameExposure { exposure_us, gain_db })
             }
         };
+        let sweep_speed_mm_per_s = file.sweep_speed_mm_per_s;
+        if let Some(speed) = sweep_speed_mm_per_s
+            && !(speed.is_finite() && speed > 0.0 && speed <= MAX_SWEEP_SPEED_MM_PER_S)
+        {
+            return Err(parse_error(format!(
+                "`sweep_speed_mm_per_s` is {speed}; it must lie within 0-{MAX_SWEEP_SPEED_MM_PER_S} mm/s"
+            )));
+        }
         if file.frames.is_empty() {
             return Err(parse_error("`frames` is empty".into()));
         }
@@ -366,6 +385,7 @@ impl Scan {
             rough_position_in_rgbd_mm: first.rough_position_in_rgbd_mm,
             more_targets: targets,
             plan_shifted_into_stroke: file.plan_shifted_into_stroke,
+            sweep_speed_mm_per_s,
             exposure,
         })
     }

@@ -603,6 +603,7 @@ fn empty_scan(goal: &LocalizeFruitGoal) -> CapturedScan {
         plan: ScanPlan { slides_mm: Vec::new(), unclamped_start_mm: 0.0, shifted: false },
         frames: Vec::new(),
         exposure: None,
+        sweep_speed_mm_per_s: None,
     }
 }
 

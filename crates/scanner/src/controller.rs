@@ -16,6 +16,8 @@
 //! 4. Per frame: move the slide and wait until it settles, switch the laser
 //!    on, capture; with [`ControllerConfig::capture_laser_off`] (or a bright
 //!    scene), switch it off and capture again at the same position.
+//!    Or, with [`ScanMode::Continuous`], one run of the slide through
+//!    the positions, frames captured on the way ([`crate::sweep`]).
 //! 5. The laser is switched off at the end, and whenever a step fails.
 //!
 //! The frames keep the positions the slide reported, not the plan's:
@@ -35,6 +37,7 @@ use nalgebra::{Isometry3, Point3};
 
 use crate::hardware::Rig;
 use crate::metering::{MeteredExposure, Metering, meter};
+use crate::sweep::{Sweep, run_sweep};
 use crate::{Error, Result, Step};
 
 /// Settings of [`ScanController`]. `Default`: the seed's strategy, the
@@ -62,6 +65,32 @@ pub struct ControllerConfig {
     /// Meter the target and set the camera's exposure before the frames
     /// (`None`: leave the camera's exposure and gain as they are).
     pub metering: Option<Metering>,
+    /// Stop-and-go (the seed's) or a continuous sweep.
+    pub mode: ScanMode,
+}
+
+/// How the slide takes the frames.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub enum ScanMode {
+    /// The seed's: per frame, move, settle, capture.
+    #[default]
+    StopAndGo,
+    /// One run of the slide through the frames' positions, the camera
+    /// capturing on the way ([`crate::sweep`]); the slide and camera must
+    /// report positions and exposure times ([`crate::Slide::report`],
+    /// [`crate::FrameCamera::capture_timed`]).
+    Continuous(Sweep),
+}
+
+impl ScanMode {
+    /// The mode's name in rig.toml, the CLI and the ROS node:
+    /// `stop_and_go` or `continuous`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            ScanMode::StopAndGo => "stop_and_go",
+            ScanMode::Continuous(_) => "continuous",
+        }
+    }
 }
 
 impl Default for ControllerConfig {
@@ -75,6 +104,7 @@ impl Default for ControllerConfig {
             fruit_radius_mm: DEFAULT_FRUIT_RADIUS_MM,
             position_tolerance_mm: DEFAULT_POSITION_TOLERANCE_MM,
             metering: None,
+            mode: ScanMode::StopAndGo,
         }
     }
 }
@@ -128,6 +158,9 @@ pub struct CapturedScan {
     /// The camera's exposure over the frames, if known (the controller
     /// knows it when it metered).
     pub exposure: Option<FrameExposure>,
+    /// A continuous sweep's speed, mm/s: the fastest the slide went over a
+    /// frame, from its reports (`None`: stop-and-go).
+    pub sweep_speed_mm_per_s: Option<f64>,
 }
 
 impl ScanController {
@@ -165,6 +198,9 @@ impl ScanController {
         }
         if let Some(metering) = &config.metering {
             metering.validate()?;
+        }
+        if let ScanMode::Continuous(sweep) = &config.mode {
+            sweep.validate()?;
         }
         let transform = config.alacs_from_rgbd.to_homogeneous();
         if !transform.iter().all(|v| v.is_finite()) {
@@ -270,8 +306,13 @@ impl ScanController {
         {
             return Err(Error::OutOfStroke { step: Some(Step::Planning), target_mm, stroke_mm });
         }
-        let captured = self.capture_frames(rig, &plan, &fruit, &mut progress);
-        let (frames, exposure) = match captured {
+        let captured = match &self.config.mode {
+            ScanMode::StopAndGo => self.capture_frames(rig, &plan, &fruit, &mut progress),
+            ScanMode::Continuous(sweep) => {
+                self.capture_sweep(sweep, rig, &plan, &fruit, &mut progress)
+            }
+        };
+        let (frames, exposure, sweep_speed_mm_per_s) = match captured {
             Ok(captured) => captured,
             Err(error) => {
                 // Whatever failed, the laser goes off; the first error is the one reported.
@@ -299,6 +340,7 @@ impl ScanController {
             frames,
             exposure: exposure
                 .map(|e| FrameExposure { exposure_us: e.exposure_us, gain_db: e.gain_db }),
+            sweep_speed_mm_per_s,
         })
     }
 
@@ -320,7 +362,7 @@ impl ScanController {
         plan: &ScanPlan,
         fruit: &[(Point3<f64>, f64)],
         progress: &mut impl FnMut(usize, usize),
-    ) -> Result<(Vec<CapturedFrame>, Option<MeteredExposure>)> {
+    ) -> Result<Captured> {
         let mut exposure = None;
         let mut laser_off = self.config.capture_laser_off;
         let images = |laser_off: bool| plan.slides_mm.len() * (1 + usize::from(laser_off));
@@ -369,7 +411,55 @@ impl ScanController {
                 captured_at: [Some(on_at), off_at],
             });
         }
-        Ok((frames, exposure))
+        Ok((frames, exposure, None))
+    }
+
+    /// Meters (where the slide stands: the laser is off, so its position
+    /// does not matter), then sweeps ([`run_sweep`]).
+    fn capture_sweep(
+        &self,
+        sweep: &Sweep,
+        rig: &mut Rig<'_>,
+        plan: &ScanPlan,
+        fruit: &[(Point3<f64>, f64)],
+        progress: &mut impl FnMut(usize, usize),
+    ) -> Result<Captured> {
+        let exposure = self.meter(rig, fruit)?;
+        let laser_off =
+            self.config.capture_laser_off || exposure.as_ref().is_some_and(|m| m.bright);
+        let metered = exposure.as_ref().map_or(0, |m| m.frames);
+        // The reference frame and one frame per position.
+        let total = metered + 1 + plan.slides_mm.len();
+        let mut done = metered;
+        progress(done, total);
+        let mut tick = || {
+            done += 1;
+            progress(done, total);
+        };
+        let captured = run_sweep(
+            sweep,
+            &self.laser,
+            rig,
+            plan,
+            fruit,
+            self.config.move_timeout,
+            self.config.capture_timeout,
+            &mut tick,
+        )?;
+        let reference_off = laser_off.then_some(captured.reference_off);
+        let off_at = laser_off.then_some(captured.reference_at);
+        let frames = captured
+            .frames
+            .into_iter()
+            .map(|f| CapturedFrame {
+                planned_slide_mm: f.planned_slide_mm,
+                slide_mm: f.slide_mm,
+                image: f.image,
+                image_laser_off: reference_off.clone(),
+                captured_at: [Some(f.captured_at), off_at],
+            })
+            .collect();
+        Ok((frames, exposure, Some(captured.speed_mm_per_s)))
     }
 
     /// Switches the laser on (`laser_on`) or off and captures frame `frame`.
@@ -380,6 +470,9 @@ impl ScanController {
             .map_err(|e| e.at(Step::Capture { frame, laser_on }))
     }
 }
+
+/// What a capture returns: the frames, the metered exposure, a sweep's speed.
+type Captured = (Vec<CapturedFrame>, Option<MeteredExposure>, Option<f64>);
 
 /// File name of frame `index`'s laser-on or laser-off PNG.
 fn frame_file(index: usize, laser_on: bool) -> String {
@@ -470,6 +563,7 @@ impl CapturedScan {
             rough_position_in_rgbd_mm: Some(self.rough_position_in_rgbd_mm),
             more_targets: self.more_targets.clone(),
             plan_shifted_into_stroke: Some(self.plan.shifted),
+            sweep_speed_mm_per_s: self.sweep_speed_mm_per_s,
             exposure: self.exposure,
         }
     }
@@ -687,6 +781,23 @@ mod tests {
 
     fn controller(config: ControllerConfig) -> ScanController {
         ScanController::new(laser(), config).unwrap()
+    }
+
+    #[test]
+    fn a_continuous_sweep_on_a_slide_that_cannot_report_is_refused_before_anything_moves() {
+        let rough = Point3::new(20.0, -10.0, 800.0);
+        let config = ControllerConfig {
+            mode: ScanMode::Continuous(Sweep::new(Camera::blackfly_s_5mp())),
+            ..ControllerConfig::default()
+        };
+        let mut rig = FakeRig::new();
+        let error = rig.run(&controller(config), rough).unwrap_err();
+        assert_eq!(error.device(), Some(Device::Slide));
+        let message = error.to_string();
+        assert!(message.contains("does not report its position while moving"), "{message}");
+        assert!(message.contains("stop-and-go"), "{message}");
+        assert!(rig.moves().is_empty());
+        assert!(!rig.state.borrow().laser_on);
     }
 
     #[test]

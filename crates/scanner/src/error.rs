@@ -54,6 +54,13 @@ pub enum Step {
         /// With the laser on or off.
         laser_on: bool,
     },
+    /// Sweeping the slide past a frame's position (a continuous sweep).
+    Sweep {
+        /// The frame, in the order the sweep takes them.
+        frame: usize,
+        /// The position the frame is taken at, mm.
+        target_mm: f64,
+    },
     /// Metering the target with the laser off, before the first frame.
     Metering,
     /// Switching the laser off after the last frame.
@@ -76,6 +83,9 @@ impl fmt::Display for Step {
             }
             Step::Capture { frame, laser_on } => {
                 write!(f, "frame {frame}, capturing with the laser {}", on_off(laser_on))
+            }
+            Step::Sweep { frame, target_mm } => {
+                write!(f, "frame {frame}, sweeping the slide past {target_mm:.3} mm")
             }
             Step::Metering => f.write_str("metering the target with the laser off"),
             Step::Finish => f.write_str("switching the laser off after the scan"),

@@ -8,11 +8,11 @@
 //! [`Error::Device`](crate::Error::Device), ...) and leaving the step empty:
 //! the controller adds the step of the scan.
 
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use image::RgbImage;
 
-use crate::Result;
+use crate::{Device, Error, Result};
 
 /// The linear slide that carries the laser.
 ///
@@ -43,6 +43,90 @@ pub trait Slide {
 
     /// The current position, mm, as the encoder reports it.
     fn position_mm(&mut self) -> Result<f64>;
+
+    /// Starts a move to `target_mm` at no more than `speed_mm_per_s` and
+    /// returns at once, while the slide moves (a continuous sweep: the
+    /// controller captures frames on the way and asks where the slide was
+    /// with [`Slide::report`]).
+    ///
+    /// A driver must guarantee: the same refusal of targets outside the
+    /// stroke as [`Slide::move_to`], before anything moves; a speed that is
+    /// not finite and positive is refused; the slide accelerates, runs at
+    /// constant speed (the smaller of `speed_mm_per_s` and its own limit)
+    /// and stops at the target without overshoot. Called while an earlier
+    /// move has not ended, it may wait for it or refuse. The default refuses:
+    /// a slide that cannot report while moving cannot sweep.
+    fn start_move(&mut self, target_mm: f64, speed_mm_per_s: f64) -> Result<()> {
+        let _ = (target_mm, speed_mm_per_s);
+        Err(cannot_sweep(Device::Slide, "cannot start a move without waiting for it"))
+    }
+
+    /// Where the slide is now, while it moves or stands: the position the
+    /// encoder (or the controller's step count) reports, the moment it held
+    /// on the host's monotonic clock (the clock of the camera's
+    /// [`TimedFrame`]s), and whether the slide is still moving. A driver
+    /// stamps the report with the middle of its query's round trip and says
+    /// how long that is. The default refuses.
+    fn report(&mut self) -> Result<SlideReport> {
+        Err(cannot_sweep(Device::Slide, "does not report its position while moving"))
+    }
+}
+
+/// One position report of a moving slide ([`Slide::report`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SlideReport {
+    /// The slide travel d, mm.
+    pub position_mm: f64,
+    /// When the slide was there, on the host's monotonic clock.
+    pub at: Instant,
+    /// Whether the slide is still moving.
+    pub moving: bool,
+}
+
+impl SlideReport {
+    /// The position at `time` between `self` and a `later` report, by
+    /// linear interpolation in time (exact at constant speed); a time
+    /// outside the two reports takes the nearer one's position.
+    pub fn position_at(&self, later: &SlideReport, time: Instant) -> f64 {
+        let span = later.at.saturating_duration_since(self.at).as_secs_f64();
+        if span <= 0.0 {
+            return later.position_mm;
+        }
+        let t = (time.saturating_duration_since(self.at).as_secs_f64() / span).min(1.0);
+        self.position_mm + t * (later.position_mm - self.position_mm)
+    }
+}
+
+/// A frame with the time of its exposure ([`FrameCamera::capture_timed`]).
+#[derive(Debug, Clone)]
+pub struct TimedFrame {
+    /// The frame, as [`FrameCamera::capture`] returns it.
+    pub image: RgbImage,
+    /// When the exposure began, on the host's monotonic clock (the clock
+    /// of the slide's [`SlideReport`]s).
+    pub exposure_start: Instant,
+    /// The exposure time.
+    pub exposure: Duration,
+}
+
+impl TimedFrame {
+    /// The middle of the exposure: the moment a frame of a moving laser
+    /// shows the laser at, on average.
+    pub fn mid_exposure(&self) -> Instant {
+        self.exposure_start + self.exposure / 2
+    }
+}
+
+/// A device's refusal of a continuous sweep: the scan controller's
+/// stop-and-go mode needs none of it.
+fn cannot_sweep(device: Device, what: &str) -> Error {
+    Error::Device {
+        device,
+        step: None,
+        message: format!(
+            "this {device} {what}, which a continuous sweep needs; scan in stop-and-go mode"
+        ),
+    }
 }
 
 /// The ALACS camera.
@@ -75,6 +159,17 @@ pub trait FrameCamera {
 
     /// Sets the analogue gain, dB; returns the one the camera took.
     fn set_gain_db(&mut self, gain_db: f64) -> Result<f64>;
+
+    /// Captures one frame as [`FrameCamera::capture`] does, with the start
+    /// and length of its exposure on the host's monotonic clock (the
+    /// clock of [`Slide::report`]): what a continuous sweep needs to know
+    /// where the slide was. A driver says how its time stamp relates to the
+    /// exposure (a trigger's latency, the camera's clock mapped to the
+    /// host's). The default refuses.
+    fn capture_timed(&mut self, timeout: Duration) -> Result<TimedFrame> {
+        let _ = timeout;
+        Err(cannot_sweep(Device::Camera, "does not time-stamp its exposures"))
+    }
 }
 
 /// The line laser's on/off switch.

@@ -10,6 +10,9 @@
 //! - [`ScanController`]: the rough position from the RGB-D camera, carried
 //!   into the ALACS camera frame, the seed's plan ([`ScanStrategy`]), then
 //!   per frame: move, settle, laser on, capture (and laser off, capture).
+//!   Or, in [`ScanMode::Continuous`] ([`sweep`]), one run of the slide
+//!   through the plan's positions with frames captured on the way, each at
+//!   the slide's position at mid-exposure.
 //!   The [`CapturedScan`] it returns writes a scan folder (FORMATS.md) and
 //!   localizes the fruit ([`alacs_locate::locate`]).
 //!
@@ -52,13 +55,15 @@ pub mod hardware;
 pub mod metering;
 #[cfg(feature = "sim")]
 mod sim_devices;
+pub mod sweep;
 
-pub use controller::{CapturedFrame, CapturedScan, ControllerConfig, ScanController};
+pub use controller::{CapturedFrame, CapturedScan, ControllerConfig, ScanController, ScanMode};
 pub use error::{Device, Error, Result, Step};
-pub use hardware::{FrameCamera, LaserSwitch, Rig, ScanRig, Slide};
+pub use hardware::{FrameCamera, LaserSwitch, Rig, ScanRig, Slide, SlideReport, TimedFrame};
 pub use metering::{MeteredExposure, Metering};
 #[cfg(feature = "sim")]
 pub use sim_devices::{
     ExposureSettings, SimulatedCamera, SimulatedLaser, SimulatedRig, SimulatedRigOptions,
     SimulatedSlide,
 };
+pub use sweep::Sweep;

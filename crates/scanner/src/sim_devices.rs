@@ -4,29 +4,40 @@
 //! The devices share one state (slide position, laser, a simulated clock).
 //! Nothing sleeps unless asked ([`SimulatedRigOptions::realtime`]): the
 //! clock adds what each operation would take on a real rig (the slide's
-//! travel at its speed plus settling, the camera's frame time, the laser's
-//! switching time), and a timeout is reported when that would-be time
-//! exceeds it, the same way on every run.
+//! travel with its acceleration and top speed plus settling, the camera's
+//! frame time, the laser's switching time, a position report's round
+//! trip), and a timeout is reported when that would-be time exceeds it,
+//! the same way on every run.
+//!
+//! The slide also sweeps ([`Slide::start_move`]): it moves on the clock
+//! while the camera captures, the camera renders the laser smeared over
+//! the slide's travel during the exposure
+//! ([`SimulatedScan::render_moving`]), and time stamps are
+//! `Instant`s: the rig's creation plus the simulated clock.
 
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use alacs_model::SLIDE_STROKE_MM;
 use alacs_sim::{Exposure, SimulatedScan};
 use image::RgbImage;
 
-use crate::hardware::{FrameCamera, LaserSwitch, Rig, ScanRig, Slide};
+use crate::hardware::{FrameCamera, LaserSwitch, Rig, ScanRig, Slide, SlideReport, TimedFrame};
 use crate::{Device, Error, Result};
 
-/// How the simulated devices behave. `Default`: a 200 mm stroke at
-/// 50 mm/s with 50 ms settling, starting at 0 mm; 30 ms per frame; 2 ms to
-/// switch the laser; no sleeping.
+/// How the simulated devices behave. `Default`: a 200 mm stroke, a top
+/// speed of 50 mm/s reached at 500 mm/s^2 (GRBL's acceleration setting in
+/// `devices/grbl_emulator.py`), 50 ms settling, starting at 0 mm; 30 ms per
+/// frame; 2 ms to switch the laser; 5 ms per position report (a GRBL status
+/// report's round trip at 115200 baud); no sleeping.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SimulatedRigOptions {
     /// Slide stroke, mm.
     pub stroke_mm: f64,
-    /// Slide speed, mm/s.
+    /// Slide top speed, mm/s.
     pub speed_mm_per_s: f64,
+    /// Slide acceleration and deceleration, mm/s^2 (a trapezoidal profile).
+    pub acceleration_mm_per_s2: f64,
     /// Time the slide needs to settle after a move.
     pub settle: Duration,
     /// Where the slide starts, mm.
@@ -35,6 +46,8 @@ pub struct SimulatedRigOptions {
     pub frame_time: Duration,
     /// Time the laser needs to switch on or off.
     pub laser_switch: Duration,
+    /// Time one position report takes ([`Slide::report`]).
+    pub report_time: Duration,
     /// Sleep for the would-be times as well (a demonstration in real time).
     pub realtime: bool,
 }
@@ -44,10 +57,12 @@ impl Default for SimulatedRigOptions {
         Self {
             stroke_mm: SLIDE_STROKE_MM,
             speed_mm_per_s: DEFAULT_SPEED_MM_PER_S,
+            acceleration_mm_per_s2: DEFAULT_ACCELERATION_MM_PER_S2,
             settle: Duration::from_millis(50),
             start_mm: 0.0,
             frame_time: Duration::from_millis(30),
             laser_switch: Duration::from_millis(2),
+            report_time: Duration::from_millis(5),
             realtime: false,
         }
     }
@@ -56,12 +71,74 @@ impl Default for SimulatedRigOptions {
 /// A lead-screw slide's travel speed: a 200 mm stroke in 4 s.
 const DEFAULT_SPEED_MM_PER_S: f64 = 50.0;
 
+/// GRBL's acceleration in the emulator the rig's tests drive.
+const DEFAULT_ACCELERATION_MM_PER_S2: f64 = 500.0;
+
+/// A move on the simulated clock: a trapezoidal speed profile (or a
+/// triangular one, where the top speed is not reached) from `from_mm` to
+/// `to_mm`, begun at `start`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Motion {
+    from_mm: f64,
+    to_mm: f64,
+    start: Duration,
+    speed_mm_per_s: f64,
+    acceleration_mm_per_s2: f64,
+}
+
+impl Motion {
+    /// The peak speed and the time spent accelerating (as long as the time
+    /// decelerating).
+    fn ramp(&self) -> (f64, f64) {
+        let distance = (self.to_mm - self.from_mm).abs();
+        let (v, a) = (self.speed_mm_per_s, self.acceleration_mm_per_s2);
+        let peak = v.min((distance * a).sqrt());
+        (peak, peak / a)
+    }
+
+    /// How long the move takes, without settling.
+    fn duration(&self) -> Duration {
+        let distance = (self.to_mm - self.from_mm).abs();
+        if distance == 0.0 {
+            return Duration::ZERO;
+        }
+        let (peak, ramp) = self.ramp();
+        // Two ramps cover peak * ramp; the rest runs at the peak speed.
+        Duration::from_secs_f64(2.0 * ramp + (distance - peak * ramp) / peak)
+    }
+
+    /// Where the slide is at `clock` and whether it still moves.
+    fn at(&self, clock: Duration) -> (f64, bool) {
+        let total = self.duration().as_secs_f64();
+        let t = clock.saturating_sub(self.start).as_secs_f64();
+        if t >= total {
+            return (self.to_mm, false);
+        }
+        let (peak, ramp) = self.ramp();
+        let a = self.acceleration_mm_per_s2;
+        let travelled = if t < ramp {
+            0.5 * a * t * t
+        } else if t <= total - ramp {
+            0.5 * peak * ramp + peak * (t - ramp)
+        } else {
+            let left = total - t;
+            (self.to_mm - self.from_mm).abs() - 0.5 * a * left * left
+        };
+        (self.from_mm + travelled.copysign(self.to_mm - self.from_mm), true)
+    }
+}
+
 /// What the three devices share.
 #[derive(Debug)]
 struct RigState {
+    /// Where the slide stands, or where its last move began.
     slide_mm: f64,
+    /// The slide's move, until a device sees it ended.
+    motion: Option<Motion>,
     laser_on: bool,
     clock: Duration,
+    /// The `Instant` of clock 0, for time stamps.
+    epoch: Instant,
     captures_on: u64,
     captures_off: u64,
 }
@@ -79,6 +156,35 @@ fn spend(state: &mut RigState, time: Duration, realtime: bool) {
     state.clock += time;
     if realtime {
         std::thread::sleep(time);
+    }
+}
+
+impl RigState {
+    /// Where the slide is at the clock's time, and whether it moves; a move
+    /// that has ended is put away.
+    fn slide_now(&mut self) -> (f64, bool) {
+        let Some(motion) = self.motion else { return (self.slide_mm, false) };
+        let (at_mm, moving) = motion.at(self.clock);
+        if !moving {
+            self.slide_mm = at_mm;
+            self.motion = None;
+        }
+        (at_mm, moving)
+    }
+
+    /// Waits (on the clock) until a move in progress has ended.
+    fn finish_motion(&mut self, realtime: bool) {
+        if let Some(motion) = self.motion {
+            let end = motion.start + motion.duration();
+            let wait = end.saturating_sub(self.clock);
+            spend(self, wait, realtime);
+            self.slide_now();
+        }
+    }
+
+    /// The time stamp of the clock's time.
+    fn instant(&self, clock: Duration) -> Instant {
+        self.epoch + clock
     }
 }
 
@@ -172,6 +278,10 @@ impl SimulatedRig {
         if !(options.speed_mm_per_s.is_finite() && options.speed_mm_per_s > 0.0) {
             return invalid(format!("speed {} mm/s must be positive", options.speed_mm_per_s));
         }
+        let acceleration = options.acceleration_mm_per_s2;
+        if !(acceleration.is_finite() && acceleration > 0.0) {
+            return invalid(format!("acceleration {acceleration} mm/s^2 must be positive"));
+        }
         if !(0.0..=options.stroke_mm).contains(&options.start_mm) {
             return invalid(format!(
                 "start {} mm is outside the stroke 0..{} mm",
@@ -180,8 +290,10 @@ impl SimulatedRig {
         }
         let state = Arc::new(Mutex::new(RigState {
             slide_mm: options.start_mm,
+            motion: None,
             laser_on: false,
             clock: Duration::ZERO,
+            epoch: Instant::now(),
             captures_on: 0,
             captures_off: 0,
         }));
@@ -221,7 +333,7 @@ impl SimulatedRig {
 
     /// The slide's position now, mm.
     pub fn slide_mm(&self) -> f64 {
-        lock(&self.state).slide_mm
+        lock(&self.state).slide_now().0
     }
 }
 
@@ -231,31 +343,29 @@ impl Slide for SimulatedSlide {
     }
 
     fn move_to(&mut self, target_mm: f64, timeout: Duration) -> Result<f64> {
-        let stroke_mm = self.options.stroke_mm;
-        if !(target_mm.is_finite() && (0.0..=stroke_mm).contains(&target_mm)) {
-            return Err(Error::OutOfStroke { step: None, target_mm, stroke_mm });
-        }
+        self.check_target(target_mm)?;
         let mut state = lock(&self.state);
+        state.finish_motion(self.options.realtime);
         let travel_mm = target_mm - state.slide_mm;
         if travel_mm == 0.0 {
             return Ok(target_mm);
         }
-        let speed = self.options.speed_mm_per_s;
-        let moving = Duration::from_secs_f64(travel_mm.abs() / speed);
-        let needed = moving + self.options.settle;
+        let motion = self.motion(&state, target_mm, self.options.speed_mm_per_s);
+        let needed = motion.duration() + self.options.settle;
         if needed > timeout {
             // The slide moves until the timeout and stops there.
-            let done_mm = (speed * timeout.as_secs_f64()).min(travel_mm.abs());
-            state.slide_mm += done_mm.copysign(travel_mm);
+            let (done_mm, _) = motion.at(state.clock + timeout);
+            state.slide_mm = done_mm;
             spend(&mut state, timeout, self.options.realtime);
             return Err(Error::Timeout {
                 device: Device::Slide,
                 step: None,
                 timeout,
                 detail: format!(
-                    "the move of {:.1} mm needs {:.3} s at {speed} mm/s with settling; stopped at {:.3} mm",
+                    "the move of {:.1} mm needs {:.3} s at {} mm/s with settling; stopped at {:.3} mm",
                     travel_mm.abs(),
                     needed.as_secs_f64(),
+                    self.options.speed_mm_per_s,
                     state.slide_mm
                 ),
             });
@@ -266,34 +376,62 @@ impl Slide for SimulatedSlide {
     }
 
     fn position_mm(&mut self) -> Result<f64> {
-        Ok(lock(&self.state).slide_mm)
+        Ok(lock(&self.state).slide_now().0)
+    }
+
+    fn start_move(&mut self, target_mm: f64, speed_mm_per_s: f64) -> Result<()> {
+        self.check_target(target_mm)?;
+        if !(speed_mm_per_s.is_finite() && speed_mm_per_s > 0.0) {
+            return Err(Error::Device {
+                device: Device::Slide,
+                step: None,
+                message: format!("sweep speed {speed_mm_per_s} mm/s must be positive"),
+            });
+        }
+        let mut state = lock(&self.state);
+        state.finish_motion(self.options.realtime);
+        let speed = speed_mm_per_s.min(self.options.speed_mm_per_s);
+        state.motion = Some(self.motion(&state, target_mm, speed));
+        Ok(())
+    }
+
+    fn report(&mut self) -> Result<SlideReport> {
+        let mut state = lock(&self.state);
+        // The report holds the middle of the query's round trip.
+        let half = self.options.report_time / 2;
+        spend(&mut state, half, self.options.realtime);
+        let (position_mm, moving) = state.slide_now();
+        let at = state.instant(state.clock);
+        spend(&mut state, self.options.report_time - half, self.options.realtime);
+        Ok(SlideReport { position_mm, at, moving })
+    }
+}
+
+impl SimulatedSlide {
+    /// Refuses a target outside the stroke.
+    fn check_target(&self, target_mm: f64) -> Result<()> {
+        let stroke_mm = self.options.stroke_mm;
+        if !(target_mm.is_finite() && (0.0..=stroke_mm).contains(&target_mm)) {
+            return Err(Error::OutOfStroke { step: None, target_mm, stroke_mm });
+        }
+        Ok(())
+    }
+
+    /// A move from where the slide stands to `target_mm`, beginning now.
+    fn motion(&self, state: &RigState, target_mm: f64, speed_mm_per_s: f64) -> Motion {
+        Motion {
+            from_mm: state.slide_mm,
+            to_mm: target_mm,
+            start: state.clock,
+            speed_mm_per_s,
+            acceleration_mm_per_s2: self.options.acceleration_mm_per_s2,
+        }
     }
 }
 
 impl FrameCamera for SimulatedCamera {
     fn capture(&mut self, timeout: Duration) -> Result<RgbImage> {
-        let (slide_mm, laser_on, index) = {
-            let mut state = lock(&self.state);
-            if self.options.frame_time > timeout {
-                spend(&mut state, timeout, self.options.realtime);
-                return Err(Error::Timeout {
-                    device: Device::Camera,
-                    step: None,
-                    timeout,
-                    detail: format!("a frame takes {:.3} s", self.options.frame_time.as_secs_f64()),
-                });
-            }
-            spend(&mut state, self.options.frame_time, self.options.realtime);
-            // Laser-on and laser-off captures are numbered apart, so that a
-            // scan at the plan's positions renders the bytes of
-            // `SimulatedScan::render_frame`.
-            let counter =
-                if state.laser_on { &mut state.captures_on } else { &mut state.captures_off };
-            let index = *counter;
-            *counter += 1;
-            (state.slide_mm, state.laser_on, index)
-        };
-        Ok(self.scan.render_exposed(slide_mm, laser_on, index, self.exposure.0)?)
+        Ok(self.capture_timed(timeout)?.image)
     }
 
     fn set_exposure_us(&mut self, exposure_us: f64) -> Result<f64> {
@@ -302,6 +440,40 @@ impl FrameCamera for SimulatedCamera {
 
     fn set_gain_db(&mut self, gain_db: f64) -> Result<f64> {
         self.exposure.set_gain_db(gain_db)
+    }
+
+    fn capture_timed(&mut self, timeout: Duration) -> Result<TimedFrame> {
+        let exposure = Duration::from_secs_f64(self.exposure.0.exposure_us * 1e-6);
+        let (slides_mm, laser_on, index, exposure_start) = {
+            let mut state = lock(&self.state);
+            // A frame takes its frame time, and at least its exposure.
+            let frame_time = self.options.frame_time.max(exposure);
+            if frame_time > timeout {
+                spend(&mut state, timeout, self.options.realtime);
+                return Err(Error::Timeout {
+                    device: Device::Camera,
+                    step: None,
+                    timeout,
+                    detail: format!("a frame takes {:.3} s", frame_time.as_secs_f64()),
+                });
+            }
+            // The exposure begins now; where the slide is as it begins and ends.
+            let start = state.clock;
+            let (from_mm, _) = state.slide_now();
+            let to_mm = state.motion.map_or(from_mm, |m| m.at(start + exposure).0);
+            spend(&mut state, frame_time, self.options.realtime);
+            state.slide_now();
+            // Laser-on and laser-off captures are numbered apart, so that a
+            // scan at the plan's positions renders the bytes of
+            // `SimulatedScan::render_frame`.
+            let counter =
+                if state.laser_on { &mut state.captures_on } else { &mut state.captures_off };
+            let index = *counter;
+            *counter += 1;
+            ([from_mm, to_mm], state.laser_on, index, state.instant(start))
+        };
+        let image = self.scan.render_moving(slides_mm, laser_on, index, self.exposure.0)?;
+        Ok(TimedFrame { image, exposure_start, exposure })
     }
 }
 

@@ -449,14 +449,38 @@ impl SimulatedScan {
         frame_index_for_noise: u64,
         exposure: Exposure,
     ) -> Result<RgbImage> {
+        self.render_moving([slide_mm, slide_mm], laser_on, frame_index_for_noise, exposure)
+    }
+
+    /// [`SimulatedScan::render_exposed`] with the slide moving at constant
+    /// speed during the exposure, from `slide_mm[0]` where the exposure
+    /// begins to `slide_mm[1]` where it ends (a continuous sweep): the
+    /// stripe is the laser's mean over the exposure, smeared along the
+    /// slide's travel ([`LaserStripe::sweeping`]). Equal ends render
+    /// [`SimulatedScan::render_exposed`]'s bytes.
+    pub fn render_moving(
+        &self,
+        slide_mm: [f64; 2],
+        laser_on: bool,
+        frame_index_for_noise: u64,
+        exposure: Exposure,
+    ) -> Result<RgbImage> {
         let sensor = Sensor { exposure, ..self.render.sensor };
         RenderOptions { sensor, ..self.render }.validate()?;
-        if !slide_mm.is_finite() {
-            return Err(Error::InvalidOptions(format!("slide travel {slide_mm} mm is not finite")));
+        if let Some(d) = slide_mm.iter().find(|d| !d.is_finite()) {
+            return Err(Error::InvalidOptions(format!("slide travel {d} mm is not finite")));
         }
-        let mut stripe =
-            LaserStripe::new(&self.laser, slide_mm, &self.render.laser, self.camera.fx_px);
-        stripe.origin = self.slide.origin_in_camera(&self.laser, slide_mm);
+        let stripe_at = |slide_mm: f64| {
+            let mut stripe =
+                LaserStripe::new(&self.laser, slide_mm, &self.render.laser, self.camera.fx_px);
+            stripe.origin = self.slide.origin_in_camera(&self.laser, slide_mm);
+            stripe
+        };
+        let stripe = if slide_mm[0] == slide_mm[1] {
+            stripe_at(slide_mm[0])
+        } else {
+            LaserStripe::sweeping(&stripe_at(slide_mm[0]), &stripe_at(slide_mm[1]))
+        };
         let stream = if laser_on {
             frame_index_for_noise
         } else {
@@ -506,6 +530,7 @@ impl SimulatedScan {
                 })
                 .collect(),
             plan_shifted_into_stroke: Some(self.plan.shifted),
+            sweep_speed_mm_per_s: None,
             exposure: Some(FrameExposure {
                 exposure_us: self.render.sensor.exposure.exposure_us,
                 gain_db: self.render.sensor.exposure.gain_db,

@@ -77,6 +77,7 @@ pub fn captured_from_folder(scan: &Scan) -> CmdResult<CapturedScan> {
         },
         frames,
         exposure: scan.exposure,
+        sweep_speed_mm_per_s: scan.sweep_speed_mm_per_s,
     })
 }
 
