@@ -901,6 +901,12 @@ pub struct RigArgs {
     /// fruit does not clip.
     #[arg(long)]
     pub fixed_exposure: bool,
+    /// How the slide takes the frames: stop_and_go (the seed's: move,
+    /// settle, capture, per frame) or continuous (one run through the
+    /// positions, frames captured on the way, each at the slide's position
+    /// at mid-exposure). Default: rig.toml's [scan] mode, else stop_and_go.
+    #[arg(long, value_name = "MODE", value_parser = ["stop_and_go", "continuous"])]
+    pub scan_mode: Option<String>,
     /// Pose of the RGB-D camera in the ALACS camera frame: translation in mm,
     /// then roll, pitch, yaw in degrees (R = Rz(yaw) Ry(pitch) Rx(roll));
     /// point_in_alacs = R point_in_rgbd + (x, y, z). The simulated RGB-D camera

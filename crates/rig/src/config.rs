@@ -23,6 +23,68 @@ pub struct RigConfig {
     /// The RGB-D camera that gives the rough position.
     #[serde(default)]
     pub rgbd: RgbdConfig,
+    /// How the slide takes the frames.
+    #[serde(default)]
+    pub scan: ScanConfig,
+}
+
+/// `mode` of `[scan]`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum ScanModeName {
+    /// The seed's: per frame, move, settle, capture.
+    #[default]
+    StopAndGo,
+    /// One run of the slide through the frames' positions, the camera
+    /// capturing on the way (the slide and camera must time-stamp: GRBL
+    /// and GenICam drivers do).
+    Continuous,
+}
+
+impl ScanModeName {
+    /// The name as rig.toml and `--scan-mode` write it.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ScanModeName::StopAndGo => "stop_and_go",
+            ScanModeName::Continuous => "continuous",
+        }
+    }
+
+    /// Parses `stop_and_go` or `continuous`.
+    pub fn parse(name: &str) -> std::result::Result<Self, String> {
+        match name {
+            "stop_and_go" => Ok(ScanModeName::StopAndGo),
+            "continuous" => Ok(ScanModeName::Continuous),
+            other => Err(format!("scan mode `{other}`: use stop_and_go or continuous")),
+        }
+    }
+}
+
+/// `[scan]`.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScanConfig {
+    /// `mode`: "stop_and_go" (the default) or "continuous".
+    #[serde(default)]
+    pub mode: ScanModeName,
+    /// `sweep_speed_mm_per_s`: the fastest continuous sweep (the slide's
+    /// own limit and the smear limit may make it slower).
+    #[serde(default = "default_sweep_speed")]
+    pub sweep_speed_mm_per_s: f64,
+    /// `max_smear_px`: how far the stripe may move during one exposure of a
+    /// continuous sweep, pixels.
+    #[serde(default = "default_max_smear_px")]
+    pub max_smear_px: f64,
+}
+
+impl Default for ScanConfig {
+    fn default() -> Self {
+        Self {
+            mode: ScanModeName::default(),
+            sweep_speed_mm_per_s: default_sweep_speed(),
+            max_smear_px: default_max_smear_px(),
+        }
+    }
 }
 
 /// Which slide driver.
@@ -254,6 +316,12 @@ fn default_exposure_us() -> f64 {
 fn default_bright_below_us() -> f64 {
     600.0
 }
+fn default_sweep_speed() -> f64 {
+    alacs_scanner::sweep::DEFAULT_MAX_SWEEP_SPEED_MM_PER_S
+}
+fn default_max_smear_px() -> f64 {
+    alacs_scanner::sweep::DEFAULT_MAX_SMEAR_PX
+}
 
 impl RigConfig {
     /// Reads and checks rig.toml.
@@ -292,6 +360,8 @@ impl RigConfig {
         positive("[slide] command_timeout_s", s.command_timeout_s, 3600.0)?;
         positive("[slide] homing_timeout_s", s.homing_timeout_s, 3600.0)?;
         positive("[slide] move_timeout_s", s.move_timeout_s, 3600.0)?;
+        positive("[scan] sweep_speed_mm_per_s", self.scan.sweep_speed_mm_per_s, 10_000.0)?;
+        positive("[scan] max_smear_px", self.scan.max_smear_px, 100.0)?;
         if !(s.axis_mm_at_zero.is_finite() && s.axis_mm_at_zero.abs() <= 100_000.0) {
             return Err(bad(
                 "[slide] axis_mm_at_zero",

@@ -24,7 +24,7 @@ use std::io::{Read as _, Write as _};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
 
-use alacs_scanner::{Device, Error as DeviceError, LaserSwitch, Slide};
+use alacs_scanner::{Device, Error as DeviceError, LaserSwitch, Slide, SlideReport};
 
 use crate::config::{LaserConfig, SlideConfig};
 
@@ -592,7 +592,64 @@ impl Slide for GrblSlide {
         let status = lock(&self.controller).status(timeout)?;
         Ok(self.config.travel_mm(status.work_mm[self.axis]))
     }
+
+    /// Sends `G90 G1` to the target at the speed (GRBL caps it at the
+    /// axis's `$110`-`$112` maximum rate) and returns once GRBL has queued
+    /// it (its `ok`): the move has begun.
+    fn start_move(&mut self, target_mm: f64, speed_mm_per_s: f64) -> alacs_scanner::Result<()> {
+        let stroke_mm = self.config.stroke_mm;
+        if !(target_mm.is_finite() && (0.0..=stroke_mm).contains(&target_mm)) {
+            return Err(DeviceError::OutOfStroke { step: None, target_mm, stroke_mm });
+        }
+        if !(speed_mm_per_s.is_finite() && speed_mm_per_s > 0.0) {
+            return Err(DeviceError::Device {
+                device: Device::Slide,
+                step: None,
+                message: format!("sweep speed {speed_mm_per_s} mm/s must be positive"),
+            });
+        }
+        let letter = ["X", "Y", "Z"].get(self.axis).copied().unwrap_or("X");
+        let axis_mm = self.config.axis_mm(target_mm);
+        let feed_mm_per_min = speed_mm_per_s * 60.0;
+        let line = format!("G90 G1 {letter}{axis_mm:.3} F{feed_mm_per_min:.1}");
+        let timeout = self.config.command_timeout();
+        lock(&self.controller).command(&line, timeout).map_err(|f| f.on(Device::Slide))
+    }
+
+    /// A status report (`?`). GRBL computes the position when it reads the
+    /// `?` and then sends the report, so the report's moment is taken as
+    /// its arrival less the report's transmission at the port's baud rate
+    /// (about 4 ms at 115200; a USB serial adapter's own latency, up to a
+    /// few ms, is not known and not removed).
+    fn report(&mut self) -> alacs_scanner::Result<SlideReport> {
+        let timeout = self.config.command_timeout();
+        let sent = Instant::now();
+        let status = lock(&self.controller).status(timeout)?;
+        let arrived = Instant::now();
+        let transmission = Duration::from_secs_f64(
+            REPORT_BYTES * BITS_PER_BYTE / f64::from(self.config.baud.max(1)),
+        );
+        let at = arrived.checked_sub(transmission).map_or(sent, |at| at.max(sent));
+        if status.state.starts_with("Alarm") {
+            return Err(DeviceError::Device {
+                device: Device::Slide,
+                step: None,
+                message: format!("GRBL reports {} during a sweep", status.state),
+            });
+        }
+        Ok(SlideReport {
+            position_mm: self.config.travel_mm(status.work_mm[self.axis]),
+            at,
+            moving: status.state != "Idle",
+        })
+    }
 }
+
+/// A status report's length, bytes: `<Run|MPos:100.000,0.000,0.000|FS:3000,0>` and CR LF.
+const REPORT_BYTES: f64 = 44.0;
+
+/// A serial byte with its start and stop bits.
+const BITS_PER_BYTE: f64 = 10.0;
 
 /// The laser on a GRBL controller's spindle output. Dropping it switches
 /// the laser off (best effort).

@@ -13,8 +13,8 @@ pub mod relay;
 mod rig;
 
 pub use config::{
-    CameraConfig, CameraDriver, LaserConfig, LaserDriver, RgbdConfig, RigConfig, SlideConfig,
-    SlideDriver,
+    CameraConfig, CameraDriver, LaserConfig, LaserDriver, RgbdConfig, RigConfig, ScanConfig,
+    ScanModeName, SlideConfig, SlideDriver,
 };
 pub use error::{Error, Result};
 pub use rig::{CheckStep, RealRig, Scene, check_rig};

@@ -4,7 +4,9 @@
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
 
-use alacs_scanner::{Device, Error as DeviceError, FrameCamera, LaserSwitch, Rig, Slide};
+use alacs_scanner::{
+    Device, Error as DeviceError, FrameCamera, LaserSwitch, Rig, Slide, SlideReport, TimedFrame,
+};
 #[cfg(feature = "sim")]
 use alacs_sim::SimulatedScan;
 #[cfg(feature = "sim")]
@@ -28,6 +30,9 @@ pub type Scene = std::convert::Infallible;
 #[derive(Debug, Clone, Copy)]
 struct Tracked {
     slide_mm: f64,
+    /// When the slide reported `slide_mm` while moving (a sweep's report);
+    /// `None` for a settled position.
+    reported_at: Option<Instant>,
     laser_on: bool,
 }
 
@@ -51,15 +56,31 @@ impl Slide for TrackedSlide {
     fn move_to(&mut self, target_mm: f64, timeout: Duration) -> alacs_scanner::Result<f64> {
         let result = self.inner.move_to(target_mm, timeout);
         if let Ok(at) = result {
-            lock(&self.tracker).slide_mm = at;
+            let mut tracked = lock(&self.tracker);
+            tracked.slide_mm = at;
+            tracked.reported_at = None;
         }
         result
     }
 
     fn position_mm(&mut self) -> alacs_scanner::Result<f64> {
         let at = self.inner.position_mm()?;
-        lock(&self.tracker).slide_mm = at;
+        let mut tracked = lock(&self.tracker);
+        tracked.slide_mm = at;
+        tracked.reported_at = None;
         Ok(at)
+    }
+
+    fn start_move(&mut self, target_mm: f64, speed_mm_per_s: f64) -> alacs_scanner::Result<()> {
+        self.inner.start_move(target_mm, speed_mm_per_s)
+    }
+
+    fn report(&mut self) -> alacs_scanner::Result<SlideReport> {
+        let report = self.inner.report()?;
+        let mut tracked = lock(&self.tracker);
+        tracked.slide_mm = report.position_mm;
+        tracked.reported_at = report.moving.then_some(report.at);
+        Ok(report)
     }
 }
 
@@ -91,8 +112,15 @@ struct SceneCamera {
 
 #[cfg(feature = "sim")]
 impl FrameCamera for SceneCamera {
-    fn capture(&mut self, _timeout: Duration) -> alacs_scanner::Result<RgbImage> {
-        let Tracked { slide_mm, laser_on } = *lock(&self.tracker);
+    fn capture(&mut self, timeout: Duration) -> alacs_scanner::Result<RgbImage> {
+        Ok(self.capture_timed(timeout)?.image)
+    }
+
+    /// The frame shows the laser where the slide last reported it; its
+    /// exposure is that report's moment, taken as instantaneous (the
+    /// render cannot know where a real slide went while it rendered).
+    fn capture_timed(&mut self, _timeout: Duration) -> alacs_scanner::Result<TimedFrame> {
+        let Tracked { slide_mm, reported_at, laser_on } = *lock(&self.tracker);
         if !slide_mm.is_finite() {
             return Err(DeviceError::Device {
                 device: Device::Camera,
@@ -102,16 +130,19 @@ impl FrameCamera for SceneCamera {
                     .into(),
             });
         }
+        let exposure_start = reported_at.unwrap_or_else(Instant::now);
         let counter = if laser_on { &mut self.captures_on } else { &mut self.captures_off };
         let index = *counter;
         *counter += 1;
-        self.scene.render_exposed(slide_mm, laser_on, index, self.exposure.0).map_err(|e| {
-            DeviceError::Device {
-                device: Device::Camera,
-                step: None,
-                message: format!("the simulated camera: {e}"),
-            }
-        })
+        let image =
+            self.scene.render_exposed(slide_mm, laser_on, index, self.exposure.0).map_err(|e| {
+                DeviceError::Device {
+                    device: Device::Camera,
+                    step: None,
+                    message: format!("the simulated camera: {e}"),
+                }
+            })?;
+        Ok(TimedFrame { image, exposure_start, exposure: Duration::ZERO })
     }
 
     fn set_exposure_us(&mut self, exposure_us: f64) -> alacs_scanner::Result<f64> {
@@ -142,7 +173,11 @@ impl<'a> Parts<'a> {
         Self {
             config,
             scene,
-            tracker: Arc::new(Mutex::new(Tracked { slide_mm: f64::NAN, laser_on: false })),
+            tracker: Arc::new(Mutex::new(Tracked {
+                slide_mm: f64::NAN,
+                reported_at: None,
+                laser_on: false,
+            })),
             controller: None,
             grbl_slide: None,
             slide: None,

@@ -19,7 +19,7 @@ use std::time::Duration;
 use alacs_locate::LocateOptions;
 use alacs_model::{Camera, LaserModel};
 use alacs_rig::{RealRig, RigConfig, check_rig};
-use alacs_scanner::{ControllerConfig, Device, ScanController};
+use alacs_scanner::{ControllerConfig, Device, ScanController, ScanMode, Sweep};
 use alacs_sim::{ScanOptions, SimulatedScan, simulate_scan};
 use nalgebra::Point3;
 
@@ -158,6 +158,48 @@ fn a_scan_on_the_emulated_slide_finds_the_simulated_fruit() {
     let received = emulator.received();
     // Five moves, five laser-on frames, the laser off after the scan.
     assert_eq!(received.iter().filter(|l| l.starts_with("G90 G1 X")).count(), 5);
+    assert_eq!(received.last().map(String::as_str), Some("M5"), "{received:?}");
+}
+
+#[test]
+fn a_continuous_sweep_on_the_emulated_slide_takes_each_frame_where_grbl_reported_it() {
+    // In real time: the sweep's speed follows the camera's frame time.
+    let emulator = Emulator::start(&["--time-scale", "1"]);
+    let mut rig = RealRig::open(&emulator.rig(""), Some(scene())).unwrap();
+    let scene = scene();
+    let config = ControllerConfig {
+        move_timeout: Duration::from_secs(5),
+        mode: ScanMode::Continuous(Sweep::new(scene.camera.clone())),
+        ..ControllerConfig::default()
+    };
+    let controller = ScanController::new(LaserModel::seed_paper(), config).unwrap();
+    let captured = controller.run(&mut rig.rig(), &scene.rough_position_mm).unwrap();
+    // The simulated camera renders where GRBL last reported the slide, and
+    // the frame keeps that position: each frame near its planned position
+    // (the slide runs on between the reports: measured 0.002-0.074 mm at
+    // 55 mm/s; a quarter step allows for a loaded machine), in the plan's order.
+    let planned = &scene.plan.slides_mm;
+    assert_eq!(captured.frames.len(), planned.len());
+    for (frame, planned) in captured.frames.iter().zip(planned) {
+        println!("frame at {:.3} mm for {planned:.3} mm", frame.slide_mm);
+        assert!((frame.slide_mm - planned).abs() < 2.5, "{} vs {planned}", frame.slide_mm);
+    }
+    assert!(captured.frames.windows(2).all(|w| w[0].slide_mm < w[1].slide_mm));
+    let speed = captured.sweep_speed_mm_per_s.unwrap();
+    println!("sweep at {speed:.1} mm/s");
+    let answer = captured
+        .localize(&scene.camera, &LaserModel::seed_paper(), &LocateOptions::default())
+        .unwrap();
+    let truth = scene.scene.fruit_centre;
+    let found = answer.position_mm.expect("the fruit is found");
+    assert!((found - truth).norm() < 15.0, "{found} vs the truth {truth}");
+    drop(rig);
+    // One G1 line for the whole sweep (the slide stood at 0 after homing,
+    // below the plan), the laser off last.
+    let received = emulator.received();
+    let moves: Vec<_> = received.iter().filter(|l| l.starts_with("G90 G1 X")).collect();
+    assert_eq!(moves.len(), 1, "{received:?}");
+    assert!(moves[0].starts_with(&format!("G90 G1 X{:.3} F", planned[planned.len() - 1])));
     assert_eq!(received.last().map(String::as_str), Some("M5"), "{received:?}");
 }
 

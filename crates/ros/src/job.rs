@@ -12,7 +12,7 @@ use alacs_locate::{Localization, LocateOptions};
 use alacs_model::{Camera, LaserModel};
 use alacs_scanner::{
     CapturedScan, ControllerConfig, Device, Error as ScanError, FrameCamera, LaserSwitch, Rig,
-    ScanController, Slide,
+    ScanController, Slide, SlideReport, TimedFrame,
 };
 use alacs_vision::{Region, StripeOptions, extract_stripe_rgb};
 use image::RgbImage;
@@ -143,14 +143,27 @@ impl Slide for WatchedSlide<'_, '_> {
     fn position_mm(&mut self) -> alacs_scanner::Result<f64> {
         self.inner.position_mm()
     }
+
+    fn start_move(&mut self, target_mm: f64, speed_mm_per_s: f64) -> alacs_scanner::Result<()> {
+        self.watch.check(Device::Slide)?;
+        self.inner.start_move(target_mm, speed_mm_per_s)
+    }
+
+    fn report(&mut self) -> alacs_scanner::Result<SlideReport> {
+        // A cancel stops a sweep at its next report (the controller then
+        // switches the laser off; the slide ends its move).
+        self.watch.check(Device::Slide)?;
+        let report = self.inner.report()?;
+        self.watch.slide_mm.set(report.position_mm);
+        Ok(report)
+    }
 }
 
-impl FrameCamera for WatchedCamera<'_, '_> {
-    fn capture(&mut self, timeout: Duration) -> alacs_scanner::Result<RgbImage> {
-        self.watch.check(Device::Camera)?;
-        let image = self.inner.capture(timeout)?;
+impl WatchedCamera<'_, '_> {
+    /// Reports a laser frame as feedback (its stripe's points counted).
+    fn observe(&self, image: RgbImage) -> RgbImage {
         if !self.watch.laser_on.get() {
-            return Ok(image);
+            return image;
         }
         let region = Region::full(image.width(), image.height());
         let stripe_points = extract_stripe_rgb(&image, None, &region, &StripeOptions::orchard())
@@ -167,7 +180,15 @@ impl FrameCamera for WatchedCamera<'_, '_> {
         });
         self.watch.frame.set(frame + 1);
         // The reporter keeps its copy only as long as it publishes it.
-        Ok(Arc::try_unwrap(image).unwrap_or_else(|shared| (*shared).clone()))
+        Arc::try_unwrap(image).unwrap_or_else(|shared| (*shared).clone())
+    }
+}
+
+impl FrameCamera for WatchedCamera<'_, '_> {
+    fn capture(&mut self, timeout: Duration) -> alacs_scanner::Result<RgbImage> {
+        self.watch.check(Device::Camera)?;
+        let image = self.inner.capture(timeout)?;
+        Ok(self.observe(image))
     }
 
     fn set_exposure_us(&mut self, exposure_us: f64) -> alacs_scanner::Result<f64> {
@@ -176,6 +197,12 @@ impl FrameCamera for WatchedCamera<'_, '_> {
 
     fn set_gain_db(&mut self, gain_db: f64) -> alacs_scanner::Result<f64> {
         self.inner.set_gain_db(gain_db)
+    }
+
+    fn capture_timed(&mut self, timeout: Duration) -> alacs_scanner::Result<TimedFrame> {
+        self.watch.check(Device::Camera)?;
+        let frame = self.inner.capture_timed(timeout)?;
+        Ok(TimedFrame { image: self.observe(frame.image), ..frame })
     }
 }
 

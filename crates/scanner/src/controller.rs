@@ -570,10 +570,14 @@ impl CapturedScan {
 
     /// scan.yaml's text for this scan.
     pub fn scan_yaml(&self) -> String {
-        self.to_scan(Path::new("")).to_yaml_string(
+        self.to_scan(Path::new("")).to_yaml_string(if self.sweep_speed_mm_per_s.is_some() {
+            "Captured by alacs-scanner in a continuous sweep. rough_position_mm is the RGB-D\n\
+                 camera's rough position carried into the ALACS camera frame; slide_mm where the\n\
+                 slide was at each frame's mid-exposure."
+        } else {
             "Captured by alacs-scanner. rough_position_mm is the RGB-D camera's rough\n\
-             position carried into the ALACS camera frame; slide_mm where the slide settled.",
-        )
+                 position carried into the ALACS camera frame; slide_mm where the slide settled."
+        })
     }
 
     /// Writes the scan folder (FORMATS.md): scan.yaml and the PNG frames,

@@ -3,8 +3,10 @@
 
 use std::sync::Arc;
 
-use alacs::rig::{CheckStep, RealRig, RigConfig, check_rig};
-use alacs::scanner::{ControllerConfig, Metering, ScanRig, SimulatedRig, SimulatedRigOptions};
+use alacs::rig::{CheckStep, RealRig, RigConfig, ScanModeName, check_rig};
+use alacs::scanner::{
+    ControllerConfig, Metering, ScanMode, ScanRig, SimulatedRig, SimulatedRigOptions, Sweep,
+};
 use alacs::sim::{SimulatedScan, simulate_scan};
 use alacs::{Camera, LaserModel};
 use anyhow::anyhow;
@@ -138,6 +140,18 @@ pub fn open(args: &RigArgs, note: &mut dyn FnMut(&str)) -> CmdResult<OpenRig> {
             metering.bright_below_us = config.camera.bright_below_us;
         }
         controller.metering = Some(metering);
+    }
+    let scan_config = config.as_ref().map(|c| c.scan.clone()).unwrap_or_default();
+    let mode = match &args.scan_mode {
+        Some(name) => ScanModeName::parse(name).map_err(|e| Failure::bad_input(anyhow!(e)))?,
+        None => scan_config.mode,
+    };
+    if mode == ScanModeName::Continuous {
+        controller.mode = ScanMode::Continuous(Sweep {
+            max_speed_mm_per_s: scan_config.sweep_speed_mm_per_s,
+            max_smear_px: scan_config.max_smear_px,
+            ..Sweep::new(camera.clone())
+        });
     }
     if let Some(config) = &config {
         controller.move_timeout = config.slide.move_timeout();

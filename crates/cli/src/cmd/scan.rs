@@ -193,6 +193,18 @@ fn truth_keys(
     keys
 }
 
+/// The scan mode's name: a sweep speed says continuous.
+fn scan_mode(scan: &CapturedScan) -> &'static str {
+    if scan.sweep_speed_mm_per_s.is_some() { "continuous" } else { "stop_and_go" }
+}
+
+/// " in a continuous sweep at V mm/s" or nothing.
+fn sweep_note(scan: &CapturedScan) -> String {
+    scan.sweep_speed_mm_per_s
+        .map(|v| format!(" in a continuous sweep at {v:.0} mm/s"))
+        .unwrap_or_default()
+}
+
 /// `alacs scan --json`'s keys of the scan itself: slides, rig time,
 /// image size and where it was written.
 fn scan_keys(
@@ -206,6 +218,8 @@ fn scan_keys(
     keys.insert("slides_mm".into(), json!(scan.slides_mm()));
     keys.insert("plan_shifted_into_stroke".into(), json!(scan.plan.shifted));
     keys.insert("rig_time_s".into(), json!(rig_time_s));
+    keys.insert("scan_mode".into(), json!(scan_mode(scan)));
+    keys.insert("sweep_speed_mm_per_s".into(), json!(scan.sweep_speed_mm_per_s));
     keys.insert("image_width".into(), json!(camera.width_px));
     keys.insert("image_height".into(), json!(camera.height_px));
     keys.insert("out".into(), json!(path(&args.out)));
@@ -249,10 +263,11 @@ fn print_targets(
     } else {
         let slides: Vec<String> = scan.slides_mm().iter().map(|d| format!("{d:.1}")).collect();
         out!(
-            "scanned {} fruit in one sweep: {} frames at slides {} mm, {:.2} s of rig time\n",
+            "scanned {} fruit in one sweep: {} frames at slides {} mm{}, {:.2} s of rig time\n",
             answers.len(),
             scan.frames.len(),
             slides.join(", "),
+            sweep_note(scan),
             rig_time_s
         );
         out!("{}", output::targets_summary(answers, &scan.priors()));
@@ -326,11 +341,12 @@ fn summary(
         ),
     };
     out += &format!(
-        "  {} frames at slides {} mm{}{}, {:.2} s of rig time\n",
+        "  {} frames at slides {} mm{}{}{}, {:.2} s of rig time\n",
         scan.frames.len(),
         slides.join(", "),
         if args.rig.laser_off { " with laser-off frames" } else { "" },
         if scan.plan.shifted { " (the plan shifted into the stroke)" } else { "" },
+        sweep_note(scan),
         rig_time_s
     );
     match (answer.status, answer.position_mm) {
