@@ -240,6 +240,8 @@ impl Topics {
 /// The node's state for diagnostics.
 struct State {
     rig: String,
+    /// `stop_and_go` or `continuous`.
+    scan_mode: &'static str,
     summary: NodeSummary,
     scanning: bool,
     last_scan_s: Option<f64>,
@@ -267,6 +269,7 @@ impl State {
                 hardware_id: self.rig.clone(),
                 values: vec![
                     value("rig", self.rig.clone()),
+                    value("scan_mode", self.scan_mode.into()),
                     value("state", if self.scanning { "scanning" } else { "idle" }.into()),
                     value("goals", s.goals.to_string()),
                     value("found", s.found.to_string()),
@@ -353,6 +356,7 @@ pub fn run_node(
     ));
     let mut state = State {
         rig: rig_name,
+        scan_mode: job.config.mode.name(),
         summary: NodeSummary::default(),
         scanning: false,
         last_scan_s: None,

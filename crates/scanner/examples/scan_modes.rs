@@ -5,7 +5,9 @@
 //! default slide: 50 mm/s, 500 mm/s^2, 50 ms settling).
 //!
 //! The scans run one after another, as a harvester's would: each starts
-//! where the slide stood after the one before (the first at 0 mm). The
+//! where the slide stood after the one before (the first at 0 mm). With
+//! `FROM_PLAN=1` each starts at its plan's first position instead (the
+//! slide already brought there): the frames' own cost. The
 //! cycle is the rig's simulated time from the scan's start to its last
 //! frame and the slide at rest; the error is the localized centre's
 //! distance from the simulator's true centre (the scene's true camera and
@@ -64,12 +66,16 @@ fn main() {
         rig_options.report_time.as_millis()
     );
     let names = ["stop_and_go", "continuous"];
+    let from_plan = std::env::var("FROM_PLAN").is_ok_and(|v| v == "1");
     let mut starts = [0.0, 0.0];
     let mut outcomes: [Vec<Outcome>; 2] = [Vec::new(), Vec::new()];
     for seed in first_seed..first_seed + scans {
         let options = ScanOptions { scale, seed, ..ScanOptions::default() };
         let scene = Arc::new(simulate_scan(&camera, &laser, &options).unwrap());
         let mut line = format!("seed {seed:3} z {:6.1} |", scene.scene.fruit_centre.z);
+        if from_plan {
+            starts = [scene.plan.slides_mm[0]; 2];
+        }
         // The sweep's smear limit uses the camera the frames are taken with.
         let modes = [ScanMode::StopAndGo, ScanMode::Continuous(Sweep::new(scene.camera.clone()))];
         for (m, mode) in modes.iter().enumerate() {
