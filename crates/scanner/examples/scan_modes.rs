@@ -82,7 +82,7 @@ fn main() {
             let options = SimulatedRigOptions { start_mm: starts[m], ..rig_options };
             let mut rig = SimulatedRig::new(scene.clone(), options).unwrap();
             let config = ControllerConfig { mode: mode.clone(), ..ControllerConfig::default() };
-            let controller = ScanController::new(laser.clone(), config).unwrap();
+            let controller = ScanController::new(laser, config).unwrap();
             let scan = controller.run(&mut rig.rig(), &scene.rough_position_mm).unwrap();
             let answer =
                 scan.localize(&scene.camera, &scene.laser, &LocateOptions::default()).unwrap();
