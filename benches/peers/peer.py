@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """The OpenCV peer of alacs's stripe and board jobs, and the side-by-side table.
 
-    peer.py ALACS_PEER_TIMING REPEATS STRIPE_FRAME -- BOARD_COLS BOARD_ROWS PHOTO...
+    peer.py ALACS_PEER_TIMING REPEATS STRIPE_FRAME -- BOARD_COLS BOARD_ROWS PHOTO... [-- BOARD_COLS BOARD_ROWS PHOTO...]...
 
 Times OpenCV on the files (decoded first, as alacs does), runs alacs's
 `peer_timing` example on the same files, and prints one table. Both sides
@@ -67,7 +67,13 @@ def main():
         sys.exit(__doc__)
     split = sys.argv.index("--")
     binary, repeats, frames = sys.argv[1], int(sys.argv[2]), sys.argv[3:split]
-    cols, rows, photos = int(sys.argv[split + 1]), int(sys.argv[split + 2]), sys.argv[split + 3:]
+    board_sets, current = [], None
+    for arg in sys.argv[split:]:
+        if arg == "--":
+            current = []
+            board_sets.append(current)
+        else:
+            current.append(arg)
     cv2.setNumThreads(2)
 
     table = []
@@ -84,19 +90,23 @@ def main():
                   statistics.median(o["ms"] for o in ours), f"{ours[0]['rows']} rows",
                   statistics.median(peer_ms), f"{peer_rows} rows"))
 
-    peer_ms, peer_found = [], 0
-    for f in photos:
-        gray = cv2.imread(f, cv2.IMREAD_GRAYSCALE)
-        if gray is None:
-            sys.exit(f"peer.py: cannot read {f}")
-        peer_ms.append(median_ms(repeats, lambda: board_peer(gray, (cols, rows))))
-        peer_found += bool(board_peer(gray, (cols, rows)))
-    ours = alacs(binary, ["board", str(repeats), str(cols), str(rows), *photos])
-    h, w = cv2.imread(photos[0]).shape[:2]
-    table.append((f"board {cols}x{rows}, {w}x{h}, {len(photos)} photos",
-                  statistics.median(o["ms"] for o in ours),
-                  f"{sum(o['found'] for o in ours)} found",
-                  statistics.median(peer_ms), f"{peer_found} found"))
+    for board_set in board_sets:
+        if len(board_set) < 3:
+            sys.exit(__doc__)
+        cols, rows, photos = int(board_set[0]), int(board_set[1]), board_set[2:]
+        peer_ms, peer_found = [], 0
+        for f in photos:
+            gray = cv2.imread(f, cv2.IMREAD_GRAYSCALE)
+            if gray is None:
+                sys.exit(f"peer.py: cannot read {f}")
+            peer_ms.append(median_ms(repeats, lambda: board_peer(gray, (cols, rows))))
+            peer_found += bool(board_peer(gray, (cols, rows)))
+        ours = alacs(binary, ["board", str(repeats), str(cols), str(rows), *photos])
+        h, w = cv2.imread(photos[0]).shape[:2]
+        table.append((f"board {cols}x{rows}, {w}x{h}, {len(photos)} photos",
+                      statistics.median(o["ms"] for o in ours),
+                      f"{sum(o['found'] for o in ours)} found",
+                      statistics.median(peer_ms), f"{peer_found} found"))
 
     print(f"OpenCV {cv2.__version__}, numpy {np.__version__}; median of {repeats} runs per file, "
           "then the median over the files")

@@ -213,6 +213,36 @@ fn a_cyclone_dds_client_gets_the_fruit_from_alacs_ros_sim() {
 }
 
 #[test]
+fn a_goal_in_continuous_sweep_mode_reports_each_frame_where_the_slide_was() {
+    if peer_python().is_none() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let truth = scene_truth(dir.path());
+    let node_args = "--max-goals 1 --scan-mode continuous";
+    let r = run(dir.path(), &truth, node_args, "--expect-status SUCCEEDED", 0);
+    let context = &r.context;
+    assert_eq!(r.node_exit, 0, "the node did not stop cleanly\n{context}");
+    let result = &r.peer["result"];
+    assert_eq!(result["status"], "ok", "{context}");
+    let error_mm: f64 = (0..3)
+        .map(|i| (result["position"][i].as_f64().unwrap() * 1000.0 - truth.centre_mm[i]).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    assert!(error_mm < 15.0, "{error_mm:.1} mm from the truth\n{context}");
+    // One feedback per laser frame (the sweep's laser-off reference frame
+    // is none), each at the slide's reported position, in the sweep's order.
+    let feedback = r.peer["feedback"].as_array().unwrap();
+    assert_eq!(feedback.len(), 5, "one feedback per frame\n{context}");
+    let slides: Vec<f64> =
+        feedback.iter().map(|f| f["slide_position_m"].as_f64().unwrap()).collect();
+    let ascending = slides.windows(2).all(|w| w[0] < w[1]);
+    let descending = slides.windows(2).all(|w| w[0] > w[1]);
+    assert!(ascending || descending, "{slides:?}\n{context}");
+    assert!(context.contains("the laser is off"), "{context}");
+}
+
+#[test]
 fn a_second_goal_while_one_runs_is_rejected_and_the_first_still_succeeds() {
     if peer_python().is_none() {
         return;
