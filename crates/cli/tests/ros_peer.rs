@@ -145,6 +145,14 @@ fn run(dir: &Path, truth: &Truth, node_args: &str, peer_args: &str, peer_exit: i
     Run { peer, node, node_exit, context }
 }
 
+/// The distance of a result's position (m) from the true centre, mm.
+fn error_mm(result: &Value, truth: &Truth) -> f64 {
+    (0..3)
+        .map(|i| (result["position"][i].as_f64().unwrap() * 1000.0 - truth.centre_mm[i]).powi(2))
+        .sum::<f64>()
+        .sqrt()
+}
+
 #[test]
 fn a_cyclone_dds_client_gets_the_fruit_from_alacs_ros_sim() {
     if peer_python().is_none() {
@@ -160,10 +168,7 @@ fn a_cyclone_dds_client_gets_the_fruit_from_alacs_ros_sim() {
     let result = &r.peer["result"];
     assert_eq!(result["status"], "ok", "{context}");
     assert_eq!(result["frame_id"], "alacs_camera_optical_frame");
-    let error_mm: f64 = (0..3)
-        .map(|i| (result["position"][i].as_f64().unwrap() * 1000.0 - truth.centre_mm[i]).powi(2))
-        .sum::<f64>()
-        .sqrt();
+    let error_mm = error_mm(result, &truth);
     assert!(error_mm < 15.0, "{error_mm:.1} mm from the truth\n{context}");
     // The position covariance in m^2, as the Cyclone peer decoded it: a
     // symmetric matrix with variances of a few mm^2 (not ROS's "unknown", -1).
@@ -225,10 +230,7 @@ fn a_goal_in_continuous_sweep_mode_reports_each_frame_where_the_slide_was() {
     assert_eq!(r.node_exit, 0, "the node did not stop cleanly\n{context}");
     let result = &r.peer["result"];
     assert_eq!(result["status"], "ok", "{context}");
-    let error_mm: f64 = (0..3)
-        .map(|i| (result["position"][i].as_f64().unwrap() * 1000.0 - truth.centre_mm[i]).powi(2))
-        .sum::<f64>()
-        .sqrt();
+    let error_mm = error_mm(result, &truth);
     assert!(error_mm < 15.0, "{error_mm:.1} mm from the truth\n{context}");
     // One feedback per laser frame (the sweep's laser-off reference frame
     // is none), each at the slide's reported position, in the sweep's order.
