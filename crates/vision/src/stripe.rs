@@ -613,7 +613,7 @@ fn single_peak_u8(
 /// The peaks of one span of a row, appended to `points`: `row` holds the
 /// whole image row's scores (valid at least over the span and the local
 /// background's reach).
-fn span_peaks<T: Copy + Into<f64>>(
+fn span_peaks<T: Summable>(
     row: &[T],
     (v, u0, u1): (u32, u32, u32),
     options: &StripeOptions,
@@ -662,10 +662,37 @@ fn span_peaks<T: Copy + Into<f64>>(
     }
 }
 
+/// A score the line detector sums: its prefix sums' type (u32 for the
+/// integer scores, exact; f64 for `f32` scores).
+trait Summable: Copy + Into<f64> {
+    /// The prefix sums' type.
+    type Sum: Copy
+        + Default
+        + std::ops::Add<Output = Self::Sum>
+        + std::ops::Sub<Output = Self::Sum>
+        + Into<f64>;
+    /// The score as a term of the sums.
+    fn widen(self) -> Self::Sum;
+}
+
+impl Summable for u8 {
+    type Sum = u32;
+    fn widen(self) -> u32 {
+        u32::from(self)
+    }
+}
+
+impl Summable for f32 {
+    type Sum = f64;
+    fn widen(self) -> f64 {
+        f64::from(self)
+    }
+}
+
 /// The line detector of [`LocalBackground`] over `row[first..=last]`,
 /// written to `out`. Windows are cut at the row's ends; a side with no
 /// pixels counts as no background.
-fn local_contrast<T: Copy + Into<f64>>(
+fn local_contrast<T: Summable>(
     row: &[T],
     first: usize,
     last: usize,
@@ -675,16 +702,18 @@ fn local_contrast<T: Copy + Into<f64>>(
     let lo = first.saturating_sub(background.reach());
     let hi = (last + background.reach()).min(row.len() - 1);
     // Prefix sums over lo..=hi: sum(a..b) = prefix[b - lo] - prefix[a - lo].
-    let mut prefix = vec![0.0_f64; hi - lo + 2];
-    let mut total = 0.0_f64;
+    // Integer scores sum in u32, exactly as f64 would (the sums stay far
+    // below 2^32 and 2^53), at an integer add's latency per pixel.
+    let mut prefix = vec![T::Sum::default(); hi - lo + 2];
+    let mut total = T::Sum::default();
     for (sum, &s) in prefix[1..].iter_mut().zip(&row[lo..=hi]) {
-        total += s.into();
+        total = total + s.widen();
         *sum = total;
     }
     let mean = |a: usize, b: usize| -> Option<f64> {
         // Mean over a..b (exclusive), clipped to lo..=hi.
         let (a, b) = (a.max(lo), b.min(hi + 1));
-        (b > a).then(|| (prefix[b - lo] - prefix[a - lo]) / (b - a) as f64)
+        (b > a).then(|| (prefix[b - lo] - prefix[a - lo]).into() / (b - a) as f64)
     };
     let (gap, window, reach) = (background.gap_px, background.window_px, background.reach());
     let clipped = |u: usize| {
@@ -725,7 +754,7 @@ fn local_contrast<T: Copy + Into<f64>>(
         .zip(right_end)
         .zip(right_start)
     {
-        let (left, right) = ((le - ls) / size, (re - rs) / size);
+        let (left, right) = ((le - ls).into() / size, (re - rs).into() / size);
         *out = (value.into() - left.max(right)).max(0.0) as f32;
     }
     out.extend((inner_last + 1..=last).map(clipped));
