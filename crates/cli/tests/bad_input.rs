@@ -1445,6 +1445,7 @@ fn bad_command_lines_are_refused_naming_the_flag() {
         ("--alacs-from-rgbd", "1e308,0,0,0,0,0"),
         ("--rgbd-to-alacs", "a,b,c,d,e,f"),
         ("--seed", "-1"),
+        ("--scan-mode", "zigzag"),
     ] {
         let command = a(&["scan", "--sim", "--scale", "0.1", flag, value]);
         let name = flag.trim_start_matches('-');

@@ -156,6 +156,12 @@ fn a_bad_rig_toml_exits_2_naming_the_file_and_the_key() {
             "[laser] off_command",
         ),
         ("[slide]\ndriver = \"sim\"\n[rgbd]\nalacs_from_rgbd = [0, 0, 1e9, 0, 0, 0]\n", "[rgbd]"),
+        ("[slide]\ndriver = \"sim\"\n[scan]\nmode = \"zigzag\"\n", "unknown variant `zigzag`"),
+        (
+            "[slide]\ndriver = \"sim\"\n[scan]\nsweep_speed_mm_per_s = 0.0\n",
+            "[scan] sweep_speed_mm_per_s",
+        ),
+        ("[slide]\ndriver = \"sim\"\n[scan]\nmax_smear_px = nan\n", "[scan] max_smear_px"),
         ("[laser]\ndriver = \"sim\"\n", "missing field `slide`"),
         ("not toml at all [", "rig.toml"),
     ];

@@ -408,3 +408,24 @@ fn a_sweep_keeps_the_stripes_smear_under_its_limit() {
     assert!(smear_px <= 1.0 + 1e-6, "{smear_px:.3} px at {speed:.2} mm/s");
     assert!(smear_px > 0.5, "{smear_px:.3} px: slower than it needs to be");
 }
+
+#[test]
+fn a_sweep_whose_camera_times_out_names_the_camera_and_turns_the_laser_off() {
+    let scene = scene(2, 0.1);
+    let slow = SimulatedRigOptions { frame_time: Duration::from_secs(1), ..Default::default() };
+    let mut rig = SimulatedRig::new(scene.clone(), slow).unwrap();
+    let config = ControllerConfig {
+        capture_timeout: Duration::from_millis(500),
+        mode: ScanMode::Continuous(Sweep::new(scene.camera.clone())),
+        ..Default::default()
+    };
+    let error = ScanController::new(laser(), config)
+        .unwrap()
+        .run(&mut rig.rig(), &scene.rough_position_mm)
+        .unwrap_err();
+    assert_eq!(error.device(), Some(Device::Camera));
+    // The sweep's first capture is its laser-off reference frame, before the slide moves.
+    assert_eq!(error.step(), Some(Step::Capture { frame: 0, laser_on: false }), "{error}");
+    assert!(!rig.laser_on());
+    assert_eq!(rig.slide_mm(), 0.0);
+}
