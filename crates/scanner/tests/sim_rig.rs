@@ -429,3 +429,24 @@ fn a_sweep_whose_camera_times_out_names_the_camera_and_turns_the_laser_off() {
     assert!(!rig.laser_on());
     assert_eq!(rig.slide_mm(), 0.0);
 }
+
+#[test]
+fn a_sweep_with_laser_off_frames_differences_every_frame_with_its_reference_frame() {
+    let scene = scene(1, 0.5);
+    let mut rig = SimulatedRig::new(scene.clone(), SimulatedRigOptions::default()).unwrap();
+    let config = ControllerConfig {
+        capture_laser_off: true,
+        mode: ScanMode::Continuous(Sweep::new(scene.camera.clone())),
+        ..ControllerConfig::default()
+    };
+    let scan = ScanController::new(laser(), config)
+        .unwrap()
+        .run(&mut rig.rig(), &scene.rough_position_mm)
+        .unwrap();
+    // The camera and the scene stand still: one laser-off frame, taken
+    // before the sweep, is every frame's.
+    let reference = scan.frames[0].image_laser_off.as_ref().unwrap();
+    assert!(scan.frames.iter().all(|f| f.image_laser_off.as_ref() == Some(reference)));
+    assert!(*reference == scene.render_at(0.0, false, 0).unwrap());
+    assert_localized(&scan, &scene);
+}
