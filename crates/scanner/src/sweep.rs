@@ -185,7 +185,8 @@ pub(crate) fn run_sweep(
     let ascending = (at_mm - first_mm).abs() <= (at_mm - last_mm).abs();
     let (entry_mm, exit_mm) = if ascending { (first_mm, last_mm) } else { (last_mm, first_mm) };
     let inside = if ascending { at_mm > first_mm } else { at_mm < last_mm };
-    if inside {
+    // A plan of one position is no sweep: the slide goes there and stands.
+    if inside || entry_mm == exit_mm {
         let step = Step::Move { frame: 0, target_mm: entry_mm };
         rig.slide.move_to(entry_mm, move_timeout).map_err(|e| e.at(step))?;
     }

@@ -450,3 +450,21 @@ fn a_sweep_with_laser_off_frames_differences_every_frame_with_its_reference_fram
     assert!(*reference == scene.render_at(0.0, false, 0).unwrap());
     assert_localized(&scan, &scene);
 }
+
+#[test]
+fn a_sweep_of_a_one_frame_plan_moves_to_it_and_stands() {
+    let scene = scene(2, 0.1);
+    let mut rig = SimulatedRig::new(scene.clone(), SimulatedRigOptions::default()).unwrap();
+    let mut config = ControllerConfig {
+        mode: ScanMode::Continuous(Sweep::new(scene.camera.clone())),
+        ..ControllerConfig::default()
+    };
+    config.strategy.frames = 1;
+    let scan = ScanController::new(laser(), config)
+        .unwrap()
+        .run(&mut rig.rig(), &scene.rough_position_mm)
+        .unwrap();
+    assert_eq!(scan.frames.len(), 1);
+    assert_eq!(scan.frames[0].slide_mm, scene.plan.slides_mm[0]);
+    assert_eq!(rig.slide_mm(), scene.plan.slides_mm[0]);
+}
