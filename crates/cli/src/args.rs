@@ -905,7 +905,7 @@ pub struct RigArgs {
     /// settle, capture, per frame) or continuous (one run through the
     /// positions, frames captured on the way, each at the slide's position
     /// at mid-exposure). Default: rig.toml's [scan] mode, else stop_and_go.
-    #[arg(long, value_name = "MODE", value_parser = ["stop_and_go", "continuous"])]
+    #[arg(long, value_name = "MODE", value_parser = alacs::scanner::ScanMode::NAMES)]
     pub scan_mode: Option<String>,
     /// Pose of the RGB-D camera in the ALACS camera frame: translation in mm,
     /// then roll, pitch, yaw in degrees (R = Rz(yaw) Ry(pitch) Rx(roll));

@@ -42,20 +42,16 @@ pub enum ScanModeName {
 }
 
 impl ScanModeName {
-    /// The name as rig.toml and `--scan-mode` write it.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            ScanModeName::StopAndGo => "stop_and_go",
-            ScanModeName::Continuous => "continuous",
-        }
-    }
-
-    /// Parses `stop_and_go` or `continuous`.
+    /// Parses one of [`ScanMode::NAMES`](alacs_scanner::ScanMode::NAMES)
+    /// (`--scan-mode`; rig.toml's `mode` reads through serde, the same names).
     pub fn parse(name: &str) -> std::result::Result<Self, String> {
-        match name {
-            "stop_and_go" => Ok(ScanModeName::StopAndGo),
-            "continuous" => Ok(ScanModeName::Continuous),
-            other => Err(format!("scan mode `{other}`: use stop_and_go or continuous")),
+        match alacs_scanner::ScanMode::NAMES.iter().position(|n| *n == name) {
+            Some(0) => Ok(ScanModeName::StopAndGo),
+            Some(_) => Ok(ScanModeName::Continuous),
+            None => Err(format!(
+                "scan mode `{name}`: use {}",
+                alacs_scanner::ScanMode::NAMES.join(" or ")
+            )),
         }
     }
 }

@@ -24,6 +24,7 @@ use std::io::{Read as _, Write as _};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
 
+use alacs_scanner::hardware::{check_sweep_speed, check_target};
 use alacs_scanner::{Device, Error as DeviceError, LaserSwitch, Slide, SlideReport};
 
 use crate::config::{LaserConfig, SlideConfig};
@@ -570,10 +571,7 @@ impl Slide for GrblSlide {
     }
 
     fn move_to(&mut self, target_mm: f64, timeout: Duration) -> alacs_scanner::Result<f64> {
-        let stroke_mm = self.config.stroke_mm;
-        if !(target_mm.is_finite() && (0.0..=stroke_mm).contains(&target_mm)) {
-            return Err(DeviceError::OutOfStroke { step: None, target_mm, stroke_mm });
-        }
+        check_target(target_mm, self.config.stroke_mm)?;
         let axis_mm = self.config.axis_mm(target_mm);
         let reached = lock(&self.controller)
             .move_axis(
@@ -597,17 +595,8 @@ impl Slide for GrblSlide {
     /// axis's `$110`-`$112` maximum rate) and returns once GRBL has queued
     /// it (its `ok`): the move has begun.
     fn start_move(&mut self, target_mm: f64, speed_mm_per_s: f64) -> alacs_scanner::Result<()> {
-        let stroke_mm = self.config.stroke_mm;
-        if !(target_mm.is_finite() && (0.0..=stroke_mm).contains(&target_mm)) {
-            return Err(DeviceError::OutOfStroke { step: None, target_mm, stroke_mm });
-        }
-        if !(speed_mm_per_s.is_finite() && speed_mm_per_s > 0.0) {
-            return Err(DeviceError::Device {
-                device: Device::Slide,
-                step: None,
-                message: format!("sweep speed {speed_mm_per_s} mm/s must be positive"),
-            });
-        }
+        check_target(target_mm, self.config.stroke_mm)?;
+        check_sweep_speed(speed_mm_per_s)?;
         let letter = ["X", "Y", "Z"].get(self.axis).copied().unwrap_or("X");
         let axis_mm = self.config.axis_mm(target_mm);
         let feed_mm_per_min = speed_mm_per_s * 60.0;

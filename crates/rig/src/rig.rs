@@ -48,26 +48,29 @@ struct TrackedSlide {
     tracker: Tracker,
 }
 
+impl TrackedSlide {
+    /// Keeps where the slide was, and when if it was moving.
+    fn track(&self, slide_mm: f64, reported_at: Option<Instant>) {
+        let mut tracked = lock(&self.tracker);
+        tracked.slide_mm = slide_mm;
+        tracked.reported_at = reported_at;
+    }
+}
+
 impl Slide for TrackedSlide {
     fn stroke_mm(&self) -> f64 {
         self.inner.stroke_mm()
     }
 
     fn move_to(&mut self, target_mm: f64, timeout: Duration) -> alacs_scanner::Result<f64> {
-        let result = self.inner.move_to(target_mm, timeout);
-        if let Ok(at) = result {
-            let mut tracked = lock(&self.tracker);
-            tracked.slide_mm = at;
-            tracked.reported_at = None;
-        }
-        result
+        let at = self.inner.move_to(target_mm, timeout)?;
+        self.track(at, None);
+        Ok(at)
     }
 
     fn position_mm(&mut self) -> alacs_scanner::Result<f64> {
         let at = self.inner.position_mm()?;
-        let mut tracked = lock(&self.tracker);
-        tracked.slide_mm = at;
-        tracked.reported_at = None;
+        self.track(at, None);
         Ok(at)
     }
 
@@ -77,9 +80,7 @@ impl Slide for TrackedSlide {
 
     fn report(&mut self) -> alacs_scanner::Result<SlideReport> {
         let report = self.inner.report()?;
-        let mut tracked = lock(&self.tracker);
-        tracked.slide_mm = report.position_mm;
-        tracked.reported_at = report.moving.then_some(report.at);
+        self.track(report.position_mm, report.moving.then_some(report.at));
         Ok(report)
     }
 }

@@ -83,13 +83,18 @@ pub enum ScanMode {
 }
 
 impl ScanMode {
-    /// The mode's name in rig.toml, the CLI and the ROS node:
-    /// `stop_and_go` or `continuous`.
+    /// The modes' names in rig.toml, the CLI, scan --json and the ROS
+    /// node: stop-and-go's, then the continuous sweep's.
+    pub const NAMES: [&'static str; 2] = ["stop_and_go", "continuous"];
+
+    /// The mode's name (one of [`ScanMode::NAMES`]).
     pub fn name(&self) -> &'static str {
-        match self {
-            ScanMode::StopAndGo => "stop_and_go",
-            ScanMode::Continuous(_) => "continuous",
-        }
+        Self::name_of(matches!(self, ScanMode::Continuous(_)))
+    }
+
+    /// The name of the continuous sweep (`true`) or of stop-and-go.
+    pub fn name_of(continuous: bool) -> &'static str {
+        Self::NAMES[usize::from(continuous)]
     }
 }
 
@@ -161,6 +166,14 @@ pub struct CapturedScan {
     /// A continuous sweep's speed, mm/s: the fastest the slide went over a
     /// frame, from its reports (`None`: stop-and-go).
     pub sweep_speed_mm_per_s: Option<f64>,
+}
+
+impl CapturedScan {
+    /// The name of the mode the frames were taken in ([`ScanMode::NAMES`]):
+    /// a sweep speed says continuous.
+    pub fn mode_name(&self) -> &'static str {
+        ScanMode::name_of(self.sweep_speed_mm_per_s.is_some())
+    }
 }
 
 impl ScanController {

@@ -72,6 +72,29 @@ pub trait Slide {
     }
 }
 
+/// The refusal a driver owes a target outside `0 ..= stroke_mm` (or not
+/// finite), before anything moves: [`Slide::move_to`]'s and
+/// [`Slide::start_move`]'s first check.
+pub fn check_target(target_mm: f64, stroke_mm: f64) -> Result<()> {
+    if !(target_mm.is_finite() && (0.0..=stroke_mm).contains(&target_mm)) {
+        return Err(Error::OutOfStroke { step: None, target_mm, stroke_mm });
+    }
+    Ok(())
+}
+
+/// The refusal a driver owes a sweep speed that is not finite and
+/// positive ([`Slide::start_move`]).
+pub fn check_sweep_speed(speed_mm_per_s: f64) -> Result<()> {
+    if !(speed_mm_per_s.is_finite() && speed_mm_per_s > 0.0) {
+        return Err(Error::Device {
+            device: Device::Slide,
+            step: None,
+            message: format!("sweep speed {speed_mm_per_s} mm/s must be positive"),
+        });
+    }
+    Ok(())
+}
+
 /// One position report of a moving slide ([`Slide::report`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SlideReport {

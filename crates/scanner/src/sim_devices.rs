@@ -22,7 +22,10 @@ use alacs_model::SLIDE_STROKE_MM;
 use alacs_sim::{Exposure, SimulatedScan};
 use image::RgbImage;
 
-use crate::hardware::{FrameCamera, LaserSwitch, Rig, ScanRig, Slide, SlideReport, TimedFrame};
+use crate::hardware::{
+    FrameCamera, LaserSwitch, Rig, ScanRig, Slide, SlideReport, TimedFrame, check_sweep_speed,
+    check_target,
+};
 use crate::{Device, Error, Result};
 
 /// How the simulated devices behave. `Default`: a 200 mm stroke, a top
@@ -343,7 +346,7 @@ impl Slide for SimulatedSlide {
     }
 
     fn move_to(&mut self, target_mm: f64, timeout: Duration) -> Result<f64> {
-        self.check_target(target_mm)?;
+        check_target(target_mm, self.options.stroke_mm)?;
         let mut state = lock(&self.state);
         state.finish_motion(self.options.realtime);
         let travel_mm = target_mm - state.slide_mm;
@@ -380,14 +383,8 @@ impl Slide for SimulatedSlide {
     }
 
     fn start_move(&mut self, target_mm: f64, speed_mm_per_s: f64) -> Result<()> {
-        self.check_target(target_mm)?;
-        if !(speed_mm_per_s.is_finite() && speed_mm_per_s > 0.0) {
-            return Err(Error::Device {
-                device: Device::Slide,
-                step: None,
-                message: format!("sweep speed {speed_mm_per_s} mm/s must be positive"),
-            });
-        }
+        check_target(target_mm, self.options.stroke_mm)?;
+        check_sweep_speed(speed_mm_per_s)?;
         let mut state = lock(&self.state);
         state.finish_motion(self.options.realtime);
         let speed = speed_mm_per_s.min(self.options.speed_mm_per_s);
@@ -408,15 +405,6 @@ impl Slide for SimulatedSlide {
 }
 
 impl SimulatedSlide {
-    /// Refuses a target outside the stroke.
-    fn check_target(&self, target_mm: f64) -> Result<()> {
-        let stroke_mm = self.options.stroke_mm;
-        if !(target_mm.is_finite() && (0.0..=stroke_mm).contains(&target_mm)) {
-            return Err(Error::OutOfStroke { step: None, target_mm, stroke_mm });
-        }
-        Ok(())
-    }
-
     /// A move from where the slide stands to `target_mm`, beginning now.
     fn motion(&self, state: &RigState, target_mm: f64, speed_mm_per_s: f64) -> Motion {
         Motion {

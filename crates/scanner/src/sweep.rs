@@ -147,13 +147,12 @@ pub(crate) fn run_sweep(
     // 1. The reference frame, laser off.
     rig.laser.set(false).map_err(|e| e.at(Step::Laser { frame: 0, on: false }))?;
     let capture_step = |laser_on| Step::Capture { frame: 0, laser_on };
-    let before =
-        rig.slide.report().map_err(|e| e.at(Step::Sweep { frame: 0, target_mm: first_mm }))?;
+    let reference_step = Step::Sweep { frame: 0, target_mm: first_mm };
+    let before = rig.slide.report().map_err(|e| e.at(reference_step))?;
     let reference =
         rig.camera.capture_timed(capture_timeout).map_err(|e| e.at(capture_step(false)))?;
     let reference_at = SystemTime::now();
-    let after =
-        rig.slide.report().map_err(|e| e.at(Step::Sweep { frame: 0, target_mm: first_mm }))?;
+    let after = rig.slide.report().map_err(|e| e.at(reference_step))?;
     progress();
     let frame_time = after.at.saturating_duration_since(before.at).max(reference.exposure);
 
@@ -233,18 +232,9 @@ pub(crate) fn run_sweep(
                     tolerance_mm: lead_mm,
                 });
             }
-            let waited = report.at.saturating_duration_since(start.at);
-            if waited > move_timeout {
-                return Err(Error::Timeout {
-                    device: crate::Device::Slide,
-                    step: Some(step),
-                    timeout: move_timeout,
-                    detail: format!(
-                        "sweeping at {speed:.1} mm/s, still at {:.3} mm",
-                        report.position_mm
-                    ),
-                });
-            }
+            within(move_timeout, &start, &report, step, || {
+                format!("sweeping at {speed:.1} mm/s, still at {:.3} mm", report.position_mm)
+            })?;
         };
         let frame: TimedFrame = rig
             .camera
@@ -277,14 +267,9 @@ pub(crate) fn run_sweep(
     let start = rig.slide.report().map_err(|e| e.at(stop_step))?;
     let mut report = start;
     while report.moving {
-        if report.at.saturating_duration_since(start.at) > move_timeout {
-            return Err(Error::Timeout {
-                device: crate::Device::Slide,
-                step: Some(stop_step),
-                timeout: move_timeout,
-                detail: format!("the slide did not stop; at {:.3} mm", report.position_mm),
-            });
-        }
+        within(move_timeout, &start, &report, stop_step, || {
+            format!("the slide did not stop; at {:.3} mm", report.position_mm)
+        })?;
         report = rig.slide.report().map_err(|e| e.at(stop_step))?;
     }
     Ok(SweepCapture {
@@ -293,4 +278,24 @@ pub(crate) fn run_sweep(
         reference_at,
         speed_mm_per_s: if fastest_mm_per_s > 0.0 { fastest_mm_per_s } else { speed },
     })
+}
+
+/// The slide's timeout at `step` once `report` came more than `timeout`
+/// after `start` (the reports' own clock), with `detail`.
+fn within(
+    timeout: Duration,
+    start: &SlideReport,
+    report: &SlideReport,
+    step: Step,
+    detail: impl FnOnce() -> String,
+) -> Result<()> {
+    if report.at.saturating_duration_since(start.at) > timeout {
+        return Err(Error::Timeout {
+            device: crate::Device::Slide,
+            step: Some(step),
+            timeout,
+            detail: detail(),
+        });
+    }
+    Ok(())
 }

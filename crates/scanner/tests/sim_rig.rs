@@ -333,13 +333,30 @@ fn scan_from(
     mode: ScanMode,
 ) -> (SimulatedRig, CapturedScan) {
     let options = SimulatedRigOptions { start_mm, ..SimulatedRigOptions::default() };
-    let mut rig = SimulatedRig::new(scene.clone(), options).unwrap();
     let config = ControllerConfig { mode, ..ControllerConfig::default() };
-    let scan = ScanController::new(laser(), config)
-        .unwrap()
-        .run(&mut rig.rig(), &scene.rough_position_mm)
-        .unwrap();
+    let (rig, scan) = scan_with(scene, options, config);
+    (rig, scan.unwrap())
+}
+
+/// A scan of the scene from its true rough position on a rig of `options`
+/// with `config`.
+fn scan_with(
+    scene: &Arc<SimulatedScan>,
+    options: SimulatedRigOptions,
+    config: ControllerConfig,
+) -> (SimulatedRig, Result<CapturedScan, Error>) {
+    let mut rig = SimulatedRig::new(scene.clone(), options).unwrap();
+    let scan =
+        ScanController::new(laser(), config).unwrap().run(&mut rig.rig(), &scene.rough_position_mm);
     (rig, scan)
+}
+
+/// The controller's default configuration with a continuous sweep for the scene's camera.
+fn sweeping(scene: &SimulatedScan) -> ControllerConfig {
+    ControllerConfig {
+        mode: ScanMode::Continuous(Sweep::new(scene.camera.clone())),
+        ..ControllerConfig::default()
+    }
 }
 
 #[test]
@@ -413,16 +430,10 @@ fn a_sweep_keeps_the_stripes_smear_under_its_limit() {
 fn a_sweep_whose_camera_times_out_names_the_camera_and_turns_the_laser_off() {
     let scene = scene(2, 0.1);
     let slow = SimulatedRigOptions { frame_time: Duration::from_secs(1), ..Default::default() };
-    let mut rig = SimulatedRig::new(scene.clone(), slow).unwrap();
-    let config = ControllerConfig {
-        capture_timeout: Duration::from_millis(500),
-        mode: ScanMode::Continuous(Sweep::new(scene.camera.clone())),
-        ..Default::default()
-    };
-    let error = ScanController::new(laser(), config)
-        .unwrap()
-        .run(&mut rig.rig(), &scene.rough_position_mm)
-        .unwrap_err();
+    let config =
+        ControllerConfig { capture_timeout: Duration::from_millis(500), ..sweeping(&scene) };
+    let (rig, scan) = scan_with(&scene, slow, config);
+    let error = scan.unwrap_err();
     assert_eq!(error.device(), Some(Device::Camera));
     // The sweep's first capture is its laser-off reference frame, before the slide moves.
     assert_eq!(error.step(), Some(Step::Capture { frame: 0, laser_on: false }), "{error}");
@@ -433,16 +444,8 @@ fn a_sweep_whose_camera_times_out_names_the_camera_and_turns_the_laser_off() {
 #[test]
 fn a_sweep_with_laser_off_frames_differences_every_frame_with_its_reference_frame() {
     let scene = scene(1, 0.5);
-    let mut rig = SimulatedRig::new(scene.clone(), SimulatedRigOptions::default()).unwrap();
-    let config = ControllerConfig {
-        capture_laser_off: true,
-        mode: ScanMode::Continuous(Sweep::new(scene.camera.clone())),
-        ..ControllerConfig::default()
-    };
-    let scan = ScanController::new(laser(), config)
-        .unwrap()
-        .run(&mut rig.rig(), &scene.rough_position_mm)
-        .unwrap();
+    let config = ControllerConfig { capture_laser_off: true, ..sweeping(&scene) };
+    let scan = scan_with(&scene, SimulatedRigOptions::default(), config).1.unwrap();
     // The camera and the scene stand still: one laser-off frame, taken
     // before the sweep, is every frame's.
     let reference = scan.frames[0].image_laser_off.as_ref().unwrap();
@@ -454,16 +457,10 @@ fn a_sweep_with_laser_off_frames_differences_every_frame_with_its_reference_fram
 #[test]
 fn a_sweep_of_a_one_frame_plan_moves_to_it_and_stands() {
     let scene = scene(2, 0.1);
-    let mut rig = SimulatedRig::new(scene.clone(), SimulatedRigOptions::default()).unwrap();
-    let mut config = ControllerConfig {
-        mode: ScanMode::Continuous(Sweep::new(scene.camera.clone())),
-        ..ControllerConfig::default()
-    };
+    let mut config = sweeping(&scene);
     config.strategy.frames = 1;
-    let scan = ScanController::new(laser(), config)
-        .unwrap()
-        .run(&mut rig.rig(), &scene.rough_position_mm)
-        .unwrap();
+    let (rig, scan) = scan_with(&scene, SimulatedRigOptions::default(), config);
+    let scan = scan.unwrap();
     assert_eq!(scan.frames.len(), 1);
     assert_eq!(scan.frames[0].slide_mm, scene.plan.slides_mm[0]);
     assert_eq!(rig.slide_mm(), scene.plan.slides_mm[0]);

@@ -193,11 +193,6 @@ fn truth_keys(
     keys
 }
 
-/// The scan mode's name: a sweep speed says continuous.
-fn scan_mode(scan: &CapturedScan) -> &'static str {
-    if scan.sweep_speed_mm_per_s.is_some() { "continuous" } else { "stop_and_go" }
-}
-
 /// " in a continuous sweep at V mm/s" or nothing.
 fn sweep_note(scan: &CapturedScan) -> String {
     scan.sweep_speed_mm_per_s
@@ -218,7 +213,7 @@ fn scan_keys(
     keys.insert("slides_mm".into(), json!(scan.slides_mm()));
     keys.insert("plan_shifted_into_stroke".into(), json!(scan.plan.shifted));
     keys.insert("rig_time_s".into(), json!(rig_time_s));
-    keys.insert("scan_mode".into(), json!(scan_mode(scan)));
+    keys.insert("scan_mode".into(), json!(scan.mode_name()));
     keys.insert("sweep_speed_mm_per_s".into(), json!(scan.sweep_speed_mm_per_s));
     keys.insert("image_width".into(), json!(camera.width_px));
     keys.insert("image_height".into(), json!(camera.height_px));
