@@ -252,14 +252,19 @@ impl ScanController {
         Ok(self.config.strategy.plan(&self.laser, &rough, self.config.fruit_radius_mm))
     }
 
-    /// How many images a scan captures at most: laser-on and laser-off
-    /// frames, and the metering frames. A metered scene that is not bright
-    /// takes no laser-off frames; the progress callback of
+    /// How many images a scan of one fruit captures at most: laser-on and
+    /// laser-off frames (a sweep's one laser-off reference frame), and the
+    /// metering frames. A metered scene that is not bright takes no
+    /// laser-off frames; the progress callback of
     /// [`ScanController::run_with_progress`] has the count of each scan.
     pub fn image_count(&self) -> usize {
+        let frames = self.config.strategy.frames;
         let laser_off = self.config.capture_laser_off || self.config.metering.is_some();
-        self.config.strategy.frames * (1 + usize::from(laser_off))
-            + self.config.metering.as_ref().map_or(0, |m| m.max_frames)
+        let images = match self.config.mode {
+            ScanMode::StopAndGo => frames * (1 + usize::from(laser_off)),
+            ScanMode::Continuous(_) => frames + 1,
+        };
+        images + self.config.metering.as_ref().map_or(0, |m| m.max_frames)
     }
 
     /// Scans the fruit roughly at `rough_position_in_rgbd_mm` (the RGB-D
@@ -798,6 +803,20 @@ mod tests {
 
     fn controller(config: ControllerConfig) -> ScanController {
         ScanController::new(laser(), config).unwrap()
+    }
+
+    #[test]
+    fn image_count_of_a_sweep_counts_its_reference_frame_not_a_laser_off_frame_per_frame() {
+        let sweep = ScanMode::Continuous(Sweep::new(Camera::blackfly_s_5mp()));
+        let config = ControllerConfig { mode: sweep.clone(), ..ControllerConfig::default() };
+        assert_eq!(controller(config).image_count(), 6);
+        let config = ControllerConfig {
+            mode: sweep,
+            capture_laser_off: true,
+            ..ControllerConfig::default()
+        };
+        assert_eq!(controller(config).image_count(), 6);
+        assert_eq!(controller(ControllerConfig::default()).image_count(), 5);
     }
 
     #[test]
