@@ -331,7 +331,7 @@ impl BagWriter {
         let mut stamp = stamps.iter();
         for frame in &scan.frames {
             let shots = std::iter::once((true, &frame.image))
-                .chain(frame.image_laser_off.as_ref().map(|off| (false, off)));
+                .chain(frame.image_laser_off.as_deref().map(|off| (false, off)));
             for (laser_on, image) in shots {
                 let at = stamp.next().copied().unwrap_or(start);
                 self.write_image(at, frame.slide_mm, laser_on, image, camera)?;
@@ -554,7 +554,7 @@ pub fn read_scan(path: &Path, index: usize) -> Result<(CapturedScan, BagSummary)
                         Some(frame)
                             if frame.slide_mm == slide && frame.image_laser_off.is_none() =>
                         {
-                            frame.image_laser_off = Some(image);
+                            frame.image_laser_off = Some(std::sync::Arc::new(image));
                             frame.captured_at[1] = Some(system_time(message.log_time));
                         }
                         _ => {

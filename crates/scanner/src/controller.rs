@@ -24,6 +24,7 @@
 //! localization triangulates with where the laser was.
 
 use std::path::Path;
+use std::sync::Arc;
 use std::time::{Duration, SystemTime};
 
 use alacs_locate::{FrameImages, Localization, LocateOptions, Prior, locate};
@@ -136,8 +137,9 @@ pub struct CapturedFrame {
     pub slide_mm: f64,
     /// The frame with the laser on.
     pub image: RgbImage,
-    /// The same view with the laser off, if captured.
-    pub image_laser_off: Option<RgbImage>,
+    /// The same view with the laser off, if captured: shared by every
+    /// frame of a continuous sweep (one reference frame), written once.
+    pub image_laser_off: Option<Arc<RgbImage>>,
     /// When the laser-on image and the laser-off image (if any) arrived
     /// (the host's clock).
     pub captured_at: [Option<SystemTime>; 2],
@@ -417,7 +419,7 @@ impl ScanController {
                 let off = self.capture(rig, frame, false)?;
                 done += 1;
                 progress(done, total);
-                (Some(off), Some(SystemTime::now()))
+                (Some(Arc::new(off)), Some(SystemTime::now()))
             } else {
                 (None, None)
             };
@@ -464,7 +466,7 @@ impl ScanController {
             self.config.capture_timeout,
             &mut tick,
         )?;
-        let reference_off = laser_off.then_some(captured.reference_off);
+        let reference_off = laser_off.then(|| Arc::new(captured.reference_off));
         let off_at = laser_off.then_some(captured.reference_at);
         let frames = captured
             .frames
@@ -498,13 +500,36 @@ fn frame_file(index: usize, laser_on: bool) -> String {
 }
 
 impl CapturedScan {
+    /// The first frame sharing frame `index`'s laser-off image (a sweep's
+    /// one reference frame is written once, under that frame's name).
+    fn laser_off_owner(&self, index: usize) -> Option<usize> {
+        let off = self.frames.get(index)?.image_laser_off.as_ref()?;
+        self.frames
+            .iter()
+            .position(|f| f.image_laser_off.as_ref().is_some_and(|o| Arc::ptr_eq(o, off)))
+    }
+
+    /// The file of frame `index`'s laser-off image.
+    fn laser_off_file(&self, index: usize) -> Option<String> {
+        self.laser_off_owner(index).map(|owner| frame_file(owner, false))
+    }
+
+    /// Frame `index`'s laser-off image if it is the first frame that has it:
+    /// the one to write.
+    fn own_laser_off(&self, index: usize) -> Option<&RgbImage> {
+        if self.laser_off_owner(index)? != index {
+            return None;
+        }
+        self.frames.get(index)?.image_laser_off.as_deref()
+    }
+
     /// The frames as [`alacs_locate::locate`] takes them.
     pub fn frame_images(&self) -> Vec<FrameImages<'_>> {
         self.frames
             .iter()
             .map(|f| FrameImages {
                 image: &f.image,
-                image_laser_off: f.image_laser_off.as_ref(),
+                image_laser_off: f.image_laser_off.as_deref(),
                 slide_mm: f.slide_mm,
             })
             .collect()
@@ -551,9 +576,12 @@ impl CapturedScan {
         self.frames.iter().map(|f| f.slide_mm).collect()
     }
 
-    /// How many images [`CapturedScan::write`] writes.
+    /// How many images [`CapturedScan::write`] writes (a laser-off image
+    /// that frames share, once).
     pub fn image_count(&self) -> usize {
-        self.frames.iter().map(|f| 1 + usize::from(f.image_laser_off.is_some())).sum()
+        (0..self.frames.len())
+            .map(|index| 1 + usize::from(self.own_laser_off(index).is_some()))
+            .sum()
     }
 
     /// This scan as scan.yaml describes it (docs/FORMATS.md), with the frame
@@ -571,10 +599,7 @@ impl CapturedScan {
                 .map(|(index, frame)| ScanFrameSpec {
                     image: frame_file(index, true).into(),
                     slide_mm: frame.slide_mm,
-                    image_laser_off: frame
-                        .image_laser_off
-                        .as_ref()
-                        .map(|_| frame_file(index, false).into()),
+                    image_laser_off: self.laser_off_file(index).map(Into::into),
                     planned_slide_mm: Some(frame.planned_slide_mm),
                 })
                 .collect(),
@@ -624,7 +649,7 @@ impl CapturedScan {
         };
         for (index, frame) in self.frames.iter().enumerate() {
             save(&frame.image, frame_file(index, true))?;
-            if let Some(off) = &frame.image_laser_off {
+            if let Some(off) = self.own_laser_off(index) {
                 save(off, frame_file(index, false))?;
             }
         }
@@ -1038,7 +1063,7 @@ mod tests {
             let off = read.path_of(spec.image_laser_off.as_ref().unwrap());
             assert_eq!(
                 image::open(off).unwrap().to_rgb8(),
-                *frame.image_laser_off.as_ref().unwrap()
+                **frame.image_laser_off.as_ref().unwrap()
             );
         }
         std::fs::remove_dir_all(&dir).unwrap();

@@ -3,6 +3,7 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+use std::path::Path;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -212,7 +213,7 @@ fn metering_shortens_the_exposure_in_sun_and_takes_laser_off_frames() {
         }
         assert_eq!(exposure.gain_db, 0.0);
         // The laser-off frame of the metered exposure: the apple is below clipping.
-        let image = scan.frames[2].image_laser_off.as_ref().unwrap_or(&scan.frames[2].image);
+        let image = scan.frames[2].image_laser_off.as_deref().unwrap_or(&scan.frames[2].image);
         let centre = scene.camera.project(&scene.scene.fruit_centre).unwrap();
         let radius_px =
             0.5 * scene.camera.fx_px * scene.scene.fruit_radius_mm / scene.scene.fruit_centre.z;
@@ -450,7 +451,14 @@ fn a_sweep_with_laser_off_frames_differences_every_frame_with_its_reference_fram
     // before the sweep, is every frame's.
     let reference = scan.frames[0].image_laser_off.as_ref().unwrap();
     assert!(scan.frames.iter().all(|f| f.image_laser_off.as_ref() == Some(reference)));
-    assert!(*reference == scene.render_at(0.0, false, 0).unwrap());
+    assert!(**reference == scene.render_at(0.0, false, 0).unwrap());
+    // The scan folder holds it once, named by every frame.
+    let spec = scan.to_scan(Path::new("scan"));
+    assert!(
+        spec.frames
+            .iter()
+            .all(|f| f.image_laser_off.as_deref() == Some(Path::new("frame0_off.png")))
+    );
     assert_localized(&scan, &scene);
 }
 

@@ -61,7 +61,7 @@ pub fn captured_from_folder(scan: &Scan) -> CmdResult<CapturedScan> {
             planned_slide_mm: spec.planned_slide_mm.unwrap_or(spec.slide_mm),
             slide_mm: spec.slide_mm,
             image,
-            image_laser_off,
+            image_laser_off: image_laser_off.map(std::sync::Arc::new),
             captured_at: [None, None],
         })
         .collect();
