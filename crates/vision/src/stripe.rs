@@ -312,8 +312,9 @@ fn green_dips(row_rgb: &[u8], point: &StripePoint, background: Option<LocalBackg
     let green =
         |u: i64| (0..width as i64).contains(&u).then(|| f32::from(row_rgb[3 * u as usize + 1]));
     let mean = |from: i64, to: i64| {
-        let values: Vec<f32> = (from..to).filter_map(green).collect();
-        (!values.is_empty()).then(|| values.iter().sum::<f32>() / values.len() as f32)
+        let (sum, count) =
+            (from..to).filter_map(green).fold((0.0_f32, 0_u32), |(s, n), g| (s + g, n + 1));
+        (count > 0).then(|| sum / count as f32)
     };
     let Some(at) = mean(centre - 1, centre + 2) else { return false };
     let (gap, reach) = (background.gap_px as i64, background.reach() as i64);
@@ -447,22 +448,12 @@ pub fn extract_stripe_rgb(
             scratch.scores.resize(width, 0);
             let scores = &mut scratch.scores[first..=last];
             let pixels = &row_pixels[3 * first..3 * (last + 1)];
-            match off_raw {
-                Some(off) => {
-                    let off_pixels = &off[row_start + 3 * first..row_start + 3 * (last + 1)];
-                    for ((score, on), off) in scores
-                        .iter_mut()
-                        .zip(pixels.chunks_exact(3))
-                        .zip(off_pixels.chunks_exact(3))
-                    {
-                        *score = difference_score_u8(on[0], off[0]);
-                    }
-                }
-                None => {
-                    for (score, p) in scores.iter_mut().zip(pixels.chunks_exact(3)) {
-                        *score = colour_score_u8(p[0], p[1], p[2]);
-                    }
-                }
+            let off_pixels =
+                off_raw.map(|off| &off[row_start + 3 * first..row_start + 3 * (last + 1)]);
+            // The scores on whole vectors of interleaved bytes, then every third byte.
+            interleaved_scores(pixels, off_pixels, &mut scratch.interleaved);
+            for (score, &s) in scores.iter_mut().zip(scratch.interleaved.iter().step_by(3)) {
+                *score = s;
             }
             let mut points = Vec::new();
             span_peaks(&scratch.scores, (v, u0, u1), options, &mut scratch.buffer, &mut points);
@@ -662,23 +653,36 @@ fn span_peaks<T: Summable>(
     }
 }
 
-/// A score the line detector sums: its prefix sums' type (u32 for the
-/// integer scores, exact; f64 for `f32` scores).
+/// A score the line detector sums: its window sums' type (u32 for the
+/// integer scores, exact; f64 for `f32` scores, which hold integers).
 trait Summable: Copy + Into<f64> {
-    /// The prefix sums' type.
+    /// The window sums' type.
     type Sum: Copy
         + Default
+        + PartialOrd
         + std::ops::Add<Output = Self::Sum>
         + std::ops::Sub<Output = Self::Sum>
+        + std::ops::Mul<Output = Self::Sum>
         + Into<f64>;
     /// The score as a term of the sums.
     fn widen(self) -> Self::Sum;
+    /// A window's length as a factor of the sums.
+    fn count(pixels: usize) -> Self::Sum;
+    /// A sum (at most 255 x 4096 for integer scores) as an `f32`, exactly.
+    fn sum_to_f32(sum: Self::Sum) -> f32;
 }
 
 impl Summable for u8 {
     type Sum = u32;
     fn widen(self) -> u32 {
         u32::from(self)
+    }
+    fn count(pixels: usize) -> u32 {
+        pixels as u32
+    }
+    fn sum_to_f32(sum: u32) -> f32 {
+        // Through i32: one vector conversion (SSE2 has none from u32).
+        sum as i32 as f32
     }
 }
 
@@ -687,11 +691,29 @@ impl Summable for f32 {
     fn widen(self) -> f64 {
         f64::from(self)
     }
+    fn count(pixels: usize) -> f64 {
+        pixels as f64
+    }
+    fn sum_to_f32(sum: f64) -> f32 {
+        sum as f32
+    }
 }
+
+/// Longest window of [`LocalBackground`] (px) the line detector's sums
+/// hold exactly (255 x this in a u32 with room to spare; in a `f32`
+/// profile value, integers below 2^24).
+const MAX_BACKGROUND_WINDOW_PX: usize = 4096;
 
 /// The line detector of [`LocalBackground`] over `row[first..=last]`,
 /// written to `out`. Windows are cut at the row's ends; a side with no
 /// pixels counts as no background.
+///
+/// Where both windows lie whole inside the row (all of a row but its ends),
+/// the value is `(window * score - max(left sum, right sum)) / window`,
+/// clamped at 0, from integer window sums, in loops over slices the
+/// compiler vectorises: the score less the larger window mean, exactly
+/// (for a power-of-two window, as the orchard's 4 px; else to the last bit
+/// of an `f32`).
 fn local_contrast<T: Summable>(
     row: &[T],
     first: usize,
@@ -701,19 +723,11 @@ fn local_contrast<T: Summable>(
 ) {
     let lo = first.saturating_sub(background.reach());
     let hi = (last + background.reach()).min(row.len() - 1);
-    // Prefix sums over lo..=hi: sum(a..b) = prefix[b - lo] - prefix[a - lo].
-    // Integer scores sum in u32, exactly as f64 would (the sums stay far
-    // below 2^32 and 2^53), at an integer add's latency per pixel.
-    let mut prefix = vec![T::Sum::default(); hi - lo + 2];
-    let mut total = T::Sum::default();
-    for (sum, &s) in prefix[1..].iter_mut().zip(&row[lo..=hi]) {
-        total = total + s.widen();
-        *sum = total;
-    }
     let mean = |a: usize, b: usize| -> Option<f64> {
         // Mean over a..b (exclusive), clipped to lo..=hi.
         let (a, b) = (a.max(lo), b.min(hi + 1));
-        (b > a).then(|| (prefix[b - lo] - prefix[a - lo]).into() / (b - a) as f64)
+        let sum = row.get(a..b)?.iter().fold(T::Sum::default(), |sum, &s| sum + s.widen());
+        (b > a).then(|| sum.into() / (b - a) as f64)
     };
     let (gap, window, reach) = (background.gap_px, background.window_px, background.reach());
     let clipped = |u: usize| {
@@ -727,35 +741,46 @@ fn local_contrast<T: Summable>(
         (row[u].into() - level).max(0.0) as f32
     };
     out.clear();
-    // Where both windows lie whole inside lo..=hi, the same arithmetic
-    // without the clipping (most of a row).
+    // Where both windows lie whole inside lo..=hi (most of a row).
     let (inner_first, inner_last) = (first.max(lo + reach), last.min(hi.saturating_sub(reach)));
-    if window == 0 || inner_first > inner_last {
+    if window == 0 || window > MAX_BACKGROUND_WINDOW_PX || inner_first > inner_last {
         out.extend((first..=last).map(clipped));
         return;
     }
     out.extend((first..inner_first).map(clipped));
-    let size = window as f64;
-    // The same arithmetic over slices zipped in step (no index checks, no
-    // call per pixel): pixel u's four prefix sums sit at fixed offsets.
+    // sums[i]: the window starting at pixel base + i. Pixel u's left window
+    // starts at u - reach (sums[u - inner_first]), its right one at
+    // u + gap + 1 (sums[u - inner_first + reach + gap + 1]).
     let n = inner_last - inner_first + 1;
+    let (base, count) = (inner_first - reach, n + reach + gap + 1);
+    let mut sums: Vec<T::Sum> = row[base..base + count].iter().map(|&s| s.widen()).collect();
+    for j in 1..window {
+        for (sum, &s) in sums.iter_mut().zip(&row[base + j..base + j + count]) {
+            *sum = *sum + s.widen();
+        }
+    }
+    let (left, right) = (&sums[..n], &sums[reach + gap + 1..reach + gap + 1 + n]);
+    let values = &row[inner_first..=inner_last];
     let start = out.len();
     out.resize(start + n, 0.0);
-    let at = |offset: usize| &prefix[offset..offset + n];
-    let (left_end, left_start) = (at(inner_first - gap - lo), at(inner_first - reach - lo));
-    let (right_end, right_start) =
-        (at(inner_first + reach + 1 - lo), at(inner_first + gap + 1 - lo));
-    let values = &row[inner_first..=inner_last];
-    for (((((out, &value), &le), &ls), &re), &rs) in out[start..]
-        .iter_mut()
-        .zip(values)
-        .zip(left_end)
-        .zip(left_start)
-        .zip(right_end)
-        .zip(right_start)
-    {
-        let (left, right) = ((le - ls).into() / size, (re - rs).into() / size);
-        *out = (value.into() - left.max(right)).max(0.0) as f32;
+    let size = T::count(window);
+    let contrast = |value: T, left: T::Sum, right: T::Sum| -> f32 {
+        let (scaled, level) = (value.widen() * size, if left > right { left } else { right });
+        let excess = if scaled > level { scaled - level } else { T::Sum::default() };
+        T::sum_to_f32(excess)
+    };
+    let pixels = out[start..].iter_mut().zip(values).zip(left).zip(right);
+    if window.is_power_of_two() {
+        // Multiplying by 1 / window is the division, exactly.
+        let inverse = 1.0 / window as f32;
+        for (((out, &value), &left), &right) in pixels {
+            *out = contrast(value, left, right) * inverse;
+        }
+    } else {
+        let size = window as f32;
+        for (((out, &value), &left), &right) in pixels {
+            *out = contrast(value, left, right) / size;
+        }
     }
     out.extend((inner_last + 1..=last).map(clipped));
 }
@@ -795,16 +820,52 @@ impl Profile for EveryThird<'_> {
 /// The sub-pixel peak of one row's scores: (column within the row, peak
 /// score, width at half maximum).
 fn row_peak(row: &[f32], options: &StripeOptions) -> Option<(f64, f32, f64)> {
-    let (k, _) = row.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1))?;
+    let k = last_max_index(row)?;
     // A second peak clear of this one's flanks makes the row ambiguous.
     let rival = |guard: usize| {
-        row.iter()
-            .enumerate()
-            .filter(|(i, _)| *i + guard < k || *i > k + guard)
-            .map(|(_, s)| *s)
-            .fold(0.0_f32, f32::max)
+        let left = row.get(..k.saturating_sub(guard)).map_or(0.0, max_at_least_zero);
+        let right = row.get(k + guard + 1..).map_or(0.0, max_at_least_zero);
+        left.max(right)
     };
     peak_at(row, k, options, rival)
+}
+
+/// `f32::total_cmp`'s order as an integer: a key whose `i32` order is
+/// that order.
+#[inline]
+fn total_order_key(x: f32) -> i32 {
+    let bits = x.to_bits() as i32;
+    bits ^ (((bits >> 31) as u32) >> 1) as i32
+}
+
+/// The index of the last largest value in `f32::total_cmp`'s order, as
+/// `iter().enumerate().max_by(total_cmp)` finds it, in loops the compiler
+/// vectorises (integer keys; the last match searched a chunk at a time
+/// from the end).
+fn last_max_index(row: &[f32]) -> Option<usize> {
+    const CHUNK: usize = 64;
+    let largest = |values: &[f32]| values.iter().fold(i32::MIN, |m, &x| m.max(total_order_key(x)));
+    let best = largest(row);
+    let mut end = row.len();
+    while end > 0 {
+        let start = end.saturating_sub(CHUNK);
+        let chunk = &row[start..end];
+        if largest(chunk) == best
+            && let Some(i) = chunk.iter().rposition(|&x| total_order_key(x) == best)
+        {
+            return Some(start + i);
+        }
+        end = start;
+    }
+    None
+}
+
+/// The largest value, and at least 0: `fold(0.0, f32::max)` for the
+/// profiles here, which hold no NaN (a non-negative `f32`'s bits order as
+/// its value; a negative one's, as an `i32`, fall below 0's).
+fn max_at_least_zero(values: &[f32]) -> f32 {
+    let bits = values.iter().fold(0_i32, |m, &x| m.max(x.to_bits() as i32));
+    f32::from_bits(bits as u32)
 }
 
 /// [`row_peak`] at the row's maximum `k`: the strength, width and
@@ -1157,29 +1218,61 @@ mod tests {
     #[test]
     fn the_line_detector_subtracts_the_larger_window_mean() {
         let row: Vec<u8> = (0..90_u32).map(|i| ((i * 37 + i * i) % 251) as u8).collect();
-        let background = LocalBackground { gap_px: 5, window_px: 4 };
-        for (first, last) in [(0, 89), (3, 40), (9, 80), (50, 89), (0, 8), (20, 20)] {
-            let mut out = Vec::new();
-            local_contrast(&row, first, last, background, &mut out);
-            let lo = first.saturating_sub(9);
-            let hi = (last + 9).min(89);
-            let mean = |a: i64, b: i64| {
-                let values: Vec<f64> = (a.max(lo as i64)..b.min(hi as i64 + 1))
-                    .map(|i| f64::from(row[i as usize]))
-                    .collect();
-                (!values.is_empty()).then(|| values.iter().sum::<f64>() / values.len() as f64)
-            };
-            for (k, u) in (first..=last).enumerate() {
-                let u = u as i64;
-                let level = match (mean(u - 9, u - 5), mean(u + 6, u + 10)) {
-                    (Some(a), Some(b)) => a.max(b),
-                    (Some(a), None) | (None, Some(a)) => a,
-                    (None, None) => 0.0,
+        for (gap, window) in [(5, 4), (3, 3), (2, 5), (0, 1), (4, 8)] {
+            let background = LocalBackground { gap_px: gap, window_px: window };
+            let reach = gap + window;
+            for (first, last) in [(0, 89), (3, 40), (9, 80), (50, 89), (0, 8), (20, 20)] {
+                let mut out = Vec::new();
+                local_contrast(&row, first, last, background, &mut out);
+                let lo = first.saturating_sub(reach);
+                let hi = (last + reach).min(89);
+                let mean = |a: i64, b: i64| {
+                    let values: Vec<f64> = (a.max(lo as i64)..b.min(hi as i64 + 1))
+                        .map(|i| f64::from(row[i as usize]))
+                        .collect();
+                    (!values.is_empty()).then(|| values.iter().sum::<f64>() / values.len() as f64)
                 };
-                let expected = (f64::from(row[u as usize]) - level).max(0.0) as f32;
-                assert_eq!(out[k], expected, "span {first}..={last}, pixel {u}");
+                for (k, u) in (first..=last).enumerate() {
+                    let u = u as i64;
+                    let (gap, reach) = (gap as i64, reach as i64);
+                    let left = mean(u - reach, u - gap);
+                    let level = match (left, mean(u + gap + 1, u + reach + 1)) {
+                        (Some(a), Some(b)) => a.max(b),
+                        (Some(a), None) | (None, Some(a)) => a,
+                        (None, None) => 0.0,
+                    };
+                    let expected = (f64::from(row[u as usize]) - level).max(0.0) as f32;
+                    // Exact for a power-of-two window; else within an f32's last bit.
+                    let tolerance =
+                        if window.is_power_of_two() { 0.0 } else { f32::EPSILON * expected };
+                    assert!(
+                        (out[k] - expected).abs() <= tolerance,
+                        "window {window}, span {first}..={last}, pixel {u}: {} vs {expected}",
+                        out[k]
+                    );
+                }
             }
         }
+    }
+
+    #[test]
+    fn the_last_largest_value_is_found_as_max_by_total_cmp_finds_it() {
+        let rows: [&[f32]; 6] = [
+            &[],
+            &[0.0],
+            &[1.0, 3.0, 2.0, 3.0, 0.5],
+            &[-0.0, 0.0, -1.0],
+            &[-2.0, -1.0, -3.0],
+            &[f32::NAN, 5.0, 1.0],
+        ];
+        let long: Vec<f32> = (0..300).map(|i| ((i * 97) % 101) as f32 * 0.5).collect();
+        for row in rows.into_iter().chain([long.as_slice()]) {
+            let expected = row.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1)).map(|m| m.0);
+            assert_eq!(last_max_index(row), expected, "{row:?}");
+        }
+        assert_eq!(max_at_least_zero(&[1.5, -4.0, 7.25, 0.0]), 7.25);
+        assert_eq!(max_at_least_zero(&[-4.0, -0.0]), 0.0);
+        assert_eq!(max_at_least_zero(&[]), 0.0);
     }
 
     #[test]
