@@ -25,9 +25,12 @@
 
 use alacs_model::BoardSpec;
 use calib_targets::chessboard::{self, ChessboardParams};
-use calib_targets::detect;
+use calib_targets::core::{AxisEstimate, PositionCovariance};
+use calib_targets::{ChessCorner, detect};
+use chess_corners::Roi;
 use image::{DynamicImage, GrayImage};
 use nalgebra::{Point2, Vector2};
+use rayon::prelude::*;
 
 use crate::{Error, Result};
 
@@ -103,20 +106,26 @@ pub fn detect_checkerboard(gray: &GrayImage, board: &BoardSpec) -> Result<BoardC
     };
     // The corner grid is searched at half resolution first (the ChESS
     // response, which dominates the cost, over a quarter of the pixels),
-    // positions mapped back and refined at full resolution below. The half
-    // image's search is kept only if it labels every corner; else (squares
-    // under ~10 px there, a blurred corner) the full image is searched, and
-    // the better labelling kept. (A quarter-resolution level was tried: the
-    // grid's assembly, not the response, dominates there, and no faster.)
+    // positions mapped back and refined at full resolution below; there,
+    // first only over the region that holds contrast (see
+    // [`textured_region`]: a board fills 10-50 % of a calibration view),
+    // then over the whole half image. A search is kept only if it labels
+    // every corner; else (squares under ~10 px there, a blurred corner) the
+    // next runs, the full image last, and the best labelling is kept. (A
+    // quarter-resolution level was tried: the grid's assembly, not the
+    // response, dominates there, and no faster.)
     let half = half_size(gray);
-    let mut levels: Vec<(f64, &GrayImage)> = vec![(1.0, gray)];
+    let mut searches: Vec<(f64, &GrayImage, Option<Roi>)> = vec![(1.0, gray, None)];
     if half.width().min(half.height()) >= MIN_SEARCH_SIDE_PX {
-        levels.push((2.0, &half));
+        searches.push((2.0, &half, None));
+        if let Some(region) = textured_region(&half) {
+            searches.push((2.0, &half, Some(region)));
+        }
     }
     let mut best: Option<BoardCorners> = None;
     let mut full_error = None;
-    for &(scale, level) in levels.iter().rev() {
-        match labelled_grid(level, scale, board, gray) {
+    for &(scale, level, region) in searches.iter().rev() {
+        match labelled_grid(level, region, scale, board, gray) {
             Ok(corners) => {
                 if keep_more(&mut best, corners) == board.corner_count() {
                     break;
@@ -136,46 +145,61 @@ pub fn detect_checkerboard(gray: &GrayImage, board: &BoardSpec) -> Result<BoardC
     Ok(corners)
 }
 
+/// Rows of the half image one parallel task sums at least.
+const ROWS_PER_TASK: usize = 64;
+
+/// Corners one parallel task refines at least.
+const CORNERS_PER_TASK: usize = 16;
+
 /// A coarse search level's shorter side is at least this (px).
 const MIN_SEARCH_SIDE_PX: u32 = 120;
 
 /// The image at half size, each pixel the mean of a 2 x 2 block (its centre
 /// at (2 u + 0.5, 2 v + 0.5) of the original).
 fn half_size(gray: &GrayImage) -> GrayImage {
-    let (width, height) = (gray.width() / 2, gray.height() / 2);
+    let (width, height) = (gray.width() as usize / 2, gray.height() as usize / 2);
     let row = gray.width() as usize;
     let pixels = gray.as_raw();
-    let mut half = Vec::with_capacity(width as usize * height as usize);
-    for v in 0..height as usize {
-        let (top, bottom) = (&pixels[2 * v * row..][..row], &pixels[(2 * v + 1) * row..][..row]);
-        half.extend(top.chunks_exact(2).zip(bottom.chunks_exact(2)).take(width as usize).map(
-            |(t, b)| {
-                let sum = u16::from(t[0]) + u16::from(t[1]) + u16::from(b[0]) + u16::from(b[1]);
-                ((sum + 2) / 4) as u8
-            },
-        ));
+    let mut half = vec![0_u8; width * height];
+    if width == 0 {
+        return GrayImage::default();
     }
-    GrayImage::from_raw(width, height, half).unwrap_or_default()
+    // Rows in parallel, each in two loops the compiler vectorises: the two
+    // source rows' sums, then the sums of neighbouring columns.
+    half.par_chunks_mut(width).with_min_len(ROWS_PER_TASK).enumerate().for_each_init(
+        Vec::new,
+        |sums, (v, out)| {
+            let (top, bottom) =
+                (&pixels[2 * v * row..][..2 * width], &pixels[(2 * v + 1) * row..][..2 * width]);
+            sums.clear();
+            sums.extend(top.iter().zip(bottom).map(|(&t, &b)| u16::from(t) + u16::from(b)));
+            for (out, pair) in out.iter_mut().zip(sums.chunks_exact(2)) {
+                *out = ((pair[0] + pair[1] + 2) / 4) as u8;
+            }
+        },
+    );
+    GrayImage::from_raw(width as u32, height as u32, half).unwrap_or_default()
 }
 
 /// The board's corners from calib-targets' corner grids of `level`, an
 /// image `1 / scale` of `gray`'s size (positions in `gray`'s pixels): the
-/// ChESS corners once, then the grid of each of calib-targets' three
-/// chessboard settings (canonical, tighter, looser) until one labels every
-/// corner, else the labelling with the most.
+/// ChESS corners once (in `region` of `level` only, if given), then the
+/// grid of each of calib-targets' three chessboard settings (canonical,
+/// tighter, looser) until one labels every corner, else the labelling with
+/// the most.
 fn labelled_grid(
     level: &GrayImage,
+    region: Option<Roi>,
     scale: f64,
     board: &BoardSpec,
     gray: &GrayImage,
 ) -> std::result::Result<BoardCorners, String> {
-    let frame =
-        chessboard::detect_corner_frame(&detect::gray_view(level), &detect::default_chess_config());
+    let corners = chess_corners(level, region)?;
     let mut best: Option<BoardCorners> = None;
     let mut last_error = String::from("no corner grid");
     for params in ChessboardParams::sweep_default() {
         let Some(detection) =
-            chessboard::ChessboardDetector::new(params).ok().and_then(|d| d.detect(&frame.corners))
+            chessboard::ChessboardDetector::new(params).ok().and_then(|d| d.detect(&corners))
         else {
             continue;
         };
@@ -201,6 +225,157 @@ fn labelled_grid(
     }
     best.ok_or(last_error)
 }
+
+/// The ChESS corners of `level` (in `region` only, if given) with
+/// calib-targets' corner settings, as calib-targets' chessboard detector
+/// takes them: the corner pass of its `detect_corners`, which has no region.
+fn chess_corners(
+    level: &GrayImage,
+    region: Option<Roi>,
+) -> std::result::Result<Vec<ChessCorner>, String> {
+    let (width, height, pixels) = (level.width(), level.height(), level.as_raw());
+    let detector = || {
+        chess_corners::Detector::new(detect::default_chess_config())
+            .map_err(|e| format!("corner detector: {e}"))
+    };
+    let found = match region {
+        // A region's corners come from strips of it searched in parallel
+        // (the whole image's response is row-parallel already, a region's
+        // is not): chess-corners carves each strip with the margin its
+        // ring, maximum suppression and refinement need, and keeps the
+        // corners inside it, so the strips' corners are the region's.
+        Some(region) => {
+            let strips = region_strips(region);
+            let found: Vec<_> = strips
+                .par_iter()
+                .map(|&strip| {
+                    detector()?
+                        .detect_u8_roi(pixels, width, height, strip)
+                        .map_err(|e| format!("corner detector: {e}"))
+                })
+                .collect::<std::result::Result<_, _>>()?;
+            found.concat()
+        }
+        None => detector()?
+            .detect_u8(pixels, width, height)
+            .map_err(|e| format!("corner detector: {e}"))?,
+    };
+    Ok(found.iter().map(chess_corner).collect())
+}
+
+/// Rows of a region one parallel search takes at least (px of the level).
+const MIN_STRIP_ROWS: usize = 32;
+
+/// A region cut into horizontal strips, one per thread (fewer where a strip
+/// would be under [`MIN_STRIP_ROWS`] rows).
+fn region_strips(region: Roi) -> Vec<Roi> {
+    let rows = region.y1() - region.y0();
+    let count = rayon::current_num_threads().min(rows / MIN_STRIP_ROWS).max(1);
+    (0..count)
+        .filter_map(|i| {
+            let (top, bottom) =
+                (region.y0() + rows * i / count, region.y0() + rows * (i + 1) / count);
+            Roi::new(region.x0(), top, region.x1(), bottom)
+        })
+        .collect()
+}
+
+/// One ChESS corner as calib-targets' chessboard detector takes it (its
+/// `detect_corners` adapts them so): a corner without an orientation fit
+/// gets calib-targets' no-information axes, which its grid skips.
+fn chess_corner(c: &chess_corners::CornerDescriptor) -> ChessCorner {
+    let axis = |a: chess_corners::AxisEstimate| AxisEstimate {
+        angle: a.angle,
+        fit_std_error: a.fit_std_error,
+    };
+    let axes = c.axes.map_or([AxisEstimate::default(); 2], |[a, b]| [axis(a), axis(b)]);
+    // Fields set on a default: calib-targets' nalgebra is not this crate's.
+    let mut corner = ChessCorner::default()
+        .with_position_covariance(c.position_covariance.map(PositionCovariance::from));
+    (corner.position.x, corner.position.y) = (c.x, c.y);
+    (corner.axes, corner.strength) = (axes, c.response);
+    corner
+}
+
+/// Side of the tiles of [`textured_region`] (px of the searched level).
+const REGION_TILE_PX: usize = 8;
+
+/// A tile holds a board's contrast when its grey levels span at least this
+/// fraction of the most contrasted tile's span ...
+const REGION_CONTRAST_FRACTION: f64 = 0.25;
+
+/// ... and at least this (DN).
+const REGION_MIN_CONTRAST_DN: u8 = 16;
+
+/// Tiles added around the contrasted ones: a corner's ChESS ring (5 px)
+/// and its refinement stay inside.
+const REGION_MARGIN_TILES: usize = 1;
+
+/// Where a board can be in `level`: the bounding box of the 8 x 8 px tiles
+/// whose grey levels span at least a quarter of the largest span of any
+/// tile (and 16 DN), grown by two tiles. Each square edge and corner of a
+/// board is such a tile. `None` where that is (nearly) the whole image, or
+/// nothing: then the whole image is searched. Only a first try: a board
+/// the region cuts is searched again in the whole image.
+fn textured_region(level: &GrayImage) -> Option<Roi> {
+    let (width, height) = (level.width() as usize, level.height() as usize);
+    let (tiles_x, tiles_y) = (width / REGION_TILE_PX, height / REGION_TILE_PX);
+    if tiles_x == 0 || tiles_y == 0 {
+        return None;
+    }
+    let pixels = level.as_raw();
+    // Each band of tile rows: the column-wise minimum and maximum over its
+    // rows (whole-row vector loops), then each tile's span.
+    let mut spans = vec![0_u8; tiles_x * tiles_y];
+    let (mut low, mut high) = (vec![0_u8; width], vec![0_u8; width]);
+    for (ty, band) in pixels.chunks_exact(REGION_TILE_PX * width).take(tiles_y).enumerate() {
+        low.fill(u8::MAX);
+        high.fill(0);
+        for row in band.chunks_exact(width) {
+            for ((low, high), &p) in low.iter_mut().zip(high.iter_mut()).zip(row) {
+                *low = (*low).min(p);
+                *high = (*high).max(p);
+            }
+        }
+        let tiles = low.chunks_exact(REGION_TILE_PX).zip(high.chunks_exact(REGION_TILE_PX));
+        for (span, (low, high)) in spans[ty * tiles_x..(ty + 1) * tiles_x].iter_mut().zip(tiles) {
+            let (low, high) =
+                (low.iter().fold(u8::MAX, |m, &p| m.min(p)), high.iter().fold(0, |m, &p| m.max(p)));
+            *span = high - low;
+        }
+    }
+    let largest = spans.iter().copied().max().unwrap_or(0);
+    let threshold =
+        ((REGION_CONTRAST_FRACTION * f64::from(largest)).ceil() as u8).max(REGION_MIN_CONTRAST_DN);
+    let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
+    for (i, _) in spans.iter().enumerate().filter(|&(_, &span)| span >= threshold) {
+        let (tx, ty) = (i % tiles_x, i / tiles_x);
+        (x0, y0, x1, y1) = (x0.min(tx), y0.min(ty), x1.max(tx + 1), y1.max(ty + 1));
+    }
+    if x0 >= x1 {
+        return None;
+    }
+    let grow = |from: usize, to: usize, tiles: usize, side: usize| {
+        let from = from.saturating_sub(REGION_MARGIN_TILES) * REGION_TILE_PX;
+        // A last tile row or column grown to the image's edge.
+        let to = if to + REGION_MARGIN_TILES >= tiles {
+            side
+        } else {
+            (to + REGION_MARGIN_TILES) * REGION_TILE_PX
+        };
+        (from, to)
+    };
+    let ((x0, x1), (y0, y1)) = (grow(x0, x1, tiles_x, width), grow(y0, y1, tiles_y, height));
+    // Not worth a second search where the region is most of the image.
+    if ((x1 - x0) * (y1 - y0)) as f64 > REGION_WHOLE_FRACTION * (width * height) as f64 {
+        return None;
+    }
+    Roi::new(x0, y0, x1, y1)
+}
+
+/// A region covering more than this fraction of the image is searched as
+/// the whole image.
+const REGION_WHOLE_FRACTION: f64 = 0.7;
 
 /// A position found in an image rescaled from the original, in the
 /// original's pixels; `scale` is original pixels per rescaled pixel (2 for
@@ -415,7 +590,7 @@ pub(crate) fn refine_corners_within(
     let pixels = gray.as_raw();
     let row = gray.width() as usize;
     let at = |u: i64, v: i64| f64::from(pixels[v as usize * row + u as usize]);
-    for corner in corners.corners_px.iter_mut().flatten() {
+    corners.corners_px.par_iter_mut().with_min_len(CORNERS_PER_TASK).flatten().for_each(|corner| {
         let start = *corner;
         let mut q = start;
         let mut last_centre = None;
@@ -461,6 +636,111 @@ pub(crate) fn refine_corners_within(
         }
         if (q - start).norm() <= w as f64 && q.x.is_finite() && q.y.is_finite() {
             *corner = q;
+        }
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::expect_used)]
+
+    use super::*;
+
+    fn photo() -> GrayImage {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../testdata/opencv_right/right01.jpg");
+        image::open(path).unwrap().to_luma8()
+    }
+
+    /// A 1152 x 768 grey view: dark background, a lighter board of 10 x 7
+    /// squares (40 px) on a grey sheet, turned a little.
+    fn board_view() -> GrayImage {
+        let (angle, cell, centre) = (0.12_f64, 40.0, (500.0, 330.0));
+        GrayImage::from_fn(1152, 768, |u, v| {
+            let (du, dv) = (f64::from(u) - centre.0, f64::from(v) - centre.1);
+            let (x, y) =
+                (du * angle.cos() + dv * angle.sin(), -du * angle.sin() + dv * angle.cos());
+            let (i, j) = ((x / cell + 5.0).floor(), (y / cell + 3.5).floor());
+            let value = if (0.0..10.0).contains(&i) && (0.0..7.0).contains(&j) {
+                if (i + j) as i64 % 2 == 0 { 20 } else { 200 }
+            } else if x.abs() < 6.0 * cell && y.abs() < 4.5 * cell {
+                200
+            } else {
+                30
+            };
+            image::Luma([value])
+        })
+    }
+
+    #[test]
+    fn the_corner_pass_is_calib_targets_own() {
+        for image in [photo(), half_size(&board_view())] {
+            let ours = chess_corners(&image, None).unwrap();
+            let theirs = chessboard::detect_corners(
+                &detect::gray_view(&image),
+                &detect::default_chess_config(),
+            );
+            assert!(ours.len() > 40, "{} corners", ours.len());
+            assert_eq!(ours, theirs);
+        }
+    }
+
+    #[test]
+    fn a_region_in_strips_finds_the_whole_images_corners_inside_it() {
+        let half = half_size(&board_view());
+        let region = textured_region(&half).expect("a region");
+        let area = (region.x1() - region.x0()) * (region.y1() - region.y0());
+        assert!(area * 2 < (half.width() * half.height()) as usize, "region {region:?}");
+        let inside = |c: &ChessCorner| {
+            let (u, v) = (c.position.x as f64, c.position.y as f64);
+            (region.x0() as f64..region.x1() as f64).contains(&u)
+                && (region.y0() as f64..region.y1() as f64).contains(&v)
+        };
+        let key = |c: &ChessCorner| (c.position.x.to_bits(), c.position.y.to_bits());
+        let mut whole: Vec<ChessCorner> =
+            chess_corners(&half, None).unwrap().into_iter().filter(inside).collect();
+        let mut strips = chess_corners(&half, Some(region)).unwrap();
+        whole.sort_by_key(key);
+        strips.sort_by_key(key);
+        assert!(whole.len() >= 54, "{} corners", whole.len());
+        // The same corners; positions to f32 rounding (a region's are
+        // found in its patch and shifted back).
+        assert_eq!(strips.len(), whole.len());
+        for (a, b) in strips.iter().zip(&whole) {
+            assert!((a.position - b.position).norm() < 1e-3, "{a:?} vs {b:?}");
+            assert!((a.axes[0].angle - b.axes[0].angle).abs() < 1e-4, "{a:?} vs {b:?}");
+            assert_eq!(a.strength, b.strength);
+        }
+    }
+
+    #[test]
+    fn a_board_is_found_the_same_in_its_region_and_in_the_whole_image() {
+        let (gray, board) = (board_view(), BoardSpec::checkerboard(9, 6, 1.0, 1.0));
+        let half = half_size(&gray);
+        let region = textured_region(&half);
+        let in_region = labelled_grid(&half, region, 2.0, &board, &gray).unwrap();
+        let whole = labelled_grid(&half, None, 2.0, &board, &gray).unwrap();
+        assert_eq!(in_region.found_count(), 54);
+        for (a, b) in in_region.corners_px.iter().zip(&whole.corners_px) {
+            assert!((a.unwrap() - b.unwrap()).norm() < 1e-3, "{a:?} vs {b:?}");
+        }
+        assert_eq!(detect_checkerboard(&gray, &board).unwrap().found_count(), 54);
+    }
+
+    #[test]
+    fn a_plain_image_has_no_region() {
+        assert!(textured_region(&GrayImage::from_pixel(300, 200, image::Luma([90]))).is_none());
+        assert!(textured_region(&GrayImage::new(5, 5)).is_none());
+    }
+
+    #[test]
+    fn half_size_averages_two_by_two_blocks() {
+        let gray = GrayImage::from_fn(7, 5, |u, v| image::Luma([(u * 30 + v * 7) as u8]));
+        let half = half_size(&gray);
+        assert_eq!(half.dimensions(), (3, 2));
+        for (u, v, p) in half.enumerate_pixels() {
+            let at = |du, dv| u16::from(gray.get_pixel(2 * u + du, 2 * v + dv)[0]);
+            let sum = at(0, 0) + at(1, 0) + at(0, 1) + at(1, 1);
+            assert_eq!(u16::from(p[0]), (sum + 2) / 4);
         }
     }
 }
