@@ -456,7 +456,23 @@ pub fn extract_stripe_rgb(
                 *score = s;
             }
             let mut points = Vec::new();
-            span_peaks(&scratch.scores, (v, u0, u1), options, &mut scratch.buffer, &mut points);
+            match options.local_background {
+                Some(background) if background.window_px <= MAX_I16_WINDOW_PX => {
+                    let (first, last) = (u0 as usize, u1 as usize);
+                    let (sums, excess) = (&mut scratch.sums, &mut scratch.excess);
+                    local_contrast_i16(&scratch.scores, first, last, background, sums, excess);
+                    let value = ScaledValue::new(background.window_px);
+                    let mut profile = Scaled { excess: &mut scratch.excess, value };
+                    profile_peaks(&mut profile, (v, u0), options, &mut points);
+                }
+                _ => span_peaks(
+                    &scratch.scores,
+                    (v, u0, u1),
+                    options,
+                    &mut scratch.buffer,
+                    &mut points,
+                ),
+            }
             points.retain(keep);
             points
         })
@@ -476,6 +492,8 @@ const ROWS_PER_TASK: usize = 16;
 struct RowScratch {
     scores: Vec<u8>,
     buffer: Vec<f32>,
+    excess: Vec<i16>,
+    sums: Vec<i16>,
     interleaved: Vec<u8>,
 }
 
@@ -573,7 +591,7 @@ fn last_index_of(scores: &[u8], value: u8) -> Option<usize> {
 /// The one peak of a span (no line detector): what [`span_peaks`] finds
 /// there, searched on the interleaved integer scores of the span's pixels
 /// (`on`, `off`: the span's RGB bytes). The last of equal maxima, as
-/// [`row_peak`]'s `max_by`.
+/// [`profile_peak`]'s choice.
 fn single_peak_u8(
     on: &[u8],
     off: Option<&[u8]>,
@@ -621,6 +639,20 @@ fn span_peaks<T: Summable>(
         }
         Some(background) => local_contrast(row, first, last, background, buffer),
     }
+    profile_peaks(buffer.as_mut_slice(), (v, u0), options, points);
+}
+
+/// The peaks of one span's profile (pixel 0 at column `u0` of row `v`),
+/// appended to `points`: with one peak per row, the strongest if it passes
+/// [`peak_at`]'s tests; with several, the strongest, then the next outside
+/// its flanks, down to `ambiguity_ratio` of the strongest (the profile is
+/// cleared around each peak found).
+fn profile_peaks<P: PeakProfile + ?Sized>(
+    profile: &mut P,
+    (v, u0): (u32, u32),
+    options: &StripeOptions,
+    points: &mut Vec<StripePoint>,
+) {
     let point = |(u, strength, width_px): (f64, f32, f64)| StripePoint {
         u_px: f64::from(u0) + u,
         v_px: f64::from(v),
@@ -628,17 +660,15 @@ fn span_peaks<T: Summable>(
         width_px,
     };
     if options.max_peaks_per_row <= 1 {
-        if let Some(peak) = row_peak(buffer, options) {
+        if let Some(peak) = profile_peak(profile, options) {
             points.push(point(peak));
         }
         return;
     }
-    // Several peaks: the strongest, then the next outside its flanks, down
-    // to `ambiguity_ratio` of the strongest.
     let single = StripeOptions { ambiguity_ratio: f32::INFINITY, ..options.clone() };
     let mut strongest = None;
     for _ in 0..options.max_peaks_per_row {
-        let Some(peak) = row_peak(buffer, &single) else { break };
+        let Some(peak) = profile_peak(profile, &single) else { break };
         let floor = *strongest.get_or_insert(peak.1) * options.ambiguity_ratio;
         if peak.1 < floor {
             break;
@@ -646,10 +676,8 @@ fn span_peaks<T: Summable>(
         points.push(point(peak));
         let guard = (2.0 * peak.2).ceil() + 2.0;
         let lo = (peak.0 - guard).floor().max(0.0) as usize;
-        let hi = ((peak.0 + guard).ceil() as usize).min(buffer.len().saturating_sub(1));
-        for s in buffer.iter_mut().take(hi + 1).skip(lo) {
-            *s = 0.0;
-        }
+        let hi = ((peak.0 + guard).ceil() as usize).min(profile.pixels().saturating_sub(1));
+        profile.clear(lo, hi);
     }
 }
 
@@ -705,15 +733,17 @@ impl Summable for f32 {
 const MAX_BACKGROUND_WINDOW_PX: usize = 4096;
 
 /// The line detector of [`LocalBackground`] over `row[first..=last]`,
-/// written to `out`. Windows are cut at the row's ends; a side with no
-/// pixels counts as no background.
+/// written to `out`: each score less the larger of its two window means,
+/// clamped at 0. A window that the row's end cuts does not count (one side
+/// then sets the level; neither, at a row shorter than a window each side
+/// of the pixel, and the level is 0).
 ///
-/// Where both windows lie whole inside the row (all of a row but its ends),
-/// the value is `(window * score - max(left sum, right sum)) / window`,
-/// clamped at 0, from integer window sums, in loops over slices the
-/// compiler vectorises: the score less the larger window mean, exactly
-/// (for a power-of-two window, as the orchard's 4 px; else to the last bit
-/// of an `f32`).
+/// The value is `(window x score - larger window sum) / window` from
+/// window sums in `T::Sum` (exact integers for `u8` scores), the score
+/// less the larger mean exactly for a power-of-two window, as the
+/// orchard's 4 px, else to an `f32`'s last bit; the same values as
+/// [`local_contrast_i16`] gives in units of `1 / window`. The sums and the
+/// values are loops over slices the compiler vectorises.
 fn local_contrast<T: Summable>(
     row: &[T],
     first: usize,
@@ -721,33 +751,33 @@ fn local_contrast<T: Summable>(
     background: LocalBackground,
     out: &mut Vec<f32>,
 ) {
-    let lo = first.saturating_sub(background.reach());
-    let hi = (last + background.reach()).min(row.len() - 1);
-    let mean = |a: usize, b: usize| -> Option<f64> {
-        // Mean over a..b (exclusive), clipped to lo..=hi.
-        let (a, b) = (a.max(lo), b.min(hi + 1));
-        let sum = row.get(a..b)?.iter().fold(T::Sum::default(), |sum, &s| sum + s.widen());
-        (b > a).then(|| sum.into() / (b - a) as f64)
-    };
     let (gap, window, reach) = (background.gap_px, background.window_px, background.reach());
-    let clipped = |u: usize| {
-        let left = u.checked_sub(gap).and_then(|end| mean(end.saturating_sub(window), end));
-        let right = mean(u + gap + 1, u + reach + 1);
+    let lo = first.saturating_sub(reach);
+    let hi = (last + reach).min(row.len() - 1);
+    let size = T::count(window);
+    let to_value = ScaledValue::new(window);
+    let sum = |a: usize| row[a..a + window].iter().fold(T::Sum::default(), |s, &x| s + x.widen());
+    let excess = |value: T, level: Option<T::Sum>| -> f32 {
+        let (scaled, level) = (value.widen() * size, level.unwrap_or_default());
+        to_value.of(T::sum_to_f32(if scaled > level { scaled - level } else { T::Sum::default() }))
+    };
+    let at_edge = |u: usize| {
+        let left = (u >= lo + reach).then(|| sum(u - reach));
+        let right = (u + reach <= hi).then(|| sum(u + gap + 1));
         let level = match (left, right) {
-            (Some(a), Some(b)) => a.max(b),
-            (Some(a), None) | (None, Some(a)) => a,
-            (None, None) => 0.0,
+            (Some(a), Some(b)) => Some(if a > b { a } else { b }),
+            (a, b) => a.or(b),
         };
-        (row[u].into() - level).max(0.0) as f32
+        excess(row[u], level)
     };
     out.clear();
     // Where both windows lie whole inside lo..=hi (most of a row).
     let (inner_first, inner_last) = (first.max(lo + reach), last.min(hi.saturating_sub(reach)));
     if window == 0 || window > MAX_BACKGROUND_WINDOW_PX || inner_first > inner_last {
-        out.extend((first..=last).map(clipped));
+        out.extend((first..=last).map(at_edge));
         return;
     }
-    out.extend((first..inner_first).map(clipped));
+    out.extend((first..inner_first).map(at_edge));
     // sums[i]: the window starting at pixel base + i. Pixel u's left window
     // starts at u - reach (sums[u - inner_first]), its right one at
     // u + gap + 1 (sums[u - inner_first + reach + gap + 1]).
@@ -763,26 +793,91 @@ fn local_contrast<T: Summable>(
     let values = &row[inner_first..=inner_last];
     let start = out.len();
     out.resize(start + n, 0.0);
-    let size = T::count(window);
-    let contrast = |value: T, left: T::Sum, right: T::Sum| -> f32 {
-        let (scaled, level) = (value.widen() * size, if left > right { left } else { right });
-        let excess = if scaled > level { scaled - level } else { T::Sum::default() };
-        T::sum_to_f32(excess)
+    for (((out, &value), &left), &right) in out[start..].iter_mut().zip(values).zip(left).zip(right)
+    {
+        *out = excess(value, Some(if left > right { left } else { right }));
+    }
+    out.extend((inner_last + 1..=last).map(at_edge));
+}
+
+/// Longest window of [`LocalBackground`] (px) [`local_contrast_i16`] takes:
+/// 255 x 128 and its sums fit an `i16`.
+const MAX_I16_WINDOW_PX: usize = 128;
+
+/// [`local_contrast`] of integer scores in units of `1 / window`, as
+/// `i16` (`window` at most [`MAX_I16_WINDOW_PX`]): `window x score - larger
+/// window sum`, clamped at 0, over whole vectors of eight or sixteen
+/// lanes. [`Scaled`] reads them as [`local_contrast`]'s values, to the bit.
+fn local_contrast_i16(
+    row: &[u8],
+    first: usize,
+    last: usize,
+    background: LocalBackground,
+    sums: &mut Vec<i16>,
+    out: &mut Vec<i16>,
+) {
+    let (gap, window, reach) = (background.gap_px, background.window_px, background.reach());
+    let lo = first.saturating_sub(reach);
+    let hi = (last + reach).min(row.len() - 1);
+    let size = window as i16;
+    let sum = |a: usize| row[a..a + window].iter().fold(0_i16, |s, &x| s + i16::from(x));
+    let at_edge = |u: usize| {
+        let left = (u >= lo + reach).then(|| sum(u - reach));
+        let right = (u + reach <= hi).then(|| sum(u + gap + 1));
+        let level = match (left, right) {
+            (Some(a), Some(b)) => a.max(b),
+            (a, b) => a.or(b).unwrap_or(0),
+        };
+        (size * i16::from(row[u]) - level).max(0)
     };
-    let pixels = out[start..].iter_mut().zip(values).zip(left).zip(right);
-    if window.is_power_of_two() {
-        // Multiplying by 1 / window is the division, exactly.
-        let inverse = 1.0 / window as f32;
-        for (((out, &value), &left), &right) in pixels {
-            *out = contrast(value, left, right) * inverse;
-        }
-    } else {
-        let size = window as f32;
-        for (((out, &value), &left), &right) in pixels {
-            *out = contrast(value, left, right) / size;
+    out.clear();
+    let (inner_first, inner_last) = (first.max(lo + reach), last.min(hi.saturating_sub(reach)));
+    if window == 0 || inner_first > inner_last {
+        out.extend((first..=last).map(at_edge));
+        return;
+    }
+    out.extend((first..inner_first).map(at_edge));
+    let n = inner_last - inner_first + 1;
+    let (base, count) = (inner_first - reach, n + reach + gap + 1);
+    sums.clear();
+    sums.extend(row[base..base + count].iter().map(|&s| i16::from(s)));
+    for j in 1..window {
+        for (sum, &s) in sums.iter_mut().zip(&row[base + j..base + j + count]) {
+            *sum += i16::from(s);
         }
     }
-    out.extend((inner_last + 1..=last).map(clipped));
+    let (left, right) = (&sums[..n], &sums[reach + gap + 1..reach + gap + 1 + n]);
+    let values = &row[inner_first..=inner_last];
+    let start = out.len();
+    out.resize(start + n, 0);
+    for (((out, &value), &left), &right) in out[start..].iter_mut().zip(values).zip(left).zip(right)
+    {
+        *out = (size * i16::from(value) - left.max(right)).max(0);
+    }
+    out.extend((inner_last + 1..=last).map(at_edge));
+}
+
+/// `excess / window` as the line detector's value: a multiplication by
+/// `1 / window` where that is exact (a power of two), else the division.
+#[derive(Clone, Copy)]
+struct ScaledValue {
+    inverse: Option<f32>,
+    size: f32,
+}
+
+impl ScaledValue {
+    fn new(window: usize) -> ScaledValue {
+        let size = window.max(1) as f32;
+        ScaledValue { inverse: window.is_power_of_two().then(|| 1.0 / size), size }
+    }
+
+    #[inline]
+    fn of(self, excess: f32) -> f32 {
+        match self.inverse {
+            Some(inverse) => excess * inverse,
+            None => excess / self.size,
+        }
+    }
 }
 
 /// Scores along a row as the sub-pixel step reads them: an `f32` row, or
@@ -817,17 +912,81 @@ impl Profile for EveryThird<'_> {
     }
 }
 
-/// The sub-pixel peak of one row's scores: (column within the row, peak
-/// score, width at half maximum).
-fn row_peak(row: &[f32], options: &StripeOptions) -> Option<(f64, f32, f64)> {
-    let k = last_max_index(row)?;
+/// [`local_contrast_i16`]'s values in units of `1 / window`, read as
+/// [`local_contrast`]'s `f32` values.
+struct Scaled<'a> {
+    excess: &'a mut [i16],
+    value: ScaledValue,
+}
+
+impl Profile for Scaled<'_> {
+    fn pixels(&self) -> usize {
+        self.excess.len()
+    }
+
+    fn at(&self, i: usize) -> f32 {
+        self.value.of(f32::from(self.excess[i]))
+    }
+}
+
+/// A profile the peak search runs on: its last largest value, the largest
+/// in a range, and clearing a range.
+trait PeakProfile: Profile {
+    /// The index of the last largest value (`max_by`'s choice).
+    fn last_max_index(&self) -> Option<usize>;
+    /// The largest value in `range`, at least 0.
+    fn max_in(&self, range: std::ops::Range<usize>) -> f32;
+    /// Sets `lo..=hi` to 0.
+    fn clear(&mut self, lo: usize, hi: usize);
+}
+
+impl PeakProfile for [f32] {
+    fn last_max_index(&self) -> Option<usize> {
+        last_max_index(self)
+    }
+
+    fn max_in(&self, range: std::ops::Range<usize>) -> f32 {
+        self.get(range).map_or(0.0, max_at_least_zero)
+    }
+
+    fn clear(&mut self, lo: usize, hi: usize) {
+        for s in self.iter_mut().take(hi + 1).skip(lo) {
+            *s = 0.0;
+        }
+    }
+}
+
+impl PeakProfile for Scaled<'_> {
+    fn last_max_index(&self) -> Option<usize> {
+        last_max_by_key(self.excess, |&x| x)
+    }
+
+    fn max_in(&self, range: std::ops::Range<usize>) -> f32 {
+        let largest = self.excess.get(range).map_or(0, |r| r.iter().fold(0, |m, &x| m.max(x)));
+        self.value.of(f32::from(largest))
+    }
+
+    fn clear(&mut self, lo: usize, hi: usize) {
+        for s in self.excess.iter_mut().take(hi + 1).skip(lo) {
+            *s = 0;
+        }
+    }
+}
+
+/// The sub-pixel peak of a profile: (column within it, peak score, width
+/// at half maximum), at its last largest value.
+fn profile_peak<P: PeakProfile + ?Sized>(
+    profile: &P,
+    options: &StripeOptions,
+) -> Option<(f64, f32, f64)> {
+    let k = profile.last_max_index()?;
     // A second peak clear of this one's flanks makes the row ambiguous.
     let rival = |guard: usize| {
-        let left = row.get(..k.saturating_sub(guard)).map_or(0.0, max_at_least_zero);
-        let right = row.get(k + guard + 1..).map_or(0.0, max_at_least_zero);
+        let left = profile.max_in(0..k.saturating_sub(guard));
+        let right = profile.max_in(k + guard + 1..profile.pixels());
         left.max(right)
     };
-    peak_at(row, k, options, rival)
+    peak_at(profile, k, options, rival)
 }
 
 /// `f32::total_cmp`'s order as an integer: a key whose `i32` order is
@@ -843,15 +1002,22 @@ fn total_order_key(x: f32) -> i32 {
 /// vectorises (integer keys; the last match searched a chunk at a time
 /// from the end).
 fn last_max_index(row: &[f32]) -> Option<usize> {
+    last_max_by_key(row, |&x| total_order_key(x))
+}
+
+/// The index of the last value with the largest `key`, in loops the
+/// compiler vectorises for integer keys: the largest key, then the last
+/// match searched a chunk at a time from the end.
+fn last_max_by_key<T, K: Ord + Copy>(values: &[T], key: impl Fn(&T) -> K) -> Option<usize> {
     const CHUNK: usize = 64;
-    let largest = |values: &[f32]| values.iter().fold(i32::MIN, |m, &x| m.max(total_order_key(x)));
-    let best = largest(row);
-    let mut end = row.len();
+    let largest = |values: &[T]| values.iter().map(&key).max();
+    let best = largest(values)?;
+    let mut end = values.len();
     while end > 0 {
         let start = end.saturating_sub(CHUNK);
-        let chunk = &row[start..end];
-        if largest(chunk) == best
-            && let Some(i) = chunk.iter().rposition(|&x| total_order_key(x) == best)
+        let chunk = &values[start..end];
+        if largest(chunk) == Some(best)
+            && let Some(i) = chunk.iter().rposition(|x| key(x) == best)
         {
             return Some(start + i);
         }
@@ -868,7 +1034,7 @@ fn max_at_least_zero(values: &[f32]) -> f32 {
     f32::from_bits(bits as u32)
 }
 
-/// [`row_peak`] at the row's maximum `k`: the strength, width and
+/// [`profile_peak`] at the profile's maximum `k`: the strength, width and
 /// ambiguity tests and the sub-pixel centre. `rival(guard)` is the
 /// strongest score more than `guard` pixels from `k`.
 fn peak_at<P: Profile + ?Sized>(
@@ -1035,6 +1201,12 @@ mod tests {
     use super::*;
 
     /// A row with a Gaussian stripe of sigma 1.5 px at `centre` over a background.
+    /// The sub-pixel peak of one row's scores: (column within the row,
+    /// peak score, width at half maximum).
+    fn row_peak(row: &[f32], options: &StripeOptions) -> Option<(f64, f32, f64)> {
+        profile_peak(row, options)
+    }
+
     fn gaussian_row(centre: f64, n: usize) -> Vec<f32> {
         (0..n)
             .map(|i| {
@@ -1199,7 +1371,19 @@ mod tests {
         ];
         let orchard =
             StripeOptions { saturation_dn: None, green_check: false, ..StripeOptions::orchard() };
-        for options in [StripeOptions::default(), orchard] {
+        // A window that is no power of two, one peak per row with a line
+        // detector, and a window too long for the i16 path.
+        let odd_window = StripeOptions {
+            local_background: Some(LocalBackground { gap_px: 3, window_px: 5 }),
+            ..orchard.clone()
+        };
+        let single = StripeOptions { max_peaks_per_row: 1, ..orchard.clone() };
+        let long_window = StripeOptions {
+            local_background: Some(LocalBackground { gap_px: 4, window_px: 130 }),
+            min_strength: 3.0,
+            ..orchard.clone()
+        };
+        for options in [StripeOptions::default(), orchard, odd_window, single, long_window] {
             for method in [PeakMethod::Steger, PeakMethod::CentreOfGravity] {
                 let options = StripeOptions { method, ..options.clone() };
                 for region in &regions {
@@ -1226,11 +1410,13 @@ mod tests {
                 local_contrast(&row, first, last, background, &mut out);
                 let lo = first.saturating_sub(reach);
                 let hi = (last + reach).min(89);
+                // A window counts only where the row holds it whole.
                 let mean = |a: i64, b: i64| {
-                    let values: Vec<f64> = (a.max(lo as i64)..b.min(hi as i64 + 1))
-                        .map(|i| f64::from(row[i as usize]))
-                        .collect();
-                    (!values.is_empty()).then(|| values.iter().sum::<f64>() / values.len() as f64)
+                    let whole = a >= lo as i64 && b <= hi as i64 + 1;
+                    whole.then(|| {
+                        let values: Vec<f64> = (a..b).map(|i| f64::from(row[i as usize])).collect();
+                        values.iter().sum::<f64>() / values.len() as f64
+                    })
                 };
                 for (k, u) in (first..=last).enumerate() {
                     let u = u as i64;
