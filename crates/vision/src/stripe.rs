@@ -520,8 +520,10 @@ const RED_BYTES: [u8; BLOCK_BYTES] = {
 /// none for bytes).
 fn interleaved_scores(on: &[u8], off: Option<&[u8]>, out: &mut Vec<u8>) {
     let len = on.len() - on.len() % 3;
-    out.clear();
+    // Every byte below is written (the tails' too), so the buffer is not
+    // cleared between rows: no zero-fill of a row's bytes each time.
     out.resize(len, 0);
+    out.truncate(len);
     let mut base = 0;
     match off {
         None => {
@@ -540,7 +542,11 @@ fn interleaved_scores(on: &[u8], off: Option<&[u8]>, out: &mut Vec<u8>) {
                 base += BLOCK_BYTES;
             }
             for j in (base..len).step_by(3) {
-                out[j] = colour_score_u8(on[j], on[j + 1], on[j + 2]);
+                out[j..j + 3].copy_from_slice(&[
+                    colour_score_u8(on[j], on[j + 1], on[j + 2]),
+                    0,
+                    0,
+                ]);
             }
         }
         Some(off) => {
@@ -558,8 +564,10 @@ fn interleaved_scores(on: &[u8], off: Option<&[u8]>, out: &mut Vec<u8>) {
                 base += BLOCK_BYTES;
             }
             for j in (base..len.min(off.len())).step_by(3) {
-                out[j] = difference_score_u8(on[j], off[j]);
+                out[j..j + 3].copy_from_slice(&[difference_score_u8(on[j], off[j]), 0, 0]);
             }
+            // Bytes past a shorter laser-off span score 0.
+            out[len.min(off.len())..].fill(0);
         }
     }
 }
@@ -848,12 +856,13 @@ fn local_contrast_i16(
     }
     let (left, right) = (&sums[..n], &sums[reach + gap + 1..reach + gap + 1 + n]);
     let values = &row[inner_first..=inner_last];
-    let start = out.len();
-    out.resize(start + n, 0);
-    for (((out, &value), &left), &right) in out[start..].iter_mut().zip(values).zip(left).zip(right)
-    {
-        *out = (size * i16::from(value) - left.max(right)).max(0);
-    }
+    out.extend(
+        values
+            .iter()
+            .zip(left)
+            .zip(right)
+            .map(|((&value, &left), &right)| (size * i16::from(value) - left.max(right)).max(0)),
+    );
     out.extend((inner_last + 1..=last).map(at_edge));
 }
 
