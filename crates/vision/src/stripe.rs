@@ -452,6 +452,14 @@ pub fn extract_stripe_rgb(
                 off_raw.map(|off| &off[row_start + 3 * first..row_start + 3 * (last + 1)]);
             // The scores on whole vectors of interleaved bytes, then every third byte.
             interleaved_scores(pixels, off_pixels, &mut scratch.interleaved);
+            // No value of the line detector exceeds its pixel's score, so a
+            // span whose scores all fall short of `min_strength` has no peak.
+            let span_bytes = 3 * (u0 as usize - first)..3 * (u1 as usize - first + 1);
+            if f32::from(scratch.interleaved.get(span_bytes).map_or(0, max_u8))
+                < options.min_strength
+            {
+                return Vec::new();
+            }
             for (score, &s) in scores.iter_mut().zip(scratch.interleaved.iter().step_by(3)) {
                 *score = s;
             }
