@@ -586,24 +586,6 @@ fn max_u8(bytes: &[u8]) -> u8 {
     bytes.iter().fold(0, |m, &b| m.max(b))
 }
 
-/// The index of the last occurrence of `value` in `scores`, searched from
-/// the end a vector-friendly chunk at a time.
-fn last_index_of(scores: &[u8], value: u8) -> Option<usize> {
-    const CHUNK: usize = 64;
-    let mut end = scores.len();
-    while end > 0 {
-        let start = end.saturating_sub(CHUNK);
-        let chunk = &scores[start..end];
-        if max_u8(chunk) >= value
-            && let Some(i) = chunk.iter().rposition(|&s| s == value)
-        {
-            return Some(start + i);
-        }
-        end = start;
-    }
-    None
-}
-
 /// The one peak of a span (no line detector): what [`span_peaks`] finds
 /// there, searched on the interleaved integer scores of the span's pixels
 /// (`on`, `off`: the span's RGB bytes). The last of equal maxima, as
@@ -624,7 +606,7 @@ fn single_peak_u8(
     if f32::from(peak) < options.min_strength {
         return None;
     }
-    let k = last_index_of(scores, peak)? / 3;
+    let k = last_index_by_key(scores, |&s| s, peak)? / 3;
     // The strongest score more than `guard` pixels from the peak.
     let rival = |guard: usize| {
         let left = scores.get(..3 * k.saturating_sub(guard)).map_or(0, max_u8);
@@ -1022,18 +1004,27 @@ fn last_max_index(row: &[f32]) -> Option<usize> {
     last_max_by_key(row, |&x| total_order_key(x))
 }
 
-/// The index of the last value with the largest `key`, in loops the
-/// compiler vectorises for integer keys: the largest key, then the last
-/// match searched a chunk at a time from the end.
+/// The index of the last value with the largest `key`.
 fn last_max_by_key<T, K: Ord + Copy>(values: &[T], key: impl Fn(&T) -> K) -> Option<usize> {
+    let best = values.iter().map(&key).max()?;
+    last_index_by_key(values, key, best)
+}
+
+/// The index of the last value whose `key` is `best`, the largest key,
+/// searched from the end a chunk at a time: the chunk's largest key (a
+/// loop the compiler vectorises for integer keys), then the match in it.
+fn last_index_by_key<T, K: Ord + Copy>(
+    values: &[T],
+    key: impl Fn(&T) -> K,
+    best: K,
+) -> Option<usize> {
     const CHUNK: usize = 64;
-    let largest = |values: &[T]| values.iter().map(&key).max();
-    let best = largest(values)?;
     let mut end = values.len();
     while end > 0 {
         let start = end.saturating_sub(CHUNK);
         let chunk = &values[start..end];
-        if largest(chunk) == Some(best)
+        let largest = chunk.iter().map(&key).fold(key(&chunk[0]), K::max);
+        if largest >= best
             && let Some(i) = chunk.iter().rposition(|x| key(x) == best)
         {
             return Some(start + i);
