@@ -11,7 +11,10 @@
 //! cycle is the rig's simulated time from the scan's start to its last
 //! frame and the slide at rest; the error is the localized centre's
 //! distance from the simulator's true centre (the scene's true camera and
-//! laser). Prints one line per scan and the medians.
+//! laser). Prints one line per scan and the medians, and the least time
+//! the slide's travel alone takes (one trapezoidal move from the start
+//! through the nearer end of the plan to the other at full speed, no
+//! frame, no settling): the bound under any mode's cycle on this slide.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use std::sync::Arc;
@@ -42,6 +45,17 @@ fn median(values: &mut [f64]) -> f64 {
     if n % 2 == 1 { values[n / 2] } else { 0.5 * (values[n / 2 - 1] + values[n / 2]) }
 }
 
+/// The least time of a move of `distance_mm` from rest to rest at top
+/// speed `speed` and acceleration `acceleration` (trapezoidal, or
+/// triangular when too short to reach the top speed).
+fn move_time_s(distance_mm: f64, speed: f64, acceleration: f64) -> f64 {
+    if distance_mm >= speed * speed / acceleration {
+        distance_mm / speed + speed / acceleration
+    } else {
+        2.0 * (distance_mm / acceleration).sqrt()
+    }
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let arg = |k: usize, default: f64| args.get(k).map_or(default, |a| a.parse().unwrap());
@@ -69,6 +83,7 @@ fn main() {
     let from_plan = std::env::var("FROM_PLAN").is_ok_and(|v| v == "1");
     let mut starts = [0.0, 0.0];
     let mut outcomes: [Vec<Outcome>; 2] = [Vec::new(), Vec::new()];
+    let mut bounds = Vec::new();
     for seed in first_seed..first_seed + scans {
         let options = ScanOptions { scale, seed, ..ScanOptions::default() };
         let scene = Arc::new(simulate_scan(&camera, &laser, &options).unwrap());
@@ -76,6 +91,18 @@ fn main() {
         if from_plan {
             starts = [scene.plan.slides_mm[0]; 2];
         }
+        // The travel's bound from where the continuous scan starts.
+        let (low, high) = scene
+            .plan
+            .slides_mm
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(l, h), &d| (l.min(d), h.max(d)));
+        let distance = (starts[1] - low).abs().min((starts[1] - high).abs()) + (high - low);
+        bounds.push(move_time_s(
+            distance,
+            rig_options.speed_mm_per_s,
+            rig_options.acceleration_mm_per_s2,
+        ));
         // The sweep's smear limit uses the camera the frames are taken with.
         let modes = [ScanMode::StopAndGo, ScanMode::Continuous(Sweep::new(scene.camera.clone()))];
         for (m, mode) in modes.iter().enumerate() {
@@ -124,4 +151,12 @@ fn main() {
     }
     let mean = |m: usize| outcomes[m].iter().map(|o| o.cycle_s).sum::<f64>();
     println!("stop_and_go / continuous cycle time: {:.2}", mean(0) / mean(1));
+    let bound: f64 = bounds.iter().sum();
+    println!(
+        "the slide's travel alone (continuous scans' starts): median {:.3} s, mean {:.3} s; stop_and_go / travel: {:.2}, continuous / travel: {:.2}",
+        median(&mut bounds.clone()),
+        bound / bounds.len() as f64,
+        mean(0) / bound,
+        mean(1) / bound
+    );
 }
