@@ -465,7 +465,7 @@ pub fn extract_stripe_rgb(
             }
             let mut points = Vec::new();
             match options.local_background {
-                Some(background) if background.window_px <= MAX_I16_WINDOW_PX => {
+                Some(background) if (1..=MAX_I16_WINDOW_PX).contains(&background.window_px) => {
                     let (first, last) = (u0 as usize, u1 as usize);
                     let (sums, excess) = (&mut scratch.sums, &mut scratch.excess);
                     local_contrast_i16(&scratch.scores, first, last, background, sums, excess);
@@ -750,6 +750,12 @@ fn local_contrast<T: Summable>(
     out: &mut Vec<f32>,
 ) {
     let (gap, window, reach) = (background.gap_px, background.window_px, background.reach());
+    out.clear();
+    if window == 0 {
+        // Windows of no pixels: no background, the scores as they are.
+        out.extend(row[first..=last].iter().map(|&s| s.into() as f32));
+        return;
+    }
     let lo = first.saturating_sub(reach);
     let hi = (last + reach).min(row.len() - 1);
     let size = T::count(window);
@@ -768,10 +774,9 @@ fn local_contrast<T: Summable>(
         };
         excess(row[u], level)
     };
-    out.clear();
     // Where both windows lie whole inside lo..=hi (most of a row).
     let (inner_first, inner_last) = (first.max(lo + reach), last.min(hi.saturating_sub(reach)));
-    if window == 0 || window > MAX_BACKGROUND_WINDOW_PX || inner_first > inner_last {
+    if window > MAX_BACKGROUND_WINDOW_PX || inner_first > inner_last {
         out.extend((first..=last).map(at_edge));
         return;
     }
@@ -1447,6 +1452,27 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn a_line_detector_of_empty_windows_takes_the_scores_as_they_are() {
+        let on = noisy_frame(120, 90, 1, true);
+        let region = Region::full(120, 90);
+        let plain = StripeOptions {
+            saturation_dn: None,
+            green_check: false,
+            local_background: None,
+            ..StripeOptions::orchard()
+        };
+        let empty = StripeOptions {
+            local_background: Some(LocalBackground { gap_px: 5, window_px: 0 }),
+            ..plain.clone()
+        };
+        let expected = extract_stripe_rgb(&on, None, &region, &plain).unwrap();
+        assert!(expected.len() > 20, "{} points", expected.len());
+        assert_eq!(extract_stripe_rgb(&on, None, &region, &empty).unwrap(), expected);
+        let score = laser_score(&on, None).unwrap();
+        assert_eq!(extract_stripe(&score, &region, &empty), expected);
     }
 
     #[test]
