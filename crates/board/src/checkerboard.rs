@@ -234,10 +234,8 @@ fn chess_corners(
     region: Option<Roi>,
 ) -> std::result::Result<Vec<ChessCorner>, String> {
     let (width, height, pixels) = (level.width(), level.height(), level.as_raw());
-    let detector = || {
-        chess_corners::Detector::new(detect::default_chess_config())
-            .map_err(|e| format!("corner detector: {e}"))
-    };
+    let failed = |e: chess_corners::ChessError| format!("corner detector: {e}");
+    let detector = || chess_corners::Detector::new(detect::default_chess_config()).map_err(failed);
     let found = match region {
         // A region's corners come from strips of it searched in parallel
         // (the whole image's response is row-parallel already, a region's
@@ -249,16 +247,12 @@ fn chess_corners(
             let found: Vec<_> = strips
                 .par_iter()
                 .map(|&strip| {
-                    detector()?
-                        .detect_u8_roi(pixels, width, height, strip)
-                        .map_err(|e| format!("corner detector: {e}"))
+                    detector()?.detect_u8_roi(pixels, width, height, strip).map_err(failed)
                 })
                 .collect::<std::result::Result<_, _>>()?;
             found.concat()
         }
-        None => detector()?
-            .detect_u8(pixels, width, height)
-            .map_err(|e| format!("corner detector: {e}"))?,
+        None => detector()?.detect_u8(pixels, width, height).map_err(failed)?,
     };
     Ok(found.iter().map(chess_corner).collect())
 }
@@ -313,7 +307,7 @@ const REGION_MARGIN_TILES: usize = 1;
 
 /// Where a board can be in `level`: the bounding box of the 8 x 8 px tiles
 /// whose grey levels span at least a quarter of the largest span of any
-/// tile (and 16 DN), grown by two tiles. Each square edge and corner of a
+/// tile (and 16 DN), grown by a tile. Each square edge and corner of a
 /// board is such a tile. `None` where that is (nearly) the whole image, or
 /// nothing: then the whole image is searched. Only a first try: a board
 /// the region cuts is searched again in the whole image.

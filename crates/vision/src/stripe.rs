@@ -531,7 +531,6 @@ fn interleaved_scores(on: &[u8], off: Option<&[u8]>, out: &mut Vec<u8>) {
     // Every byte below is written (the tails' too), so the buffer is not
     // cleared between rows: no zero-fill of a row's bytes each time.
     out.resize(len, 0);
-    out.truncate(len);
     let mut base = 0;
     match off {
         None => {
@@ -1213,13 +1212,13 @@ mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
 
-    /// A row with a Gaussian stripe of sigma 1.5 px at `centre` over a background.
     /// The sub-pixel peak of one row's scores: (column within the row,
     /// peak score, width at half maximum).
     fn row_peak(row: &[f32], options: &StripeOptions) -> Option<(f64, f32, f64)> {
         profile_peak(row, options)
     }
 
+    /// A row with a Gaussian stripe of sigma 1.5 px at `centre` over a background.
     fn gaussian_row(centre: f64, n: usize) -> Vec<f32> {
         (0..n)
             .map(|i| {
