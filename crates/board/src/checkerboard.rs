@@ -24,14 +24,14 @@
 //! barely shows there, so it cannot break the corner pattern.
 
 use alacs_model::BoardSpec;
+use calib_targets::ChessCorner;
 use calib_targets::chessboard::{self, ChessboardParams};
-use calib_targets::core::{AxisEstimate, PositionCovariance};
-use calib_targets::{ChessCorner, detect};
 use chess_corners::Roi;
 use image::{DynamicImage, GrayImage};
 use nalgebra::{Point2, Vector2};
 use rayon::prelude::*;
 
+use crate::chess::chess_corners;
 use crate::{Error, Result};
 
 /// Largest fraction of a board's corners that may be missing inside the
@@ -122,12 +122,15 @@ pub fn detect_checkerboard(gray: &GrayImage, board: &BoardSpec) -> Result<BoardC
             searches.push((2.0, &half, Some(region)));
         }
     }
-    let mut best: Option<BoardCorners> = None;
+    let mut best: Option<(BoardCorners, Refined)> = None;
     let mut full_error = None;
     for &(scale, level, region) in searches.iter().rev() {
         match labelled_grid(level, region, scale, board, gray) {
-            Ok(corners) => {
-                if keep_more(&mut best, corners) == board.corner_count() {
+            Ok((corners, refined)) => {
+                if best.as_ref().is_none_or(|(b, _)| b.found_count() < corners.found_count()) {
+                    best = Some((corners, refined));
+                }
+                if best.as_ref().is_some_and(|(b, _)| b.found_count() == board.corner_count()) {
                     break;
                 }
             }
@@ -137,12 +140,17 @@ pub fn detect_checkerboard(gray: &GrayImage, board: &BoardSpec) -> Result<BoardC
         }
     }
     let found = best.ok_or_else(|| full_error.unwrap_or_else(|| "no corner grid".into()));
-    let mut corners = found.map_err(no_board)?;
-    let cell_px = corners.cell_size_px().unwrap_or(0.0);
-    let half_window =
-        (REFINE_WINDOW_PER_CELL * cell_px).round().clamp(2.0, MAX_REFINE_HALF_WINDOW_PX);
-    refine_corners(gray, &mut corners, half_window as u32);
+    let (mut corners, refined) = found.map_err(no_board)?;
+    let half_window = refine_half_window(corners.cell_size_px().unwrap_or(0.0));
+    refined.apply(gray, &mut corners, half_window);
     Ok(corners)
+}
+
+/// The half window of the corner refinement for squares of `cell_px` in the
+/// image (px): [`REFINE_WINDOW_PER_CELL`] of a square, 2 to
+/// [`MAX_REFINE_HALF_WINDOW_PX`].
+fn refine_half_window(cell_px: f64) -> u32 {
+    (REFINE_WINDOW_PER_CELL * cell_px).round().clamp(2.0, MAX_REFINE_HALF_WINDOW_PX) as u32
 }
 
 /// Rows of the half image one parallel task sums at least.
@@ -182,24 +190,47 @@ fn half_size(gray: &GrayImage) -> GrayImage {
 }
 
 /// The board's corners from calib-targets' corner grids of `level`, an
-/// image `1 / scale` of `gray`'s size (positions in `gray`'s pixels): the
-/// ChESS corners once (in `region` of `level` only, if given), then the
-/// grid of each of calib-targets' three chessboard settings (canonical,
-/// tighter, looser) until one labels every corner, else the labelling with
-/// the most.
+/// image `1 / scale` of `gray`'s size (positions in `gray`'s pixels), and
+/// the ChESS corners refined at full resolution ([`Refined`]): the ChESS
+/// corners once (in `region` of `level` only, if given), then the grid of
+/// each of calib-targets' three chessboard settings (canonical, tighter,
+/// looser) until one labels every corner, else the labelling with the most.
+///
+/// calib-targets assembles the grid on one thread; the refinement needs no
+/// labels, only a window, which the corners' spacing gives before the grid
+/// does, so it runs meanwhile on the other threads.
 fn labelled_grid(
     level: &GrayImage,
     region: Option<Roi>,
     scale: f64,
     board: &BoardSpec,
     gray: &GrayImage,
+) -> std::result::Result<(BoardCorners, Refined), String> {
+    let corners = chess_corners(level, region);
+    let starts: Vec<Point2<f64>> =
+        corners.iter().map(|c| level_to_image((c.position.x, c.position.y), scale)).collect();
+    let half_window = refine_half_window(median_nearest_neighbour_px(&starts));
+    let (labelled, refined) = rayon::join(
+        || grid_labelling(&corners, scale, board, gray),
+        || Refined::new(gray, starts, half_window),
+    );
+    Ok((labelled?, refined))
+}
+
+/// The labelling of `corners` (ChESS corners of a level `1 / scale` of
+/// `gray`'s size) with the most corners of calib-targets' three settings
+/// (see [`labelled_grid`]).
+fn grid_labelling(
+    corners: &[ChessCorner],
+    scale: f64,
+    board: &BoardSpec,
+    gray: &GrayImage,
 ) -> std::result::Result<BoardCorners, String> {
-    let corners = chess_corners(level, region)?;
     let mut best: Option<BoardCorners> = None;
     let mut last_error = String::from("no corner grid");
     for params in ChessboardParams::sweep_default() {
         let Some(detection) =
-            chessboard::ChessboardDetector::new(params).ok().and_then(|d| d.detect(&corners))
+            chessboard::ChessboardDetector::new(params).ok().and_then(|d| d.detect(corners))
         else {
             continue;
         };
@@ -226,69 +257,83 @@ fn labelled_grid(
     best.ok_or(last_error)
 }
 
-/// The ChESS corners of `level` (in `region` only, if given) with
-/// calib-targets' corner settings, as calib-targets' chessboard detector
-/// takes them: the corner pass of its `detect_corners`, which has no region.
-fn chess_corners(
-    level: &GrayImage,
-    region: Option<Roi>,
-) -> std::result::Result<Vec<ChessCorner>, String> {
-    let (width, height, pixels) = (level.width(), level.height(), level.as_raw());
-    let failed = |e: chess_corners::ChessError| format!("corner detector: {e}");
-    let detector = || chess_corners::Detector::new(detect::default_chess_config()).map_err(failed);
-    let found = match region {
-        // A region's corners come from strips of it searched in parallel
-        // (the whole image's response is row-parallel already, a region's
-        // is not): chess-corners carves each strip with the margin its
-        // ring, maximum suppression and refinement need, and keeps the
-        // corners inside it, so the strips' corners are the region's.
-        Some(region) => {
-            let strips = region_strips(region);
-            let found: Vec<_> = strips
-                .par_iter()
-                .map(|&strip| {
-                    detector()?.detect_u8_roi(pixels, width, height, strip).map_err(failed)
-                })
-                .collect::<std::result::Result<_, _>>()?;
-            found.concat()
-        }
-        None => detector()?.detect_u8(pixels, width, height).map_err(failed)?,
-    };
-    Ok(found.iter().map(chess_corner).collect())
-}
-
-/// Rows of a region one parallel search takes at least (px of the level).
-const MIN_STRIP_ROWS: usize = 32;
-
-/// A region cut into horizontal strips, one per thread (fewer where a strip
-/// would be under [`MIN_STRIP_ROWS`] rows).
-fn region_strips(region: Roi) -> Vec<Roi> {
-    let rows = region.y1() - region.y0();
-    let count = rayon::current_num_threads().min(rows / MIN_STRIP_ROWS).max(1);
-    (0..count)
-        .filter_map(|i| {
-            let (top, bottom) =
-                (region.y0() + rows * i / count, region.y0() + rows * (i + 1) / count);
-            Roi::new(region.x0(), top, region.x1(), bottom)
+/// The median distance from a point to its nearest neighbour (0 for fewer
+/// than two points): the side of a board's squares, from its corners alone.
+fn median_nearest_neighbour_px(points: &[Point2<f64>]) -> f64 {
+    let mut by_x: Vec<Point2<f64>> = points.to_vec();
+    by_x.sort_by(|a, b| a.x.total_cmp(&b.x));
+    let mut nearest: Vec<f64> = (0..by_x.len())
+        .map(|i| {
+            let p = by_x[i];
+            let mut best_sq = f64::INFINITY;
+            // Outwards in x from the point, each way until x alone is farther.
+            let mut look = |q: &Point2<f64>| {
+                let far = (q.x - p.x).powi(2) >= best_sq;
+                if !far {
+                    best_sq = best_sq.min((q - p).norm_squared());
+                }
+                !far
+            };
+            for q in &by_x[i + 1..] {
+                if !look(q) {
+                    break;
+                }
+            }
+            for q in by_x[..i].iter().rev() {
+                if !look(q) {
+                    break;
+                }
+            }
+            best_sq.sqrt()
         })
-        .collect()
+        .filter(|d| d.is_finite())
+        .collect();
+    nearest.sort_by(f64::total_cmp);
+    nearest.get(nearest.len() / 2).copied().unwrap_or(0.0)
 }
 
-/// One ChESS corner as calib-targets' chessboard detector takes it (its
-/// `detect_corners` adapts them so): a corner without an orientation fit
-/// gets calib-targets' no-information axes, which its grid skips.
-fn chess_corner(c: &chess_corners::CornerDescriptor) -> ChessCorner {
-    let axis = |a: chess_corners::AxisEstimate| AxisEstimate {
-        angle: a.angle,
-        fit_std_error: a.fit_std_error,
-    };
-    let axes = c.axes.map_or([AxisEstimate::default(); 2], |[a, b]| [axis(a), axis(b)]);
-    // Fields set on a default: calib-targets' nalgebra is not this crate's.
-    let mut corner = ChessCorner::default()
-        .with_position_covariance(c.position_covariance.map(PositionCovariance::from));
-    (corner.position.x, corner.position.y) = (c.x, c.y);
-    (corner.axes, corner.strength) = (axes, c.response);
-    corner
+/// ChESS corners refined at full resolution with one window before they
+/// were labelled, by where they started.
+struct Refined {
+    half_window_px: u32,
+    /// (start's bits, refined position), sorted by the start's bits.
+    by_start: Vec<((u64, u64), Point2<f64>)>,
+}
+
+impl Refined {
+    fn new(gray: &GrayImage, starts: Vec<Point2<f64>>, half_window_px: u32) -> Self {
+        let refiner = SubPixel::new(gray, half_window_px, f64::INFINITY);
+        let mut by_start: Vec<((u64, u64), Point2<f64>)> = starts
+            .into_par_iter()
+            .with_min_len(CORNERS_PER_TASK)
+            .map(|p| (bits(p), refiner.refine(p)))
+            .collect();
+        by_start.sort_by_key(|(key, _)| *key);
+        Self { half_window_px, by_start }
+    }
+
+    /// Refines `corners` as [`refine_corners`] does: with the positions
+    /// refined ahead where they were refined with the same window (every
+    /// corner of a board's own labelling, unless the squares' spacing
+    /// before the labelling rounded to another window), else afresh.
+    fn apply(&self, gray: &GrayImage, corners: &mut BoardCorners, half_window_px: u32) {
+        if half_window_px != self.half_window_px {
+            refine_corners(gray, corners, half_window_px);
+            return;
+        }
+        let refiner = SubPixel::new(gray, half_window_px, f64::INFINITY);
+        for corner in corners.corners_px.iter_mut().flatten() {
+            *corner = match self.by_start.binary_search_by_key(&bits(*corner), |(key, _)| *key) {
+                Ok(i) => self.by_start[i].1,
+                Err(_) => refiner.refine(*corner),
+            };
+        }
+    }
+}
+
+/// A position's bits, to find it again exactly.
+fn bits(p: Point2<f64>) -> (u64, u64) {
+    (p.x.to_bits(), p.y.to_bits())
 }
 
 /// Side of the tiles of [`textured_region`] (px of the searched level).
@@ -566,26 +611,60 @@ pub(crate) fn refine_corners_within(
     half_window_px: u32,
     max_radius_px: f64,
 ) {
-    let max_radius_sq = max_radius_px * max_radius_px;
-    let (width, height) = (gray.width() as i64, gray.height() as i64);
-    let w = i64::from(half_window_px.max(2));
-    let sigma = w as f64 / 2.0;
-    // The Gaussian weights by offset from the window's centre pixel,
-    // computed once (as OpenCV's cornerSubPix does): the same pixels with
-    // the same weights give the same answer, so an iteration that stays on
-    // its pixel has converged.
-    let side = (2 * w + 1) as usize;
-    let mask: Vec<f64> = (0..side * side)
-        .map(|k| {
-            let (du, dv) = ((k % side) as f64 - w as f64, (k / side) as f64 - w as f64);
-            (-(du * du + dv * dv) / (2.0 * sigma * sigma)).exp()
-        })
-        .collect();
-    let pixels = gray.as_raw();
-    let row = gray.width() as usize;
-    let at = |u: i64, v: i64| f64::from(pixels[v as usize * row + u as usize]);
-    corners.corners_px.par_iter_mut().with_min_len(CORNERS_PER_TASK).flatten().for_each(|corner| {
-        let start = *corner;
+    let refiner = SubPixel::new(gray, half_window_px, max_radius_px);
+    corners
+        .corners_px
+        .par_iter_mut()
+        .with_min_len(CORNERS_PER_TASK)
+        .flatten()
+        .for_each(|corner| *corner = refiner.refine(*corner));
+}
+
+/// The gradient refinement of [`refine_corners`] over one image with one
+/// window.
+struct SubPixel<'a> {
+    pixels: &'a [u8],
+    width: i64,
+    height: i64,
+    /// Half window (px), at least 2.
+    w: i64,
+    /// The Gaussian weights by offset from the window's centre pixel,
+    /// computed once (as OpenCV's cornerSubPix does): the same pixels with
+    /// the same weights give the same answer, so an iteration that stays on
+    /// its pixel has converged.
+    mask: Vec<f64>,
+    max_radius_px: f64,
+}
+
+impl<'a> SubPixel<'a> {
+    fn new(gray: &'a GrayImage, half_window_px: u32, max_radius_px: f64) -> Self {
+        let w = i64::from(half_window_px.max(2));
+        let sigma = w as f64 / 2.0;
+        let side = (2 * w + 1) as usize;
+        let mask: Vec<f64> = (0..side * side)
+            .map(|k| {
+                let (du, dv) = ((k % side) as f64 - w as f64, (k / side) as f64 - w as f64);
+                (-(du * du + dv * dv) / (2.0 * sigma * sigma)).exp()
+            })
+            .collect();
+        Self {
+            pixels: gray.as_raw(),
+            width: i64::from(gray.width()),
+            height: i64::from(gray.height()),
+            w,
+            mask,
+            max_radius_px,
+        }
+    }
+
+    /// The corner refined from `start`; `start` itself where the refinement
+    /// wanders off by more than a window.
+    fn refine(&self, start: Point2<f64>) -> Point2<f64> {
+        let (w, width, height) = (self.w, self.width, self.height);
+        let side = (2 * w + 1) as usize;
+        let max_radius_sq = self.max_radius_px * self.max_radius_px;
+        let row = width as usize;
+        let at = |u: i64, v: i64| f64::from(self.pixels[v as usize * row + u as usize]);
         let mut q = start;
         let mut last_centre = None;
         for _ in 0..20 {
@@ -595,13 +674,13 @@ pub(crate) fn refine_corners_within(
             }
             // The radius (a ChArUco board's markers) is about q itself, so
             // the pixels used change with q's sub-pixel position only then.
-            if last_centre == Some((cu, cv)) && max_radius_px.is_infinite() {
+            if last_centre == Some((cu, cv)) && self.max_radius_px.is_infinite() {
                 break;
             }
             last_centre = Some((cu, cv));
             let (mut a11, mut a12, mut a22, mut b1, mut b2) = (0.0, 0.0, 0.0, 0.0, 0.0);
             for v in cv - w..=cv + w {
-                let mask_row = &mask[((v - cv + w) as usize) * side..][..side];
+                let mask_row = &self.mask[((v - cv + w) as usize) * side..][..side];
                 for (u, &weight) in (cu - w..=cu + w).zip(mask_row) {
                     let (du, dv) = (u as f64 - q.x, v as f64 - q.y);
                     if du * du + dv * dv > max_radius_sq {
@@ -628,10 +707,8 @@ pub(crate) fn refine_corners_within(
                 break;
             }
         }
-        if (q - start).norm() <= w as f64 && q.x.is_finite() && q.y.is_finite() {
-            *corner = q;
-        }
-    });
+        if (q - start).norm() <= w as f64 && q.x.is_finite() && q.y.is_finite() { q } else { start }
+    }
 }
 
 #[cfg(test)]
@@ -639,6 +716,7 @@ mod tests {
     #![allow(clippy::unwrap_used, clippy::expect_used)]
 
     use super::*;
+    use calib_targets::detect;
 
     fn photo() -> GrayImage {
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../testdata/opencv_right/right01.jpg");
@@ -668,7 +746,7 @@ mod tests {
     #[test]
     fn the_corner_pass_is_calib_targets_own() {
         for image in [photo(), half_size(&board_view())] {
-            let ours = chess_corners(&image, None).unwrap();
+            let ours = chess_corners(&image, None);
             let theirs = chessboard::detect_corners(
                 &detect::gray_view(&image),
                 &detect::default_chess_config(),
@@ -691,8 +769,8 @@ mod tests {
         };
         let key = |c: &ChessCorner| (c.position.x.to_bits(), c.position.y.to_bits());
         let mut whole: Vec<ChessCorner> =
-            chess_corners(&half, None).unwrap().into_iter().filter(inside).collect();
-        let mut strips = chess_corners(&half, Some(region)).unwrap();
+            chess_corners(&half, None).into_iter().filter(inside).collect();
+        let mut strips = chess_corners(&half, Some(region));
         whole.sort_by_key(key);
         strips.sort_by_key(key);
         assert!(whole.len() >= 54, "{} corners", whole.len());
@@ -711,13 +789,43 @@ mod tests {
         let (gray, board) = (board_view(), BoardSpec::checkerboard(9, 6, 1.0, 1.0));
         let half = half_size(&gray);
         let region = textured_region(&half);
-        let in_region = labelled_grid(&half, region, 2.0, &board, &gray).unwrap();
-        let whole = labelled_grid(&half, None, 2.0, &board, &gray).unwrap();
+        let (in_region, _) = labelled_grid(&half, region, 2.0, &board, &gray).unwrap();
+        let (whole, _) = labelled_grid(&half, None, 2.0, &board, &gray).unwrap();
         assert_eq!(in_region.found_count(), 54);
         for (a, b) in in_region.corners_px.iter().zip(&whole.corners_px) {
             assert!((a.unwrap() - b.unwrap()).norm() < 1e-3, "{a:?} vs {b:?}");
         }
         assert_eq!(detect_checkerboard(&gray, &board).unwrap().found_count(), 54);
+    }
+
+    #[test]
+    fn corners_refined_ahead_of_their_labels_are_those_refined_after_them() {
+        let board = BoardSpec::checkerboard(9, 6, 1.0, 1.0);
+        for (gray, ahead_expected) in [(board_view(), true), (photo(), false)] {
+            let half = half_size(&gray);
+            let region = textured_region(&half);
+            let (mut after, refined) = labelled_grid(&half, region, 2.0, &board, &gray).unwrap();
+            let half_window = refine_half_window(after.cell_size_px().unwrap());
+            // The synthetic view's squares give the labelled window before
+            // the labels; the photograph's clutter corners do not (then the
+            // corners are refined again, as before).
+            assert_eq!(refined.half_window_px == half_window, ahead_expected);
+            refine_corners(&gray, &mut after, half_window);
+            let ahead = detect_checkerboard(&gray, &board).unwrap();
+            assert_eq!(ahead, after);
+        }
+    }
+
+    #[test]
+    fn the_nearest_neighbour_spacing_of_a_grid_is_its_step() {
+        let grid: Vec<Point2<f64>> = (0..30)
+            .map(|i| {
+                Point2::new(f64::from(i % 6) * 12.0 + 0.1 * f64::from(i), f64::from(i / 6) * 15.0)
+            })
+            .collect();
+        assert!((median_nearest_neighbour_px(&grid) - 12.1).abs() < 1e-9);
+        assert_eq!(median_nearest_neighbour_px(&grid[..1]), 0.0);
+        assert_eq!(median_nearest_neighbour_px(&[]), 0.0);
     }
 
     #[test]

@@ -11,6 +11,7 @@
 
 mod charuco;
 mod checkerboard;
+mod chess;
 mod error;
 
 pub use charuco::{MIN_CHARUCO_CORNERS, charuco_spec, detect_board, detect_charuco};
