@@ -446,7 +446,6 @@ pub fn extract_stripe_rgb(
             let first = (u0 as usize).saturating_sub(reach);
             let last = (u1 as usize + reach).min(width - 1);
             scratch.scores.resize(width, 0);
-            let scores = &mut scratch.scores[first..=last];
             let pixels = &row_pixels[3 * first..3 * (last + 1)];
             let off_pixels =
                 off_raw.map(|off| &off[row_start + 3 * first..row_start + 3 * (last + 1)]);
@@ -460,12 +459,37 @@ pub fn extract_stripe_rgb(
             {
                 return Vec::new();
             }
-            for (score, &s) in scores.iter_mut().zip(scratch.interleaved.iter().step_by(3)) {
-                *score = s;
-            }
             let mut points = Vec::new();
             match options.local_background {
+                Some(background)
+                    if (1..=MAX_I16_WINDOW_PX).contains(&background.window_px)
+                        && options.max_peaks_per_row > 1 =>
+                {
+                    // Several peaks: the line detector only around the
+                    // pixels that can be peaks (see `candidate_windows`).
+                    let windows = candidate_windows(&scratch.interleaved, first, (u0, u1), options);
+                    let (n, value) =
+                        ((u1 - u0) as usize + 1, ScaledValue::new(background.window_px));
+                    scratch.profile.clear();
+                    scratch.profile.resize(n, 0);
+                    for (lo, hi) in windows {
+                        // The scores the detector reads: the window and its reach.
+                        let (from, to) =
+                            (lo.saturating_sub(reach).max(first), (hi + reach).min(last));
+                        deinterleave(
+                            &mut scratch.scores[from..=to],
+                            &scratch.interleaved[3 * (from - first)..],
+                        );
+                        let (sums, excess) = (&mut scratch.sums, &mut scratch.excess);
+                        local_contrast_i16(&scratch.scores, lo, hi, background, sums, excess);
+                        let start = lo - u0 as usize;
+                        scratch.profile[start..start + excess.len()].copy_from_slice(excess);
+                    }
+                    let mut profile = Scaled { excess: &mut scratch.profile, value };
+                    profile_peaks(&mut profile, (v, u0), options, &mut points);
+                }
                 Some(background) if (1..=MAX_I16_WINDOW_PX).contains(&background.window_px) => {
+                    deinterleave(&mut scratch.scores[first..=last], &scratch.interleaved);
                     let (first, last) = (u0 as usize, u1 as usize);
                     let (sums, excess) = (&mut scratch.sums, &mut scratch.excess);
                     local_contrast_i16(&scratch.scores, first, last, background, sums, excess);
@@ -473,13 +497,16 @@ pub fn extract_stripe_rgb(
                     let mut profile = Scaled { excess: &mut scratch.excess, value };
                     profile_peaks(&mut profile, (v, u0), options, &mut points);
                 }
-                _ => span_peaks(
-                    &scratch.scores,
-                    (v, u0, u1),
-                    options,
-                    &mut scratch.buffer,
-                    &mut points,
-                ),
+                _ => {
+                    deinterleave(&mut scratch.scores[first..=last], &scratch.interleaved);
+                    span_peaks(
+                        &scratch.scores,
+                        (v, u0, u1),
+                        options,
+                        &mut scratch.buffer,
+                        &mut points,
+                    );
+                }
             }
             points.retain(keep);
             points
@@ -499,6 +526,9 @@ const ROWS_PER_TASK: usize = 16;
 #[derive(Default)]
 struct RowScratch {
     scores: Vec<u8>,
+    /// The span's line-detector profile of the several-peaks search: the
+    /// detector's values in the candidates' windows, 0 elsewhere.
+    profile: Vec<i16>,
     buffer: Vec<f32>,
     excess: Vec<i16>,
     sums: Vec<i16>,
@@ -583,6 +613,77 @@ fn interleaved_scores(on: &[u8], off: Option<&[u8]>, out: &mut Vec<u8>) {
 /// (`iter().max()` compares references, one byte at a time).
 fn max_u8(bytes: &[u8]) -> u8 {
     bytes.iter().fold(0, |m, &b| m.max(b))
+}
+
+/// `scores[i]` = byte `3 i` of `interleaved` (the scores of
+/// [`interleaved_scores`], pixel by pixel).
+fn deinterleave(scores: &mut [u8], interleaved: &[u8]) {
+    for (score, &s) in scores.iter_mut().zip(interleaved.iter().step_by(3)) {
+        *score = s;
+    }
+}
+
+/// Where the several-peaks search needs the line detector in the span
+/// `u0..=u1` of a row whose interleaved scores (pixel `first` at byte 0)
+/// are `interleaved`: the blocks of 16 pixels where one scores at least
+/// `min_strength`, each grown by [`candidate_margin_px`] (within the span),
+/// merged where they touch; sorted. No detector value exceeds its pixel's score, so a
+/// peak lies in a run; its width and centre read no farther than the
+/// margin, and the search keeps the strongest and those within
+/// `ambiguity_ratio` of it without looking for rivals (which would read
+/// the whole row), so the profile outside the windows, below
+/// `min_strength` everywhere, may be 0: the peaks are those of the whole
+/// span's profile (test `the_integer_parallel_pass_finds_what_the_score_image_finds`).
+fn candidate_windows(
+    interleaved: &[u8],
+    first: usize,
+    (u0, u1): (u32, u32),
+    options: &StripeOptions,
+) -> Vec<(usize, usize)> {
+    let (u0, u1) = (u0 as usize, u1 as usize);
+    let margin = candidate_margin_px(options);
+    // The least integer score at least `min_strength` (scores are bytes).
+    let threshold = options.min_strength.max(0.0).ceil();
+    let mut windows: Vec<(usize, usize)> = Vec::new();
+    if threshold > 255.0 {
+        return windows;
+    }
+    let threshold = threshold as u8;
+    let span = &interleaved[3 * (u0 - first)..3 * (u1 - first + 1)];
+    // Per block of 16 pixels: a block holding a score of at least the
+    // threshold is grown by the margin (a superset of its pixels' windows
+    // does as well: the profile is exact in the windows).
+    // Groups of eight blocks short of the threshold are skipped first.
+    const GROUP_BYTES: usize = 8 * BLOCK_BYTES;
+    for (g, group) in span.chunks(GROUP_BYTES).enumerate() {
+        if max_u8(group) < threshold {
+            continue;
+        }
+        for (b, block) in group.chunks(BLOCK_BYTES).enumerate() {
+            if max_u8(block) < threshold {
+                continue;
+            }
+            let start = u0 + (g * GROUP_BYTES + b * BLOCK_BYTES) / 3;
+            let end = start + block.len().div_ceil(3) - 1;
+            let (lo, hi) = (start.saturating_sub(margin).max(u0), (end + margin).min(u1));
+            match windows.last_mut() {
+                Some(last) if lo <= last.1 + 1 => last.1 = last.1.max(hi),
+                _ => windows.push((lo, hi)),
+            }
+        }
+    }
+    windows
+}
+
+/// How far from a peak [`peak_at`] reads the profile (px): the walk to
+/// half maximum, which ends by `max_width_px` + 1 on each side or the peak
+/// is too wide, a pixel past it, and the Steger kernel's reach (4 sigma of
+/// the widest accepted line) or the centre of gravity's margin beyond.
+fn candidate_margin_px(options: &StripeOptions) -> usize {
+    let width = options.max_width_px.max(0.0).min(1e6).ceil() as usize;
+    let sigma = (width as f64 / (2.0 * 3.0_f64.sqrt())).max(STEGER_MIN_SIGMA_PX);
+    let steger = (4.0 * sigma + 0.5).ceil() as usize;
+    (width + 2) + steger.max(width.max(2)) + 2
 }
 
 /// The one peak of a span (no line detector): what [`span_peaks`] finds
@@ -1409,6 +1510,72 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A wide frame whose scores are mostly under the orchard's
+    /// `min_strength`: two lines (one near the right edge), a patch too
+    /// wide for a line, a few lone bright pixels and background noise that
+    /// reaches the threshold here and there.
+    fn sparse_frame(width: u32, height: u32) -> RgbImage {
+        let hash = |u: u32, v: u32, c: u32| {
+            let mut h = u.wrapping_mul(2_654_435_761) ^ v.wrapping_mul(40_503) ^ c;
+            h = (h ^ (h >> 15)).wrapping_mul(2_246_822_519);
+            (h ^ (h >> 13)) % 23
+        };
+        RgbImage::from_fn(width, height, |u, v| {
+            let mut red = 40 + hash(u, v, 0);
+            let line = |centre: f64, height: f64| {
+                let d = f64::from(u) - centre;
+                (height * (-d * d / 4.5).exp()) as u32
+            };
+            red += line(300.0 + 0.5 * f64::from(v), 150.0) + line(f64::from(width) - 6.0, 90.0);
+            if v % 3 == 0 {
+                red += line(520.0, 60.0);
+            }
+            if (100..140).contains(&u) && (10..40).contains(&v) {
+                red += 90;
+            }
+            if hash(u, v, 7) == 0 && hash(u, v, 8) < 3 {
+                red += 80;
+            }
+            image::Rgb([red.min(255) as u8, (50 + hash(u, v, 1)) as u8, (40 + hash(u, v, 2)) as u8])
+        })
+    }
+
+    #[test]
+    fn the_several_peaks_search_in_candidate_windows_finds_the_whole_rows_peaks() {
+        let (width, height) = (700, 60);
+        let on = sparse_frame(width, height);
+        let off = RgbImage::from_fn(width, height, |u, v| {
+            let p = on.get_pixel(u, v);
+            image::Rgb([p[1].saturating_sub(6), p[1], p[2]])
+        });
+        let regions = [Region::full(width, height), Region::rect(90, 5, 690, 55, width, height)];
+        let orchard =
+            StripeOptions { saturation_dn: None, green_check: false, ..StripeOptions::orchard() };
+        let narrow = StripeOptions { max_width_px: 4.0, ..orchard.clone() };
+        for options in [orchard, narrow] {
+            for method in [PeakMethod::Steger, PeakMethod::CentreOfGravity, PeakMethod::Gaussian] {
+                let options = StripeOptions { method, ..options.clone() };
+                for region in &regions {
+                    for off in [None, Some(&off)] {
+                        let score = laser_score(&on, off).unwrap();
+                        let expected = extract_stripe(&score, region, &options);
+                        let found = extract_stripe_rgb(&on, off, region, &options).unwrap();
+                        assert!(expected.len() > 60, "{} points", expected.len());
+                        assert_eq!(found, expected, "{options:?}");
+                    }
+                }
+            }
+        }
+        // Candidates cover a small part of a row here: the windows are
+        // narrow, not the whole row.
+        let mut interleaved = Vec::new();
+        let row = &on.as_raw()[3 * 50 * width as usize..3 * 51 * width as usize];
+        interleaved_scores(row, None, &mut interleaved);
+        let windows = candidate_windows(&interleaved, 0, (0, width - 1), &StripeOptions::orchard());
+        let covered: usize = windows.iter().map(|(lo, hi)| hi - lo + 1).sum();
+        assert!(windows.len() > 1 && covered < 3 * width as usize / 4, "{windows:?}");
     }
 
     #[test]
