@@ -680,7 +680,11 @@ fn candidate_windows(
 /// is too wide, a pixel past it, and the Steger kernel's reach (4 sigma of
 /// the widest accepted line) or the centre of gravity's margin beyond.
 fn candidate_margin_px(options: &StripeOptions) -> usize {
-    let width = options.max_width_px.max(0.0).min(1e6).ceil() as usize;
+    // Without a finite bound on the width the walk has none: the whole span.
+    if options.max_width_px.is_nan() || options.max_width_px >= 1e6 {
+        return usize::MAX / 4;
+    }
+    let width = options.max_width_px.max(0.0).ceil() as usize;
     let sigma = (width as f64 / (2.0 * 3.0_f64.sqrt())).max(STEGER_MIN_SIGMA_PX);
     let steger = (4.0 * sigma + 0.5).ceil() as usize;
     (width + 2) + steger.max(width.max(2)) + 2
