@@ -713,13 +713,14 @@ impl<'a> SubPixel<'a> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     #![allow(clippy::unwrap_used, clippy::expect_used)]
 
     use super::*;
     use calib_targets::detect;
 
-    fn photo() -> GrayImage {
+    /// OpenCV's first right-camera photograph, grey.
+    pub(crate) fn photo() -> GrayImage {
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../testdata/opencv_right/right01.jpg");
         image::open(path).unwrap().to_luma8()
     }

@@ -239,12 +239,8 @@ mod tests {
     #![allow(clippy::unwrap_used, clippy::expect_used)]
 
     use super::*;
+    use crate::checkerboard::tests::photo;
     use chess_corners_core::chess_response_u8;
-
-    fn photo() -> GrayImage {
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../testdata/opencv_right/right01.jpg");
-        image::open(path).unwrap().to_luma8()
-    }
 
     #[test]
     fn the_response_is_chess_corners_own() {

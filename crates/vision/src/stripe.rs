@@ -1475,6 +1475,33 @@ mod tests {
         })
     }
 
+    /// `extract_stripe_rgb` finds the points of the f32 score image
+    /// (`laser_score` + `extract_stripe`), to the bit, for every region,
+    /// set of options and peak method, with and without the laser-off
+    /// image; each search finds more than `min_points`.
+    fn assert_same_points_as_the_score_image(
+        (on, off): (&RgbImage, &RgbImage),
+        regions: &[Region],
+        all_options: &[StripeOptions],
+        methods: &[PeakMethod],
+        min_points: usize,
+    ) {
+        for options in all_options {
+            for &method in methods {
+                let options = StripeOptions { method, ..options.clone() };
+                for region in regions {
+                    for off in [None, Some(off)] {
+                        let score = laser_score(on, off).unwrap();
+                        let expected = extract_stripe(&score, region, &options);
+                        let found = extract_stripe_rgb(on, off, region, &options).unwrap();
+                        assert!(expected.len() > min_points, "{} points", expected.len());
+                        assert_eq!(found, expected, "{options:?}");
+                    }
+                }
+            }
+        }
+    }
+
     #[test]
     fn the_integer_parallel_pass_finds_what_the_score_image_finds() {
         let (width, height) = (120, 90);
@@ -1500,20 +1527,9 @@ mod tests {
             min_strength: 3.0,
             ..orchard.clone()
         };
-        for options in [StripeOptions::default(), orchard, odd_window, single, long_window] {
-            for method in [PeakMethod::Steger, PeakMethod::CentreOfGravity] {
-                let options = StripeOptions { method, ..options.clone() };
-                for region in &regions {
-                    for off in [None, Some(&off)] {
-                        let score = laser_score(&on, off).unwrap();
-                        let expected = extract_stripe(&score, region, &options);
-                        let found = extract_stripe_rgb(&on, off, region, &options).unwrap();
-                        assert!(expected.len() > 20, "{} points", expected.len());
-                        assert_eq!(found, expected, "{options:?}");
-                    }
-                }
-            }
-        }
+        let all = [StripeOptions::default(), orchard, odd_window, single, long_window];
+        let methods = [PeakMethod::Steger, PeakMethod::CentreOfGravity];
+        assert_same_points_as_the_score_image((&on, &off), &regions, &all, &methods, 20);
     }
 
     /// A wide frame whose scores are mostly under the orchard's
@@ -1558,20 +1574,14 @@ mod tests {
         let orchard =
             StripeOptions { saturation_dn: None, green_check: false, ..StripeOptions::orchard() };
         let narrow = StripeOptions { max_width_px: 4.0, ..orchard.clone() };
-        for options in [orchard, narrow] {
-            for method in [PeakMethod::Steger, PeakMethod::CentreOfGravity, PeakMethod::Gaussian] {
-                let options = StripeOptions { method, ..options.clone() };
-                for region in &regions {
-                    for off in [None, Some(&off)] {
-                        let score = laser_score(&on, off).unwrap();
-                        let expected = extract_stripe(&score, region, &options);
-                        let found = extract_stripe_rgb(&on, off, region, &options).unwrap();
-                        assert!(expected.len() > 60, "{} points", expected.len());
-                        assert_eq!(found, expected, "{options:?}");
-                    }
-                }
-            }
-        }
+        let methods = [PeakMethod::Steger, PeakMethod::CentreOfGravity, PeakMethod::Gaussian];
+        assert_same_points_as_the_score_image(
+            (&on, &off),
+            &regions,
+            &[orchard, narrow],
+            &methods,
+            60,
+        );
         // Candidates cover a small part of a row here: the windows are
         // narrow, not the whole row.
         let mut interleaved = Vec::new();
