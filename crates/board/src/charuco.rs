@@ -107,7 +107,7 @@ pub fn detect_charuco(gray: &GrayImage, board: &BoardSpec) -> Result<BoardCorner
         let first_error = first.as_ref().err().map(ToString::to_string);
         let mut best = first.ok();
         if let Ok(second) = second {
-            keep_more(&mut best, second);
+            keep_more(&mut best, second, |c| c);
         }
         best.ok_or_else(|| {
             no_board(format!("no ChArUco corners ({})", first_error.unwrap_or_default()))

@@ -127,11 +127,8 @@ pub fn detect_checkerboard(gray: &GrayImage, board: &BoardSpec) -> Result<BoardC
     let mut full_error = None;
     for &(scale, level, region) in searches.iter().rev() {
         match labelled_grid(level, region, scale, board, gray) {
-            Ok((corners, refined)) => {
-                if best.as_ref().is_none_or(|(b, _)| b.found_count() < corners.found_count()) {
-                    best = Some((corners, refined));
-                }
-                if best.as_ref().is_some_and(|(b, _)| b.found_count() == board.corner_count()) {
+            Ok(search) => {
+                if keep_more(&mut best, search, |(corners, _)| corners) == board.corner_count() {
                     break;
                 }
             }
@@ -248,7 +245,7 @@ fn grid_labelling(
             .collect();
         match label_grid(&grid, board, gray.width(), gray.height()) {
             Ok(corners) => {
-                if keep_more(&mut best, corners) == board.corner_count() {
+                if keep_more(&mut best, corners, |c| c) == board.corner_count() {
                     break;
                 }
             }
@@ -322,11 +319,13 @@ impl Refined {
             refine_corners(gray, corners, half_window_px);
             return;
         }
-        let refiner = SubPixel::new(gray, half_window_px, f64::INFINITY);
+        let mut refiner = None;
         for corner in corners.corners_px.iter_mut().flatten() {
             *corner = match self.by_start.binary_search_by_key(&bits(*corner), |(key, _)| *key) {
                 Ok(i) => self.by_start[i].1,
-                Err(_) => refiner.refine(*corner),
+                Err(_) => refiner
+                    .get_or_insert_with(|| SubPixel::new(gray, half_window_px, f64::INFINITY))
+                    .refine(*corner),
             };
         }
     }
@@ -427,12 +426,18 @@ pub(crate) fn level_to_image((u, v): (f32, f32), scale: f64) -> Point2<f64> {
 }
 
 /// Keeps in `best` whichever of it and `candidate` labels more corners (the
-/// earlier one on a tie); returns how many `best` now labels.
-pub(crate) fn keep_more(best: &mut Option<BoardCorners>, candidate: BoardCorners) -> usize {
-    if best.as_ref().is_none_or(|b| b.found_count() < candidate.found_count()) {
+/// earlier one on a tie; `corners` gives a candidate's labelling); returns
+/// how many `best` now labels.
+pub(crate) fn keep_more<T>(
+    best: &mut Option<T>,
+    candidate: T,
+    corners: impl Fn(&T) -> &BoardCorners,
+) -> usize {
+    let found = |t: &T| corners(t).found_count();
+    if best.as_ref().is_none_or(|b| found(b) < found(&candidate)) {
         *best = Some(candidate);
     }
-    best.as_ref().map_or(0, BoardCorners::found_count)
+    best.as_ref().map_or(0, found)
 }
 
 /// Fits a labelled corner grid (grid coordinates, pixel) to the board:

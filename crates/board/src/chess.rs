@@ -154,8 +154,6 @@ struct RowSums {
     difference: Vec<i16>,
     /// The 16 ring samples' sum (16 x the ring mean).
     ring: Vec<i16>,
-    /// The 5-pixel cross's sum (5 x the local mean).
-    cross: Vec<i16>,
 }
 
 impl RowSums {
@@ -175,7 +173,7 @@ impl RowSums {
             let start = (y as isize + dy) as usize * width + (x_start as isize + dx) as usize;
             &pixels[start..start + n]
         };
-        for sums in [&mut self.square, &mut self.difference, &mut self.ring, &mut self.cross] {
+        for sums in [&mut self.square, &mut self.difference, &mut self.ring] {
             sums.clear();
             sums.resize(n, 0);
         }
@@ -197,19 +195,17 @@ impl RowSums {
                 ring[i] += a + b + c + d;
             }
         }
-        let cross = &mut self.cross[..n];
+        // The 5-pixel cross's sum (5 x the local mean).
         let (centre, west, east, north, south) =
             (at(0, 0), at(-1, 0), at(1, 0), at(0, -1), at(0, 1));
         for i in 0..n {
-            cross[i] = i16::from(centre[i])
+            let cross = i16::from(centre[i])
                 + i16::from(north[i])
                 + i16::from(south[i])
                 + i16::from(east[i])
                 + i16::from(west[i]);
-        }
-        for i in 0..n {
             let mean_ring = f32::from(ring[i]) / 16.0;
-            let mean_cross = f32::from(cross[i]) / 5.0;
+            let mean_cross = f32::from(cross) / 5.0;
             out[i] = f32::from(square[i])
                 - f32::from(difference[i])
                 - 16.0 * (mean_ring - mean_cross).abs();

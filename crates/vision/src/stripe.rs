@@ -461,13 +461,15 @@ pub fn extract_stripe_rgb(
             }
             let mut points = Vec::new();
             match options.local_background {
-                Some(background)
-                    if (1..=MAX_I16_WINDOW_PX).contains(&background.window_px)
-                        && options.max_peaks_per_row > 1 =>
-                {
-                    // Several peaks: the line detector only around the
-                    // pixels that can be peaks (see `candidate_windows`).
-                    let windows = candidate_windows(&scratch.interleaved, first, (u0, u1), options);
+                Some(background) if (1..=MAX_I16_WINDOW_PX).contains(&background.window_px) => {
+                    // With several peaks, the line detector only around the
+                    // pixels that can be peaks (see `candidate_windows`); one
+                    // peak's rival check reads the whole span.
+                    let windows = if options.max_peaks_per_row > 1 {
+                        candidate_windows(&scratch.interleaved, first, (u0, u1), options)
+                    } else {
+                        vec![(u0 as usize, u1 as usize)]
+                    };
                     let (n, value) =
                         ((u1 - u0) as usize + 1, ScaledValue::new(background.window_px));
                     scratch.profile.clear();
@@ -486,15 +488,6 @@ pub fn extract_stripe_rgb(
                         scratch.profile[start..start + excess.len()].copy_from_slice(excess);
                     }
                     let mut profile = Scaled { excess: &mut scratch.profile, value };
-                    profile_peaks(&mut profile, (v, u0), options, &mut points);
-                }
-                Some(background) if (1..=MAX_I16_WINDOW_PX).contains(&background.window_px) => {
-                    deinterleave(&mut scratch.scores[first..=last], &scratch.interleaved);
-                    let (first, last) = (u0 as usize, u1 as usize);
-                    let (sums, excess) = (&mut scratch.sums, &mut scratch.excess);
-                    local_contrast_i16(&scratch.scores, first, last, background, sums, excess);
-                    let value = ScaledValue::new(background.window_px);
-                    let mut profile = Scaled { excess: &mut scratch.excess, value };
                     profile_peaks(&mut profile, (v, u0), options, &mut points);
                 }
                 _ => {
@@ -526,8 +519,8 @@ const ROWS_PER_TASK: usize = 16;
 #[derive(Default)]
 struct RowScratch {
     scores: Vec<u8>,
-    /// The span's line-detector profile of the several-peaks search: the
-    /// detector's values in the candidates' windows, 0 elsewhere.
+    /// The span's line-detector profile (integer path): the detector's
+    /// values in the windows it ran in, 0 elsewhere.
     profile: Vec<i16>,
     buffer: Vec<f32>,
     excess: Vec<i16>,
@@ -627,13 +620,14 @@ fn deinterleave(scores: &mut [u8], interleaved: &[u8]) {
 /// `u0..=u1` of a row whose interleaved scores (pixel `first` at byte 0)
 /// are `interleaved`: the blocks of 16 pixels where one scores at least
 /// `min_strength`, each grown by [`candidate_margin_px`] (within the span),
-/// merged where they touch; sorted. No detector value exceeds its pixel's score, so a
-/// peak lies in a run; its width and centre read no farther than the
-/// margin, and the search keeps the strongest and those within
-/// `ambiguity_ratio` of it without looking for rivals (which would read
-/// the whole row), so the profile outside the windows, below
+/// merged where they touch; sorted. No detector value exceeds its pixel's
+/// score, so a peak lies in such a block; its width and centre read no
+/// farther than the margin, and the search keeps the strongest and those
+/// within `ambiguity_ratio` of it without looking for rivals (which would
+/// read the whole row), so the profile outside the windows, below
 /// `min_strength` everywhere, may be 0: the peaks are those of the whole
-/// span's profile (test `the_integer_parallel_pass_finds_what_the_score_image_finds`).
+/// span's profile (test
+/// `the_several_peaks_search_in_candidate_windows_finds_the_whole_rows_peaks`).
 fn candidate_windows(
     interleaved: &[u8],
     first: usize,
