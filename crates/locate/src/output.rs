@@ -125,6 +125,10 @@ pub struct FusedOutput {
     pub radius_from_prior: bool,
     /// The fruit's outline in the image, when the sphere was fitted to it.
     pub outline: Option<OutlineOutput>,
+    /// Whether the laser alone fixed the sphere and the outline refined it
+    /// (else the outline, where present, was the last resort).
+    #[serde(default)]
+    pub outline_refined: bool,
 }
 
 /// The fruit's outline in the image ([`crate::outline::Outline`]).
@@ -212,6 +216,7 @@ impl From<&FusedFit> for FusedOutput {
                 support: o.support,
                 fill: o.fill,
             }),
+            outline_refined: f.outline_refined,
         }
     }
 }

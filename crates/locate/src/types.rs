@@ -191,8 +191,14 @@ pub struct FusedFit {
     /// RMS distance of the points from the sphere, mm.
     pub rms_mm: f64,
     /// The fruit's outline in the image, when the sphere was fitted to it
-    /// and the laser points together (the last resort).
+    /// and the laser points together: the last resort, or a refinement of
+    /// a free fit (`outline_refined`).
     pub outline: Option<Outline>,
+    /// Whether the laser points alone fixed the sphere and the outline then
+    /// refined it: the silhouette fixes the radius across the line of
+    /// sight, which the front of a fruit that is not quite round does not
+    /// ([`crate::fusion`]'s `refine_with_outline`).
+    pub outline_refined: bool,
 }
 
 /// Whether the fruit was found; serialized as [`Status::as_str`] spells it.

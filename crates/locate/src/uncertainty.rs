@@ -21,7 +21,8 @@
 //!    random ones of this argument). Where an ellipsoid replaced the sphere, its depth
 //!    semi-axis comes from the roundness prior, and the error is the unseen
 //!    semi-axis against the mean of the two seen: 3/2 (s r)^2 along, 4/15
-//!    across. A fruit that needed a fallback (the prior's radius, the
+//!    across; the same where the fruit's outline refined the sphere (its
+//!    rays fix the two semi-axes across the line of sight). A fruit that needed a fallback (the prior's radius, the
 //!    outline) is not seen from limb to limb, and gets the along-sight
 //!    variance across it too.
 //! 3. The radius, where it was not fitted but taken from the prior (the
@@ -76,10 +77,10 @@ pub(crate) fn position_covariance(
     let along = sight * sight.transpose();
     let shape = (options.shape_std * radius).powi(2);
     let (along_shape, across_shape) =
-        if fit.ellipsoid.is_some() { ELLIPSOID_SHAPE } else { SPHERE_SHAPE };
+        if fit.ellipsoid.is_some() || fit.outline_refined { ELLIPSOID_SHAPE } else { SPHERE_SHAPE };
     // A fruit that needed a fallback is not seen from limb to limb.
-    let across_shape =
-        if fit.radius_from_prior || fit.outline.is_some() { along_shape } else { across_shape };
+    let fallback = fit.radius_from_prior || (fit.outline.is_some() && !fit.outline_refined);
+    let across_shape = if fallback { along_shape } else { across_shape };
     let across = Matrix3::identity() - along;
     let mut covariance = fit_part + (across * across_shape + along * along_shape) * shape;
     if fit.radius_from_prior {

@@ -36,7 +36,7 @@ fn check(answer: &Localization) {
     if !value["fused"].is_null() {
         assert_eq!(
             keys(&value["fused"]),
-            "ellipsoid_semi_axes_mm n_frames n_points outline radius_from_prior rms_mm sphere_centre_mm sphere_radius_mm"
+            "ellipsoid_semi_axes_mm n_frames n_points outline outline_refined radius_from_prior rms_mm sphere_centre_mm sphere_radius_mm"
         );
     }
     assert_eq!(keys(&value["frames"][0]), "fruit_points rejected slide_mm stripe_points");
