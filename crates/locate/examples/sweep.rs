@@ -1,5 +1,6 @@
 //! Localization errors on a batch of simulated scans, both methods:
 //! `cargo run --release -p alacs-locate --example sweep -- [N] [occlusion] [sun] [scale] [first_seed] [ellipticity]`;
+//! `CLUSTER=N` (0-3 neighbours) and `BRANCHES=N` (0-4 across the front) add clutter;
 //! `COVERAGE=0.1` overrides `LocateOptions::min_coverage`, `FRAMES=1` prints each frame's candidate or rejection, `DEBUG=1` ellipsoid details.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
@@ -21,6 +22,8 @@ fn main() {
             orchard: OrchardOptions {
                 occlusion,
                 max_ellipticity: ellipticity,
+                cluster: std::env::var("CLUSTER").map_or(0, |c| c.parse().unwrap()),
+                front_branches: std::env::var("BRANCHES").map_or(0, |c| c.parse().unwrap()),
                 ..OrchardOptions::default()
             },
             sun,
@@ -74,12 +77,11 @@ fn main() {
                 line += &format!(
                     " sphere 3d {:6.2}{} |",
                     (fit.sphere.centre - truth).norm(),
-                    if fit.outline.is_some() {
-                        " (outline)"
-                    } else if fit.radius_from_prior {
-                        " (prior radius)"
-                    } else {
-                        ""
+                    match (&fit.outline, fit.outline_refined, fit.radius_from_prior) {
+                        (Some(_), true, _) => " (outline refined)".to_string(),
+                        (Some(_), false, _) => format!(" (outline, {} frames)", fit.n_frames),
+                        (None, _, true) => " (prior radius)".to_string(),
+                        _ => String::new(),
                     }
                 );
             }

@@ -14,7 +14,7 @@ use crate::frame::{
     CURVATURE_SIGNIFICANCE, FrameContext, MIN_NOISE_MM, MIN_POINTS, PlaneFrame, SearchBall,
     facing_fraction, no_candidate_reason,
 };
-use crate::outline::{PixelBox, find_outline, fit_outline_sphere};
+use crate::outline::{PixelBox, find_outline, fit_outline_sphere, is_fruit_coloured_at};
 use crate::{Candidate, FrameResult, FusedFit, Localization, LocateOptions, Status};
 
 /// The fused fit and, when it was not trustworthy, why: the free fit
@@ -297,7 +297,8 @@ const MIN_PRIOR_FIT_SHARE: f64 = 0.5;
 
 /// The last resort ([`crate::outline`]): the fruit's outline in the
 /// frames, and a sphere fitted to it and to the laser points near the
-/// fruit, from every frame (not only the arcs the frames kept). The laser
+/// fruit on fruit-coloured pixels, from every frame (not only the arcs the
+/// frames kept). The laser
 /// must confirm a curved surface in at least one frame, and the sphere
 /// passes the same checks as the others.
 fn fit_with_outline(
@@ -329,12 +330,18 @@ fn fit_with_outline(
         |c| (c - centre_px).norm() <= ball_px,
         options.seed,
     )?;
+    // The laser points on the fruit: where the view is fruit-coloured (the
+    // laser points on a leaf in front may lie on one sphere of the
+    // outline's family and fix a wrong depth).
     let mut points = Vec::new();
     let mut frame_of = Vec::new();
     for (k, result) in results.iter().enumerate() {
-        for (_, p) in &result.points_in_camera {
-            points.push(*p);
-            frame_of.push(k);
+        for (i, p) in &result.points_in_camera {
+            let pixel = result.stripe.get(*i).map(|s| Point2::new(s.u_px, s.v_px));
+            if pixel.is_some_and(|px| is_fruit_coloured_at(views, &px)) {
+                points.push(*p);
+                frame_of.push(k);
+            }
         }
     }
     let threshold = options.inlier_threshold_mm;
@@ -360,31 +367,39 @@ fn fit_with_outline(
     }
     // The laser must see a curved surface: some frame's points on the
     // sphere bend away from a straight line in the laser plane, beyond
-    // their scatter about their own circle (the test of a frame's arc).
-    let curved = results.iter().enumerate().any(|(k, result)| {
-        let Some(plane) = PlaneFrame::new(context.laser, result.slide_mm) else { return false };
-        let arc: Vec<Point2<f64>> = fit
-            .inliers
-            .iter()
-            .filter(|&&i| frame_of[i] == k)
-            .map(|&i| plane.to_plane(&points[i]))
-            .collect();
-        let Some(circle) = fit_circle(&arc).filter(|_| arc.len() >= MIN_POINTS) else {
-            return false;
-        };
-        let scatter = rms_mm(arc.iter().map(|p| circle.distance_mm(p)));
-        line_rms_mm(&arc) >= CURVATURE_SIGNIFICANCE * scatter.max(MIN_NOISE_MM)
-    });
-    if !curved {
-        return Err("the laser points on the outline's sphere are nearly straight in every frame: not a fruit".into());
-    }
+    // their scatter about their own circle (the test of a frame's arc), or
+    // the points of two or more frames together bend away from a plane
+    // beyond their scatter about the sphere (the free fit's test): a fruit
+    // whose lower part lies in a leaf's laser shadow shows arcs of 20-40
+    // rows per frame, each too short to bend beyond its own noise, that
+    // together leave no doubt.
     let on_sphere: Vec<Point3<f64>> = fit.inliers.iter().map(|&i| points[i]).collect();
+    let n_frames = count_frames(&frame_of, fit.inliers.iter().copied());
+    let bends_across_frames = n_frames >= 2 && check_not_flat(&on_sphere, fit.rms_mm).is_ok();
+    let curved = bends_across_frames
+        || results.iter().enumerate().any(|(k, result)| {
+            let Some(plane) = PlaneFrame::new(context.laser, result.slide_mm) else { return false };
+            let arc: Vec<Point2<f64>> = fit
+                .inliers
+                .iter()
+                .filter(|&&i| frame_of[i] == k)
+                .map(|&i| plane.to_plane(&points[i]))
+                .collect();
+            let Some(circle) = fit_circle(&arc).filter(|_| arc.len() >= MIN_POINTS) else {
+                return false;
+            };
+            let scatter = rms_mm(arc.iter().map(|p| circle.distance_mm(p)));
+            line_rms_mm(&arc) >= CURVATURE_SIGNIFICANCE * scatter.max(MIN_NOISE_MM)
+        });
+    if !curved {
+        return Err("the laser points on the outline's sphere are nearly straight in every frame and nearly flat across them: not a fruit".into());
+    }
     check_sphere_fit(&fit.sphere, &on_sphere, fit.rms_mm, search, options)?;
     Ok(FusedFit {
         sphere: fit.sphere,
         ellipsoid: None,
         n_points: fit.inliers.len(),
-        n_frames: count_frames(&frame_of, fit.inliers.iter().copied()),
+        n_frames,
         rms_mm: fit.rms_mm,
         radius_from_prior: false,
         outline: Some(outline),

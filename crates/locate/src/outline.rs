@@ -17,7 +17,9 @@
 //!    its distance from the centre is the radius. With the outline's
 //!    angular radius theta, the spheres that fit it are one family, centre
 //!    s d and radius s sin(theta) along the outline's central ray d; every
-//!    laser point votes for the s that puts it on the surface, and the
+//!    laser point on a fruit-coloured pixel (a leaf in front of the fruit
+//!    is not one, though its points may lie on some sphere of the family)
+//!    votes for the s that puts it on the surface, and the
 //!    densest vote starts a joint least-squares fit of the centre and
 //!    radius to the outline's rays and the laser points that agree.
 
@@ -102,17 +104,35 @@ fn fruit_mask(images: &[&RgbImage], area: PixelBox) -> Vec<bool> {
     let mut mask = Vec::with_capacity((w * h) as usize);
     for v in area.v0..area.v1 {
         for u in area.u0..area.u1 {
-            let mut least = [u8::MAX; 3];
-            for image in images {
-                let p = image.get_pixel(u, v).0;
-                for c in 0..3 {
-                    least[c] = least[c].min(p[c]);
-                }
-            }
-            mask.push(is_fruit_colour(least));
+            mask.push(is_fruit_colour(least_at(images, u, v)));
         }
     }
     mask
+}
+
+/// The per-pixel minimum of `images` at (u, v), inside every image.
+fn least_at(images: &[&RgbImage], u: u32, v: u32) -> [u8; 3] {
+    let mut least = [u8::MAX; 3];
+    for image in images {
+        let p = image.get_pixel(u, v).0;
+        for c in 0..3 {
+            least[c] = least[c].min(p[c]);
+        }
+    }
+    least
+}
+
+/// Whether the pixel nearest `px` is fruit-coloured in the per-pixel
+/// minimum of `images` (module docs, step 1); false outside any of them.
+pub(crate) fn is_fruit_coloured_at(images: &[&RgbImage], px: &Point2<f64>) -> bool {
+    let (u, v) = (px.x.round(), px.y.round());
+    let inside = |image: &&RgbImage| {
+        (0.0..f64::from(image.width())).contains(&u)
+            && (0.0..f64::from(image.height())).contains(&v)
+    };
+    !images.is_empty()
+        && images.iter().all(inside)
+        && is_fruit_colour(least_at(images, u as u32, v as u32))
 }
 
 /// Every edge of the mask (4-neighbours), at the pixels' shared border.
