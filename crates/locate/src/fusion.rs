@@ -298,9 +298,9 @@ const MIN_PRIOR_FIT_SHARE: f64 = 0.5;
 /// The last resort ([`crate::outline`]): the fruit's outline in the
 /// frames, and a sphere fitted to it and to the laser points near the
 /// fruit on fruit-coloured pixels, from every frame (not only the arcs the
-/// frames kept). The laser
-/// must confirm a curved surface in at least one frame, and the sphere
-/// passes the same checks as the others.
+/// frames kept). The laser must confirm a curved surface, in one frame or
+/// across two or more, and the sphere passes the same checks as the
+/// others.
 fn fit_with_outline(
     results: &[FrameResult],
     context: &FrameContext,
@@ -313,13 +313,7 @@ fn fit_with_outline(
     let near_mm = (centre.z - search.radius_mm).max(0.5 * centre.z);
     let centre_px = camera.project(&centre).map_err(|e| e.to_string())?;
     let ball_px = camera.fx_px.max(camera.fy_px) * search.radius_mm / near_mm;
-    let clip = |x: f64, size: u32| x.clamp(0.0, f64::from(size)) as u32;
-    let area = PixelBox {
-        u0: clip(centre_px.x - ball_px, camera.width_px),
-        v0: clip(centre_px.y - ball_px, camera.height_px),
-        u1: clip(centre_px.x + ball_px + 1.0, camera.width_px),
-        v1: clip(centre_px.y + ball_px + 1.0, camera.height_px),
-    };
+    let area = PixelBox::around(&centre_px, ball_px, camera);
     let (lo_mm, hi_mm) = context.radius_range_mm();
     let f_px = 0.5 * (camera.fx_px + camera.fy_px);
     let radius_range_px = (f_px * lo_mm / (centre.z + search.radius_mm), f_px * hi_mm / near_mm);
@@ -434,13 +428,7 @@ fn refine_with_outline(
     let f_px = 0.5 * (camera.fx_px + camera.fy_px);
     let radius_px = f_px * fit.sphere.radius_mm / fit.sphere.centre.z;
     let reach_px = 1.5 * radius_px + 5.0;
-    let clip = |x: f64, size: u32| x.clamp(0.0, f64::from(size)) as u32;
-    let area = PixelBox {
-        u0: clip(centre_px.x - reach_px, camera.width_px),
-        v0: clip(centre_px.y - reach_px, camera.height_px),
-        u1: clip(centre_px.x + reach_px + 1.0, camera.width_px),
-        v1: clip(centre_px.y + reach_px + 1.0, camera.height_px),
-    };
+    let area = PixelBox::around(&centre_px, reach_px, camera);
     let Ok(outline) = find_outline(
         views,
         area,

@@ -1,7 +1,9 @@
 //! The fruit's outline in the image, and a sphere fitted to it and to the
-//! laser points together: the last resort when the laser shows too little
-//! of a fruit (mostly hidden, or in the laser's shadow) for a fit from the
-//! laser alone.
+//! laser points together: a refinement of the laser's own sphere where the
+//! two agree (the silhouette fixes the fruit's size across the line of
+//! sight), and the last resort when the laser shows too little of a fruit
+//! (mostly hidden, or in the laser's shadow) for a fit from the laser
+//! alone.
 //!
 //! 1. **Fruit colour.** The frames of a scan share one view, and the laser
 //!    only adds light, so the per-pixel minimum over the frames is the view
@@ -88,6 +90,20 @@ pub(crate) struct PixelBox {
     pub v0: u32,
     pub u1: u32,
     pub v1: u32,
+}
+
+impl PixelBox {
+    /// The pixels within `half_px` of `centre_px` along each axis, clipped
+    /// to the camera's image.
+    pub(crate) fn around(centre_px: &Point2<f64>, half_px: f64, camera: &Camera) -> PixelBox {
+        let clip = |x: f64, size: u32| x.clamp(0.0, f64::from(size)) as u32;
+        PixelBox {
+            u0: clip(centre_px.x - half_px, camera.width_px),
+            v0: clip(centre_px.y - half_px, camera.height_px),
+            u1: clip(centre_px.x + half_px + 1.0, camera.width_px),
+            v1: clip(centre_px.y + half_px + 1.0, camera.height_px),
+        }
+    }
 }
 
 /// An edge between a fruit-coloured pixel and its neighbour: where, and
