@@ -385,10 +385,13 @@ fn a_continuous_sweep_localizes_as_stop_and_go_does_in_less_time() {
             stop_and_go_rig.elapsed()
         );
         assert_localized(&scan, &scene);
-        // As accurate as the stop-and-go frames: within 1 mm of their error
+        // As accurate as the stop-and-go frames: no more than 1 mm worse
         // (the frames stand up to 0.5 mm from the plan's positions and have
         // their own noise; measured 3.72 against 3.22 mm from 0 mm, 3.19
-        // against 3.22 mm from 200 mm).
+        // against 3.22 mm from 200 mm, before the fruit's outline refined
+        // the sphere; since, 1.36 against 3.22 mm from 0 mm: the moving
+        // frames' sphere agreed with the outline, the standing ones' was
+        // an ellipsoid, which the outline does not refine).
         // Over 20 scans the medians agree (the `scan_modes` example).
         let error = |scan: &CapturedScan| {
             (localize(scan, &scene).position_mm.unwrap() - scene.scene.fruit_centre).norm()
@@ -399,7 +402,7 @@ fn a_continuous_sweep_localizes_as_stop_and_go_does_in_less_time() {
             rig.elapsed(),
             stop_and_go_rig.elapsed()
         );
-        assert!((moving - standing).abs() < 1.0, "{moving:.3} vs {standing:.3} mm");
+        assert!(moving - standing < 1.0, "{moving:.3} vs {standing:.3} mm");
         // From the far end the sweep runs the other way and stops at the
         // plan's first position.
         let plan = &scene.plan.slides_mm;
