@@ -18,11 +18,12 @@
 //!    (E[sin^2 t cos^2 t] = 2/15 over random tilts): 16/15 (s r)^2 across,
 //!    the two directions together, which is applied to each, a factor of
 //!    two on the large side (a real apple's semi-axes and tilt are not the
-//!    random ones of this argument). Where an ellipsoid replaced the sphere, its depth
-//!    semi-axis comes from the roundness prior, and the error is the unseen
-//!    semi-axis against the mean of the two seen: 3/2 (s r)^2 along, 4/15
-//!    across; the same where the fruit's outline refined the sphere (its
-//!    rays fix the two semi-axes across the line of sight). A fruit that needed a fallback (the prior's radius, the
+//!    random ones of this argument). Where an ellipsoid replaced the
+//!    sphere, its depth semi-axis comes from the roundness prior, and the
+//!    error is the unseen semi-axis against the mean of the two seen: 3/2
+//!    (s r)^2 along, 4/15 across; the same where the fruit's outline
+//!    refined the sphere (its rays fix the two semi-axes across the line of
+//!    sight). A fruit that needed a fallback (the prior's radius, the
 //!    outline) is not seen from limb to limb, and gets the along-sight
 //!    variance across it too.
 //! 3. The radius, where it was not fitted but taken from the prior (the
