@@ -96,6 +96,33 @@ fn main() {
         }
         line += &format!(" {:.0} ms", start.elapsed().as_secs_f64() * 1000.0 / 2.0);
         println!("{line}");
+        if let Ok(dir) = std::env::var("SAVE") {
+            // Each laser-on frame as PNG, with the truth's image (green) and
+            // the fused outline (blue) marked, for a look by eye.
+            let answer =
+                locate(&scan.camera, &laser, &prior, &frames, &LocateOptions::default()).unwrap();
+            for (k, f) in frames.iter().enumerate() {
+                let mut img = f.image.clone();
+                let mut mark = |u: f64, v: f64, c: [u8; 3]| {
+                    if u >= 0.0 && v >= 0.0 && (u as u32) < img.width() && (v as u32) < img.height()
+                    {
+                        img.put_pixel(u as u32, v as u32, image::Rgb(c));
+                    }
+                };
+                if let Ok(px) = scan.camera.project(&truth) {
+                    for t in -6..=6 {
+                        mark(px.x + f64::from(t), px.y, [0, 255, 0]);
+                        mark(px.x, px.y + f64::from(t), [0, 255, 0]);
+                    }
+                }
+                if let Some(o) = answer.fused.as_ref().and_then(|f| f.outline.as_ref()) {
+                    for e in &o.edges_px {
+                        mark(e.x, e.y, [0, 128, 255]);
+                    }
+                }
+                img.save(format!("{dir}/seed{seed}_frame{k}.png")).unwrap();
+            }
+        }
         if std::env::var("FRAMES").is_ok() {
             let answer =
                 locate(&scan.camera, &laser, &prior, &frames, &LocateOptions::default()).unwrap();
@@ -110,6 +137,9 @@ fn main() {
                     ),
                     None => println!("  frame {k}: {}", f.rejected.as_deref().unwrap_or("-")),
                 }
+            }
+            if let Some(why) = &answer.fused_rejected {
+                println!("  fused rejected: {why}");
             }
             if let Some(fit) = &answer.fused {
                 println!(

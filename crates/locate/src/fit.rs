@@ -389,6 +389,23 @@ impl Ellipsoid {
         self.scaled_residual(p, self.equal_volume_radius_mm()).abs()
     }
 
+    /// How far the ray through the camera's centre along unit `direction`
+    /// misses touching the ellipsoid, scaled like [`Ellipsoid::distance_mm`]
+    /// with `radius_mm`: along the ray x = t r the form (x - c)^T A (x - c)
+    /// is least, c^T A c - (r^T A c)^2 / r^T A r, where the ray comes
+    /// closest; a tangent ray has it 1. For a sphere this is the centre's
+    /// distance from the ray less the radius.
+    pub fn tangency_residual(&self, direction: &Vector3<f64>, radius_mm: f64) -> f64 {
+        let c = self.centre.coords;
+        let ac = self.shape * c;
+        let rar = direction.dot(&(self.shape * direction));
+        if rar <= 0.0 {
+            return f64::NAN;
+        }
+        let least = c.dot(&ac) - direction.dot(&ac).powi(2) / rar;
+        (least.max(0.0).sqrt() - 1.0) * radius_mm
+    }
+
     fn scaled_residual(&self, p: &Point3<f64>, radius_mm: f64) -> f64 {
         let d = p - self.centre;
         ((d.dot(&(self.shape * d))).max(0.0).sqrt() - 1.0) * radius_mm
@@ -423,10 +440,37 @@ pub fn fit_ellipsoid_robust(
     noise_mm: f64,
     prior_weight_points: f64,
 ) -> Option<Ellipsoid> {
-    let mut ellipsoid = Ellipsoid {
+    let start = Ellipsoid {
         centre: sphere.centre,
         shape: Matrix3::identity() / (sphere.radius_mm * sphere.radius_mm),
     };
+    fit_ellipsoid_with_rays(points, &Rays::default(), &start, noise_mm, prior_weight_points)
+}
+
+/// Rays from the camera's centre that touch the fruit (its outline in the
+/// image, unit vectors in the camera frame), each weighted as `weight`
+/// laser points.
+#[derive(Debug, Clone, Default)]
+pub struct Rays {
+    /// The rays' unit directions.
+    pub directions: Vec<Vector3<f64>>,
+    /// Weight of one ray against one surface point.
+    pub weight: f64,
+}
+
+/// [`fit_ellipsoid_robust`] from an ellipsoid `start`, with rays that touch
+/// the fruit: the outline fixes the fruit's size across the line of sight,
+/// and with it the laser's curvature of the front fixes the depth
+/// semi-axis that neither sees alone (the front's curvature radius is
+/// a^2 / c).
+pub fn fit_ellipsoid_with_rays(
+    points: &[Point3<f64>],
+    rays: &Rays,
+    start: &Ellipsoid,
+    noise_mm: f64,
+    prior_weight_points: f64,
+) -> Option<Ellipsoid> {
+    let mut ellipsoid = *start;
     for _ in 0..ROBUST_ROUNDS {
         let mut distances: Vec<f64> = points.iter().map(|p| ellipsoid.distance_mm(p)).collect();
         let weights_from = distances.clone();
@@ -436,7 +480,7 @@ pub fn fit_ellipsoid_robust(
         let weights: Vec<f64> =
             weights_from.iter().map(|d| 1.0 / (1.0 + (d / c).powi(2))).collect();
         ellipsoid =
-            fit_weighted(points, Some(&weights), &ellipsoid, noise_mm, prior_weight_points)?;
+            fit_weighted(points, Some(&weights), rays, &ellipsoid, noise_mm, prior_weight_points)?;
     }
     Some(ellipsoid)
 }
@@ -460,7 +504,7 @@ pub fn fit_ellipsoid_from(
     noise_mm: f64,
     prior_weight_points: f64,
 ) -> Option<Ellipsoid> {
-    fit_weighted(points, None, start, noise_mm, prior_weight_points)
+    fit_weighted(points, None, &Rays::default(), start, noise_mm, prior_weight_points)
 }
 
 /// The Levenberg-Marquardt core of the ellipsoid fits, with optional
@@ -468,6 +512,7 @@ pub fn fit_ellipsoid_from(
 fn fit_weighted(
     points: &[Point3<f64>],
     weights: Option<&[f64]>,
+    rays: &Rays,
     start: &Ellipsoid,
     noise_mm: f64,
     prior_weight_points: f64,
@@ -483,11 +528,15 @@ fn fit_weighted(
     let prior_scale = noise_mm * prior_weight_points.sqrt() / (2.0 * ELLIPTICITY_PRIOR);
     let residuals = |x: &Params| -> DVector<f64> {
         let e = ellipsoid_of(x);
-        let n = points.len();
+        let n = points.len() + rays.directions.len();
         let mut r = DVector::zeros(n + 6);
         for (i, p) in points.iter().enumerate() {
             let weight = weights.and_then(|w| w.get(i)).map_or(1.0, |w| w.sqrt());
             r[i] = weight * e.scaled_residual(p, radius);
+        }
+        let ray_weight = rays.weight.max(0.0).sqrt();
+        for (k, direction) in rays.directions.iter().enumerate() {
+            r[points.len() + k] = ray_weight * e.tangency_residual(direction, radius);
         }
         // |D|_F^2 = d0^2 + d1^2 + (d0 + d1)^2 + 2 (d2^2 + d3^2 + d4^2).
         let (d0, d1) = (x[4], x[5]);

@@ -8,13 +8,17 @@ use image::RgbImage;
 use nalgebra::{Point2, Point3, Vector3};
 
 use crate::fit::{
-    Sphere, SphereEstimator, fit_circle, fit_ellipsoid_robust, line_rms_mm, plane_rms_mm, rms_mm,
+    Ellipsoid, Rays, Sphere, SphereEstimator, fit_circle, fit_ellipsoid_robust,
+    fit_ellipsoid_with_rays, line_rms_mm, plane_rms_mm, rms_mm,
 };
 use crate::frame::{
     CURVATURE_SIGNIFICANCE, FrameContext, MIN_NOISE_MM, MIN_POINTS, PlaneFrame, SearchBall,
     facing_fraction, no_candidate_reason,
 };
-use crate::outline::{PixelBox, find_outline, fit_outline_sphere, is_fruit_coloured_at};
+use crate::outline::{
+    OUTLINE_WEIGHT, Outline, PixelBox, find_outline, fit_outline_sphere, is_fruit_coloured_at,
+    outline_rays,
+};
 use crate::{Candidate, FrameResult, FusedFit, Localization, LocateOptions, Status};
 
 /// The fused fit and, when it was not trustworthy, why: the free fit
@@ -29,7 +33,7 @@ pub(crate) fn fuse_with_fallbacks(
 ) -> (Option<FusedFit>, Option<String>) {
     let candidate_positions: Vec<Point3<f64>> = candidates.iter().map(|c| c.position_mm).collect();
     match fuse(results, context) {
-        Ok(fit) if context.options.use_outline && fit.ellipsoid.is_none() => {
+        Ok(fit) if context.options.use_outline => {
             (Some(refine_with_outline(fit, results, context, views)), None)
         }
         Ok(fit) => (Some(fit), None),
@@ -401,8 +405,10 @@ fn fit_with_outline(
     })
 }
 
-/// The free sphere fit refined by the fruit's outline, where the outline
-/// agrees with the laser. The front of a fruit that is not quite round
+/// The free fit refined by the fruit's outline, where the outline agrees
+/// with the laser: a sphere to the outline's sphere and, where it fits
+/// clearly better, to an ellipsoid; an ellipsoid to the outline's
+/// ellipsoid ([`refine_ellipsoid_with_outline`]). The front of a fruit that is not quite round
 /// fixes its curvature radius, not its size: a sphere fitted to the front
 /// of an ellipsoid with semi-axes a, b across the line of sight and c
 /// along it takes the radius (a^2 + b^2) / 2c and puts the centre about
@@ -424,9 +430,13 @@ fn refine_with_outline(
     views: &[&RgbImage],
 ) -> FusedFit {
     let (camera, search, options) = (context.camera, context.search, context.options);
-    let Ok(centre_px) = camera.project(&fit.sphere.centre) else { return fit };
+    let (fit_centre, fit_radius_mm) = match &fit.ellipsoid {
+        Some(e) => (e.centre, e.equal_volume_radius_mm()),
+        None => (fit.sphere.centre, fit.sphere.radius_mm),
+    };
+    let Ok(centre_px) = camera.project(&fit_centre) else { return fit };
     let f_px = 0.5 * (camera.fx_px + camera.fy_px);
-    let radius_px = f_px * fit.sphere.radius_mm / fit.sphere.centre.z;
+    let radius_px = f_px * fit_radius_mm / fit_centre.z;
     let reach_px = 1.5 * radius_px + 5.0;
     let area = PixelBox::around(&centre_px, reach_px, camera);
     let Ok(outline) = find_outline(
@@ -439,6 +449,11 @@ fn refine_with_outline(
         return fit;
     };
     let (points, frame_of) = fruit_points(results);
+    if let Some(ellipsoid) = fit.ellipsoid {
+        return refine_ellipsoid_with_outline(
+            fit, ellipsoid, outline, &points, &frame_of, context, false,
+        );
+    }
     let Ok(joint) = fit_outline_sphere(camera, &outline, &points, options.inlier_threshold_mm)
     else {
         return fit;
@@ -452,15 +467,86 @@ fn refine_with_outline(
     if !agrees {
         return fit;
     }
-    FusedFit {
+    let refined = FusedFit {
         sphere: joint.sphere,
         ellipsoid: None,
         n_points: joint.inliers.len(),
         n_frames: count_frames(&frame_of, joint.inliers.iter().copied()),
         rms_mm: joint.rms_mm,
         radius_from_prior: false,
+        outline: Some(outline.clone()),
+        outline_refined: true,
+    };
+    let start = Ellipsoid {
+        centre: joint.sphere.centre,
+        shape: nalgebra::Matrix3::identity() / joint.sphere.radius_mm.powi(2),
+    };
+    refine_ellipsoid_with_outline(refined, start, outline, &points, &frame_of, context, true)
+}
+
+/// `fit` refined to an ellipsoid by the fruit's outline: the ellipsoid
+/// fitted from `ellipsoid` to the laser points near it and the outline's
+/// rays together ([`fit_ellipsoid_with_rays`]). The front's curvature
+/// radius is a^2 / c and the silhouette shows a and b, so together they
+/// fix the semi-axis c along the line of sight, which the front alone
+/// leaves to the roundness prior (seed 116 at 5 MP, a fruit longer in
+/// depth than across: 7.7 -> 1.3 mm). Kept on the sphere's refinement's
+/// terms and, where `must_fit_better` (starting from a sphere, whose
+/// refinement is already kept), only where it also cuts the squared
+/// residuals of the points and rays by [`MIN_SSE_REDUCTION`], as the free
+/// fit's ellipsoid must: on a round fruit the extra freedom only follows
+/// the outline's whole-pixel edges. Else `fit` stands.
+fn refine_ellipsoid_with_outline(
+    fit: FusedFit,
+    ellipsoid: Ellipsoid,
+    outline: Outline,
+    points: &[Point3<f64>],
+    frame_of: &[usize],
+    context: &FrameContext,
+    must_fit_better: bool,
+) -> FusedFit {
+    let (search, options) = (context.search, context.options);
+    let threshold = options.inlier_threshold_mm;
+    let near: Vec<Point3<f64>> =
+        points.iter().copied().filter(|p| ellipsoid.distance_mm(p) <= threshold).collect();
+    let rays = Rays { directions: outline_rays(context.camera, &outline), weight: OUTLINE_WEIGHT };
+    let noise = fit.rms_mm.max(MIN_NOISE_MM);
+    let Some(joint) =
+        fit_ellipsoid_with_rays(&near, &rays, &ellipsoid, noise, ELLIPSOID_PRIOR_POINTS)
+    else {
+        return fit;
+    };
+    let radius_mm = joint.equal_volume_radius_mm();
+    let outline_rms_mm =
+        rms_mm(rays.directions.iter().map(|r| joint.tangency_residual(r, radius_mm)));
+    let inliers: Vec<usize> =
+        (0..points.len()).filter(|&i| joint.distance_mm(&points[i]) <= threshold).collect();
+    let on_surface: Vec<Point3<f64>> = inliers.iter().map(|&i| points[i]).collect();
+    let rms = rms_mm(on_surface.iter().map(|p| joint.distance_mm(p)));
+    let (lo, hi) = context.radius_range_mm();
+    let sphere = Sphere { centre: joint.centre, radius_mm };
+    let agrees = (inliers.len() as f64) >= MIN_REFINED_SHARE * fit.n_points as f64
+        && outline_rms_mm <= MAX_OUTLINE_RMS_MM
+        && (lo..=hi).contains(&radius_mm)
+        && check_sphere_fit(&sphere, &on_surface, rms, search, options).is_ok();
+    let cost = |e: &Ellipsoid| {
+        let r = e.equal_volume_radius_mm();
+        near.iter().map(|p| e.distance_mm(p).powi(2)).sum::<f64>()
+            + rays.weight
+                * rays.directions.iter().map(|d| e.tangency_residual(d, r).powi(2)).sum::<f64>()
+    };
+    let better = !must_fit_better || cost(&joint) < (1.0 - MIN_SSE_REDUCTION) * cost(&ellipsoid);
+    if !(agrees && better) {
+        return fit;
+    }
+    FusedFit {
+        ellipsoid: Some(joint),
+        n_points: inliers.len(),
+        n_frames: count_frames(frame_of, inliers.iter().copied()),
+        rms_mm: rms,
         outline: Some(outline),
         outline_refined: true,
+        ..fit
     }
 }
 

@@ -308,10 +308,21 @@ pub(crate) struct OutlineSphere {
     pub outline_rms_mm: f64,
 }
 
+/// The unit ray from the camera's centre through pixel `px`.
+fn ray_through(camera: &Camera, px: &Point2<f64>) -> Option<Vector3<f64>> {
+    let n = camera.undistort_pixel(px).ok()?;
+    Some(Vector3::new(n.x, n.y, 1.0).normalize())
+}
+
+/// The rays through the outline's edge points, which touch the fruit.
+pub(crate) fn outline_rays(camera: &Camera, outline: &Outline) -> Vec<Vector3<f64>> {
+    outline.edges_px.iter().filter_map(|px| ray_through(camera, px)).collect()
+}
+
 /// Weight of the outline's rays against the laser points: the outline is
 /// a pixel's edge (about 0.4 mm at 1 m) and a fruit is not a perfect
 /// sphere, so a ray counts as a quarter of a laser point.
-const OUTLINE_WEIGHT: f64 = 0.25;
+pub(crate) const OUTLINE_WEIGHT: f64 = 0.25;
 
 /// Fits a sphere to `outline` and the laser `points` (camera frame, mm):
 /// the family along the outline's central ray, the densest vote of the
@@ -323,12 +334,8 @@ pub(crate) fn fit_outline_sphere(
     points: &[Point3<f64>],
     threshold_mm: f64,
 ) -> std::result::Result<OutlineSphere, String> {
-    let ray = |px: &Point2<f64>| -> Option<Vector3<f64>> {
-        let n = camera.undistort_pixel(px).ok()?;
-        Some(Vector3::new(n.x, n.y, 1.0).normalize())
-    };
-    let rays: Vec<Vector3<f64>> = outline.edges_px.iter().filter_map(ray).collect();
-    let Some(axis) = ray(&outline.centre_px) else {
+    let rays = outline_rays(camera, outline);
+    let Some(axis) = ray_through(camera, &outline.centre_px) else {
         return Err("the outline's centre does not undistort".into());
     };
     // The outline's angular radius: the mean angle of its rays from the axis.
