@@ -323,6 +323,34 @@ mod tests {
     /// stray points 4 mm off: the robust ellipsoid finds the centre, the
     /// sphere does not.
     #[test]
+    fn tangent_rays_touch_spheres_and_ellipsoids() {
+        // A sphere: the centre's distance from the ray less the radius.
+        let sphere = Ellipsoid {
+            centre: Point3::new(30.0, -10.0, 800.0),
+            shape: Matrix3::identity() / (40.0 * 40.0),
+        };
+        let ray = Vector3::new(0.02, 0.01, 1.0).normalize();
+        let c = sphere.centre.coords;
+        let distance = (c - ray * ray.dot(&c)).norm();
+        assert!((sphere.tangency_residual(&ray, 40.0) - (distance - 40.0)).abs() < 1e-9);
+        // An ellipsoid of semi-axes 30, 40, 50 on the optical axis: the ray
+        // touching it at x = 30 (in the plane y = 0, from the origin) is
+        // tangent; a ray through its middle misses touching by the radius.
+        let ellipsoid = Ellipsoid {
+            centre: Point3::new(0.0, 0.0, 1000.0),
+            shape: Matrix3::from_diagonal(
+                &Vector3::new(30.0f64, 40.0, 50.0).map(|a| 1.0 / (a * a)),
+            ),
+        };
+        // Tangent from the origin to the ellipse x^2/30^2 + (z - 1000)^2/50^2 = 1:
+        // slope x / z = 30 / sqrt(1000^2 - 50^2).
+        let tangent =
+            Vector3::new(30.0, 0.0, (1000.0f64 * 1000.0 - 50.0 * 50.0).sqrt()).normalize();
+        assert!(ellipsoid.tangency_residual(&tangent, 40.0).abs() < 1e-9);
+        assert!((ellipsoid.tangency_residual(&Vector3::z(), 40.0) + 40.0).abs() < 1e-9);
+    }
+
+    #[test]
     fn robust_ellipsoid_recovers_an_elongated_fruit_from_its_front() {
         let rotation = nalgebra::Rotation3::from_euler_angles(0.3, -0.5, 0.8);
         let axes = Vector3::new(41.0, 37.5, 39.0);

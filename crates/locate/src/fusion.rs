@@ -1,7 +1,8 @@
 //! The fused answer: one robust sphere fit over every frame's fruit points,
-//! refined to an ellipsoid where it fits clearly better, with the checks
-//! that make it trustworthy; the fallbacks of a sphere of the prior radius
-//! and of the fruit's outline ([`crate::outline`]).
+//! refined to an ellipsoid where it fits clearly better and by the fruit's
+//! outline where it agrees, with the checks that make it trustworthy; the
+//! fallbacks of a sphere of the prior radius and of the fruit's outline
+//! ([`crate::outline`]).
 
 use alacs_model::ransac::{RansacOptions, ransac_refit};
 use image::RgbImage;
@@ -70,11 +71,12 @@ pub(crate) fn answer_fused(answer: &mut Localization) {
             };
             answer.position_mm = Some(centre);
             answer.radius_mm = Some(radius);
+            let shape = if fit.ellipsoid.is_some() { "ellipsoid" } else { "sphere" };
             answer.reason = if let Some(outline) =
                 fit.outline.as_ref().filter(|_| fit.outline_refined)
             {
                 format!(
-                    "sphere fit over {} points from {} frames, RMS {:.2} mm, and the fruit's outline ({:.0} % of it visible)",
+                    "{shape} fit over {} points from {} frames, RMS {:.2} mm, and the fruit's outline ({:.0} % of it visible)",
                     fit.n_points,
                     fit.n_frames,
                     fit.rms_mm,
@@ -99,7 +101,7 @@ pub(crate) fn answer_fused(answer: &mut Localization) {
                 )
             } else {
                 format!(
-                    "sphere fit over {} points from {} frames, RMS {:.2} mm",
+                    "{shape} fit over {} points from {} frames, RMS {:.2} mm",
                     fit.n_points, fit.n_frames, fit.rms_mm
                 )
             };
