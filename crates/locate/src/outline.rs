@@ -1,7 +1,8 @@
 //! The fruit's outline in the image, and a sphere fitted to it and to the
-//! laser points together: a refinement of the laser's own sphere where the
+//! laser points together: a refinement of the laser's own fit where the
 //! two agree (the silhouette fixes the fruit's size across the line of
-//! sight), and the last resort when the laser shows too little of a fruit
+//! sight; [`crate::fit::fit_ellipsoid_with_rays`] takes its rays for an
+//! ellipsoid), and the last resort when the laser shows too little of a fruit
 //! (mostly hidden, or in the laser's shadow) for a fit from the laser
 //! alone.
 //!

@@ -177,7 +177,8 @@ pub struct FrameResult {
 pub struct FusedFit {
     /// The sphere, camera frame, mm.
     pub sphere: Sphere,
-    /// The ellipsoid refined from the sphere (its centre is the answer).
+    /// The ellipsoid refined from the sphere, or fitted to the laser
+    /// points and the fruit's outline together (its centre is the answer).
     pub ellipsoid: Option<Ellipsoid>,
     /// Points on it.
     pub n_points: usize,
@@ -194,9 +195,11 @@ pub struct FusedFit {
     /// and the laser points together: the last resort, or a refinement of
     /// a free fit (`outline_refined`).
     pub outline: Option<Outline>,
-    /// Whether the laser points alone fixed the sphere and the outline then
-    /// refined it: the silhouette fixes the radius across the line of
-    /// sight, which the front of a fruit that is not quite round does not
+    /// Whether the laser points alone fixed the fit and the outline then
+    /// refined it: the silhouette fixes the semi-axes across the line of
+    /// sight, which the front of a fruit that is not quite round does not,
+    /// and with the front's curvature the one along it; the refined fit is
+    /// an ellipsoid where that fits clearly better than a sphere
     /// ([`crate::fusion`]'s `refine_with_outline`).
     pub outline_refined: bool,
 }
