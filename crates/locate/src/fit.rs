@@ -319,9 +319,8 @@ mod tests {
         );
     }
 
-    /// The front of an elongated fruit, as the camera sees it, with a few
-    /// stray points 4 mm off: the robust ellipsoid finds the centre, the
-    /// sphere does not.
+    /// The tangency residual: zero for a ray that touches, the centre's
+    /// distance from the ray less the radius for a sphere.
     #[test]
     fn tangent_rays_touch_spheres_and_ellipsoids() {
         // A sphere: the centre's distance from the ray less the radius.
@@ -350,6 +349,9 @@ mod tests {
         assert!((ellipsoid.tangency_residual(&Vector3::z(), 40.0) + 40.0).abs() < 1e-9);
     }
 
+    /// The front of an elongated fruit, as the camera sees it, with a few
+    /// stray points 4 mm off: the robust ellipsoid finds the centre, the
+    /// sphere does not.
     #[test]
     fn robust_ellipsoid_recovers_an_elongated_fruit_from_its_front() {
         let rotation = nalgebra::Rotation3::from_euler_angles(0.3, -0.5, 0.8);

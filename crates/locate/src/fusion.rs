@@ -410,11 +410,12 @@ fn fit_with_outline(
 /// The free fit refined by the fruit's outline, where the outline agrees
 /// with the laser: a sphere to the outline's sphere and, where it fits
 /// clearly better, to an ellipsoid; an ellipsoid to the outline's
-/// ellipsoid ([`refine_ellipsoid_with_outline`]). The front of a fruit that is not quite round
-/// fixes its curvature radius, not its size: a sphere fitted to the front
-/// of an ellipsoid with semi-axes a, b across the line of sight and c
-/// along it takes the radius (a^2 + b^2) / 2c and puts the centre about
-/// 2 r (mean(e_a, e_b) - e_c) too far or too near ([`crate::uncertainty`]).
+/// ellipsoid ([`refine_ellipsoid_with_outline`]). The front of a fruit
+/// that is not quite round fixes its curvature radius, not its size: a
+/// sphere fitted to the front of an ellipsoid with semi-axes a, b across
+/// the line of sight and c along it takes the radius (a^2 + b^2) / 2c and
+/// puts the centre about 2 r (mean(e_a, e_b) - e_c) too far or too near
+/// ([`crate::uncertainty`]).
 /// The silhouette is the fruit seen across the line of sight: its rays
 /// touch the fruit at a and b, so the sphere fitted to the laser points and
 /// the outline together ([`fit_outline_sphere`]) errs by about r (mean(e_a,
