@@ -432,7 +432,7 @@ fn refine_with_outline(
     context: &FrameContext,
     views: &[&RgbImage],
 ) -> FusedFit {
-    let (camera, search, options) = (context.camera, context.search, context.options);
+    let (camera, options) = (context.camera, context.options);
     let (fit_centre, fit_radius_mm) = match &fit.ellipsoid {
         Some(e) => (e.centre, e.equal_volume_radius_mm()),
         None => (fit.sphere.centre, fit.sphere.radius_mm),
@@ -461,13 +461,15 @@ fn refine_with_outline(
     else {
         return fit;
     };
-    let (lo, hi) = context.radius_range_mm();
     let on_sphere: Vec<Point3<f64>> = joint.inliers.iter().map(|&i| points[i]).collect();
-    let agrees = (joint.inliers.len() as f64) >= MIN_REFINED_SHARE * fit.n_points as f64
-        && joint.outline_rms_mm <= MAX_OUTLINE_RMS_MM
-        && (lo..=hi).contains(&joint.sphere.radius_mm)
-        && check_sphere_fit(&joint.sphere, &on_sphere, joint.rms_mm, search, options).is_ok();
-    if !agrees {
+    if !refinement_agrees(
+        &fit,
+        &joint.sphere,
+        &on_sphere,
+        joint.rms_mm,
+        joint.outline_rms_mm,
+        context,
+    ) {
         return fit;
     }
     let refined = FusedFit {
@@ -508,7 +510,7 @@ fn refine_ellipsoid_with_outline(
     context: &FrameContext,
     must_fit_better: bool,
 ) -> FusedFit {
-    let (search, options) = (context.search, context.options);
+    let options = context.options;
     let threshold = options.inlier_threshold_mm;
     let near: Vec<Point3<f64>> =
         points.iter().copied().filter(|p| ellipsoid.distance_mm(p) <= threshold).collect();
@@ -526,12 +528,8 @@ fn refine_ellipsoid_with_outline(
         (0..points.len()).filter(|&i| joint.distance_mm(&points[i]) <= threshold).collect();
     let on_surface: Vec<Point3<f64>> = inliers.iter().map(|&i| points[i]).collect();
     let rms = rms_mm(on_surface.iter().map(|p| joint.distance_mm(p)));
-    let (lo, hi) = context.radius_range_mm();
     let sphere = Sphere { centre: joint.centre, radius_mm };
-    let agrees = (inliers.len() as f64) >= MIN_REFINED_SHARE * fit.n_points as f64
-        && outline_rms_mm <= MAX_OUTLINE_RMS_MM
-        && (lo..=hi).contains(&radius_mm)
-        && check_sphere_fit(&sphere, &on_surface, rms, search, options).is_ok();
+    let agrees = refinement_agrees(&fit, &sphere, &on_surface, rms, outline_rms_mm, context);
     let cost = |e: &Ellipsoid| {
         let r = e.equal_volume_radius_mm();
         near.iter().map(|p| e.distance_mm(p).powi(2)).sum::<f64>()
@@ -551,6 +549,27 @@ fn refine_ellipsoid_with_outline(
         outline_refined: true,
         ..fit
     }
+}
+
+/// Whether an outline's refinement of `fit` may replace it: its surface
+/// (`sphere`, an ellipsoid's centre and equal-volume radius) holds
+/// [`MIN_REFINED_SHARE`] of the fit's points (`on_surface`, scattering
+/// `rms_mm` about it), the outline's rays miss it by at most
+/// [`MAX_OUTLINE_RMS_MM`], its radius is in range and it passes the free
+/// fit's checks.
+fn refinement_agrees(
+    fit: &FusedFit,
+    sphere: &Sphere,
+    on_surface: &[Point3<f64>],
+    rms_mm: f64,
+    outline_rms_mm: f64,
+    context: &FrameContext,
+) -> bool {
+    let (lo, hi) = context.radius_range_mm();
+    (on_surface.len() as f64) >= MIN_REFINED_SHARE * fit.n_points as f64
+        && outline_rms_mm <= MAX_OUTLINE_RMS_MM
+        && (lo..=hi).contains(&sphere.radius_mm)
+        && check_sphere_fit(sphere, on_surface, rms_mm, context.search, context.options).is_ok()
 }
 
 /// Share of the free fit's points the outline's refinement must keep on
