@@ -31,10 +31,11 @@
 //!   which is what limits a single frame. Where an ellipsoid (roundness
 //!   prior, Cauchy-weighted) fits clearly better, its centre is the answer:
 //!   a sphere fitted to the front of an elongated fruit misplaces the
-//!   centre by millimetres. Otherwise, where the fruit's outline in the
-//!   image agrees with the laser, the sphere is fitted to both: the
-//!   silhouette fixes the fruit's size across the line of sight, which the
-//!   front's curvature does not. When the free fit is not trustworthy (short
+//!   centre by millimetres. Where the fruit's outline in the image agrees
+//!   with the laser, the fit is refined by both: the silhouette fixes the
+//!   fruit's size across the line of sight, which the front's curvature
+//!   does not, and with the curvature the depth semi-axis (an ellipsoid
+//!   touching the outline's rays). When the free fit is not trustworthy (short
 //!   arcs of a fruit mostly hidden), a sphere of the prior radius through
 //!   the arcs may answer, under the same checks. The last resort, when the
 //!   laser shows one short arc or arcs that fix no sphere, is the fruit's
