@@ -196,6 +196,34 @@ fn short_arcs_of_several_frames_confirm_the_outlines_sphere() {
     }
 }
 
+/// Regression: sunlit fruit a fifth hidden whose laser points, clipped and
+/// scattered on the sunlit red, give no frame a trusted arc, were refused
+/// although the outline's sphere held 68-111 of them over 4-5 frames: they
+/// bent away from a plane 2.8-2.9 times their scatter about it, and the
+/// outline fallback asked 4 times, the free fit's bar (half scale, seeds
+/// 201 and 211). The outline fixes the sphere's size and its place across
+/// the line of sight, so twice the scatter is asked now; the answers are
+/// 2.5 and 0.9 mm from the fruit.
+#[test]
+fn sunlit_arcs_bending_twice_their_noise_confirm_the_outlines_sphere() {
+    for seed in [201, 211] {
+        let sim = scan(ScanOptions {
+            orchard: OrchardOptions { occlusion: 0.2, ..OrchardOptions::default() },
+            scale: 0.5,
+            sun: true,
+            seed,
+            ..ScanOptions::default()
+        });
+        let answer = run(&sim);
+        assert_eq!(answer.status, Status::Ok, "seed {seed}: {}", answer.reason);
+        let fit = answer.fused.as_ref().unwrap();
+        assert!(fit.outline.is_some(), "seed {seed}: {}", answer.reason);
+        let error = error_mm(&sim.scan, &answer).unwrap();
+        eprintln!("seed {seed}: {error:.2} mm ({})", answer.reason);
+        assert!(error < 3.0, "seed {seed}: {error:.2} mm");
+    }
+}
+
 /// A cluster of 2-4 touching apples with branches across the target:
 /// `localize` answers the target or `not_found`, never a neighbour (an
 /// `ok` within 15 mm of the target, nearer the target than any neighbour).
