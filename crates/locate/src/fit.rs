@@ -400,6 +400,14 @@ pub struct Ellipsoid {
 }
 
 impl Ellipsoid {
+    /// The sphere as an ellipsoid (A = I / r^2).
+    pub fn from_sphere(sphere: &Sphere) -> Self {
+        Self {
+            centre: sphere.centre,
+            shape: Matrix3::identity() / (sphere.radius_mm * sphere.radius_mm),
+        }
+    }
+
     /// The semi-axes, ascending, mm (1 / sqrt of A's eigenvalues).
     pub fn semi_axes_mm(&self) -> Vector3<f64> {
         let eigenvalues = self.shape.symmetric_eigenvalues();
@@ -470,10 +478,7 @@ pub fn fit_ellipsoid_robust(
     noise_mm: f64,
     prior_weight_points: f64,
 ) -> Option<Ellipsoid> {
-    let start = Ellipsoid {
-        centre: sphere.centre,
-        shape: Matrix3::identity() / (sphere.radius_mm * sphere.radius_mm),
-    };
+    let start = Ellipsoid::from_sphere(sphere);
     fit_ellipsoid_with_rays(points, &Rays::default(), &start, noise_mm, prior_weight_points)
 }
 
