@@ -1,7 +1,9 @@
 //! Localization against the simulator's ground truth, fixed seeds.
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
 
-use alacs_locate::{Error, FrameImages, Localization, LocateOptions, Prior, Status, locate};
+use alacs_locate::{
+    Error, FrameImages, FusedFit, Localization, LocateOptions, Prior, Status, locate,
+};
 use alacs_model::Camera;
 use alacs_sim::{OrchardOptions, RenderedScan, ScanOptions, SimulatedScan, simulate_rendered_scan};
 use common::{laser, locate_in_black_frames};
@@ -24,6 +26,27 @@ fn run(sim: &RenderedScan) -> Localization {
 
 fn error_mm(scan: &SimulatedScan, answer: &Localization) -> Option<f64> {
     answer.position_mm.map(|p| (p - scan.scene.fruit_centre).norm())
+}
+
+/// Asserts that `sim` is answered `ok` by a fused fit `kind` accepts,
+/// within `max_error_mm` of the fruit (`label` names the scan).
+fn assert_answered_by(
+    sim: &RenderedScan,
+    label: &str,
+    kind: impl Fn(&FusedFit) -> bool,
+    max_error_mm: f64,
+) {
+    let answer = run(sim);
+    assert_eq!(answer.status, Status::Ok, "{label}: {}", answer.reason);
+    assert!(kind(answer.fused.as_ref().unwrap()), "{label}: {}", answer.reason);
+    let error = error_mm(&sim.scan, &answer).unwrap();
+    eprintln!("{label}: {error:.2} mm ({})", answer.reason);
+    assert!(error < max_error_mm, "{label}: {error:.2} mm");
+}
+
+/// An ellipsoid the fruit's outline refined.
+fn refined_ellipsoid(fit: &FusedFit) -> bool {
+    fit.outline_refined && fit.ellipsoid.is_some()
 }
 
 /// The bar: an unoccluded fruit at 0.6-1.2 m within 4 mm in 3-D,
@@ -142,13 +165,8 @@ fn occluded_fruit_is_near_or_not_found() {
 fn a_not_quite_round_fruits_outline_fixes_the_radius_its_front_does_not() {
     for sun in [false, true] {
         let sim = scan(ScanOptions { scale: 0.5, seed: 102, sun, ..ScanOptions::default() });
-        let answer = run(&sim);
-        assert_eq!(answer.status, Status::Ok, "sun {sun}: {}", answer.reason);
-        let fit = answer.fused.as_ref().unwrap();
-        assert!(fit.outline_refined && fit.outline.is_some(), "sun {sun}: {}", answer.reason);
-        let error = error_mm(&sim.scan, &answer).unwrap();
-        eprintln!("sun {sun}: {error:.2} mm ({})", answer.reason);
-        assert!(error < 4.0, "sun {sun}: {error:.2} mm");
+        let refined = |fit: &FusedFit| fit.outline_refined && fit.outline.is_some();
+        assert_answered_by(&sim, &format!("sun {sun}"), refined, 4.0);
     }
 }
 
@@ -161,13 +179,7 @@ fn a_not_quite_round_fruits_outline_fixes_the_radius_its_front_does_not() {
 #[test]
 fn a_fruit_deeper_than_wide_is_fixed_by_its_outline_and_its_front_together() {
     let sim = scan(ScanOptions { seed: 116, ..ScanOptions::default() });
-    let answer = run(&sim);
-    assert_eq!(answer.status, Status::Ok, "{}", answer.reason);
-    let fit = answer.fused.as_ref().unwrap();
-    assert!(fit.outline_refined && fit.ellipsoid.is_some(), "{}", answer.reason);
-    let error = error_mm(&sim.scan, &answer).unwrap();
-    eprintln!("{error:.2} mm ({})", answer.reason);
-    assert!(error < 2.5, "{error:.2} mm");
+    assert_answered_by(&sim, "seed 116", refined_ellipsoid, 2.5);
 }
 
 /// Regression: a fruit a fifth hidden in sun, whose lower part lies in a
@@ -186,13 +198,8 @@ fn short_arcs_of_several_frames_confirm_the_outlines_sphere() {
             seed,
             ..ScanOptions::default()
         });
-        let answer = run(&sim);
-        assert_eq!(answer.status, Status::Ok, "seed {seed}: {}", answer.reason);
-        let fit = answer.fused.as_ref().unwrap();
-        assert!(fit.outline.is_some() && !fit.outline_refined, "seed {seed}: {}", answer.reason);
-        let error = error_mm(&sim.scan, &answer).unwrap();
-        eprintln!("seed {seed}: {error:.2} mm ({})", answer.reason);
-        assert!(error < 2.0, "seed {seed}: {error:.2} mm");
+        let fallback = |fit: &FusedFit| fit.outline.is_some() && !fit.outline_refined;
+        assert_answered_by(&sim, &format!("seed {seed}"), fallback, 2.0);
     }
 }
 
@@ -214,13 +221,8 @@ fn sunlit_arcs_bending_twice_their_noise_confirm_the_outlines_sphere() {
             seed,
             ..ScanOptions::default()
         });
-        let answer = run(&sim);
-        assert_eq!(answer.status, Status::Ok, "seed {seed}: {}", answer.reason);
-        let fit = answer.fused.as_ref().unwrap();
-        assert!(fit.outline.is_some(), "seed {seed}: {}", answer.reason);
-        let error = error_mm(&sim.scan, &answer).unwrap();
-        eprintln!("seed {seed}: {error:.2} mm ({})", answer.reason);
-        assert!(error < 3.0, "seed {seed}: {error:.2} mm");
+        let fallback = |fit: &FusedFit| fit.outline.is_some() && !fit.outline_refined;
+        assert_answered_by(&sim, &format!("seed {seed}"), fallback, 3.0);
     }
 }
 
@@ -234,13 +236,7 @@ fn sunlit_arcs_bending_twice_their_noise_confirm_the_outlines_sphere() {
 #[test]
 fn a_fruit_no_sphere_fits_is_refined_by_its_outline_to_an_ellipsoid() {
     let sim = scan(ScanOptions { scale: 0.5, sun: true, seed: 201, ..ScanOptions::default() });
-    let answer = run(&sim);
-    assert_eq!(answer.status, Status::Ok, "{}", answer.reason);
-    let fit = answer.fused.as_ref().unwrap();
-    assert!(fit.outline_refined && fit.ellipsoid.is_some(), "{}", answer.reason);
-    let error = error_mm(&sim.scan, &answer).unwrap();
-    eprintln!("{error:.2} mm ({})", answer.reason);
-    assert!(error < 2.5, "{error:.2} mm");
+    assert_answered_by(&sim, "seed 201", refined_ellipsoid, 2.5);
 }
 
 /// A cluster of 2-4 touching apples with branches across the target:
