@@ -596,13 +596,13 @@ const MIN_REFINED_SHARE: f64 = 0.9;
 
 /// Where the outline's sphere refinement is refused, the outline may still
 /// refine the free sphere into an ellipsoid if its radius is within this
-/// fraction of the free sphere's silhouette (a fruit's semi-axes differ by
-/// up to about 8 % in the simulator). Measured on 172 half-scale scans
+/// fraction of the free sphere's silhouette (the simulator's fruit have
+/// semi-axes within 8 % of their mean). Measured on 172 half-scale scans
 /// (seeds 100-111 and 200-211 at 0-40 % hidden, the covariance test's
 /// 1000-1099): the sphere refinement was refused in 6; the 4 within 10 %
-/// (outline / silhouette 0.93-1.07) went from 4.5-5.9 to 0.5-2.8 mm, the 2
-/// beyond it (0.89, a leaf cutting the outline, and 1.11) from 5.2 to 11.4
-/// and 0.5 to 2.4 mm, and are left as they were.
+/// (outline / silhouette 0.93-1.07) went from 4.5-5.9 to 0.5-2.8 mm; the 2
+/// beyond it (0.89, a leaf cutting the outline, and 1.11) would have gone
+/// from 5.2 to 11.4 and from 0.5 to 2.4 mm, and keep the free fit.
 const MAX_SILHOUETTE_MISMATCH: f64 = 0.1;
 
 /// Largest RMS distance of the outline's rays from the fitted sphere, mm: a

@@ -204,8 +204,9 @@ fn short_arcs_of_several_frames_confirm_the_outlines_sphere() {
 }
 
 /// Regression: sunlit fruit a fifth hidden whose laser points, clipped and
-/// scattered on the sunlit red, give no frame a trusted arc, were refused
-/// although the outline's sphere held 68-111 of them over 4-5 frames: they
+/// scattered on the sunlit red, fixed no free sphere (one or two frames
+/// kept an arc), were refused although the outline's sphere held 68-111 of
+/// them over 4-5 frames: they
 /// bent away from a plane 2.8-2.9 times their scatter about it, and the
 /// outline fallback asked 4 times, the free fit's bar (half scale, seeds
 /// 201 and 211). The outline fixes the sphere's size and its place across
