@@ -206,12 +206,11 @@ fn short_arcs_of_several_frames_confirm_the_outlines_sphere() {
 /// Regression: sunlit fruit a fifth hidden whose laser points, clipped and
 /// scattered on the sunlit red, fixed no free sphere (one or two frames
 /// kept an arc), were refused although the outline's sphere held 68-111 of
-/// them over 4-5 frames: they
-/// bent away from a plane 2.8-2.9 times their scatter about it, and the
-/// outline fallback asked 4 times, the free fit's bar (half scale, seeds
-/// 201 and 211). The outline fixes the sphere's size and its place across
-/// the line of sight, so twice the scatter is asked now; the answers are
-/// 2.5 and 0.9 mm from the fruit.
+/// them over 4-5 frames: they bent away from a plane 2.8-2.9 times their
+/// scatter about it, and the outline fallback asked 4 times, the free fit's
+/// bar (half scale, seeds 201 and 211). The outline fixes the sphere's size
+/// and its place across the line of sight, so twice the scatter is asked
+/// now; the answers are 2.5 and 0.9 mm from the fruit.
 #[test]
 fn sunlit_arcs_bending_twice_their_noise_confirm_the_outlines_sphere() {
     for seed in [201, 211] {
