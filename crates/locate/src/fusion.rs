@@ -166,7 +166,7 @@ fn fuse(results: &[FrameResult], context: &FrameContext) -> std::result::Result<
         ));
     }
     check_sphere_fit(&sphere, &on_sphere, rms, search, options)?;
-    check_not_flat(&on_sphere, rms)?;
+    check_not_flat(&on_sphere, rms, CURVATURE_SIGNIFICANCE)?;
     // The ellipsoid replaces the sphere only where it fits clearly better:
     // on a round fruit its extra freedom only follows the noise.
     let ellipsoid =
@@ -281,7 +281,7 @@ fn fit_prior_radius(
     }
     let on_sphere: Vec<Point3<f64>> = inliers.iter().map(|&i| points[i]).collect();
     check_sphere_fit(&sphere, &on_sphere, rms, search, options)?;
-    check_not_flat(&on_sphere, rms)?;
+    check_not_flat(&on_sphere, rms, CURVATURE_SIGNIFICANCE)?;
     Ok(FusedFit {
         sphere,
         ellipsoid: None,
@@ -376,8 +376,7 @@ fn fit_with_outline(
     let on_sphere: Vec<Point3<f64>> = fit.inliers.iter().map(|&i| points[i]).collect();
     let n_frames = count_frames(&frame_of, fit.inliers.iter().copied());
     let bends_across_frames = n_frames >= 2
-        && plane_rms_mm(&on_sphere)
-            >= OUTLINE_CURVATURE_SIGNIFICANCE * fit.rms_mm.max(MIN_NOISE_MM);
+        && check_not_flat(&on_sphere, fit.rms_mm, OUTLINE_CURVATURE_SIGNIFICANCE).is_ok();
     let curved = bends_across_frames
         || results.iter().enumerate().any(|(k, result)| {
             let Some(plane) = PlaneFrame::new(context.laser, result.slide_mm) else { return false };
@@ -508,8 +507,9 @@ fn refine_with_outline(
 /// fix the semi-axis c along the line of sight, which the front alone
 /// leaves to the roundness prior (seed 116 at 5 MP, a fruit longer in
 /// depth than across: 7.7 -> 1.3 mm). Kept on the sphere's refinement's
-/// terms and, where `must_fit_better` (starting from a sphere, whose
-/// refinement is already kept), only where it also cuts the squared
+/// terms and, where `must_fit_better` (starting from a sphere: the
+/// outline's sphere, whose refinement is already kept, or the free sphere,
+/// where the outline's was refused), only where it also cuts the squared
 /// residuals of the points and rays by [`MIN_SSE_REDUCTION`], as the free
 /// fit's ellipsoid must: on a round fruit the extra freedom only follows
 /// the outline's whole-pixel edges. Else `fit` stands.
@@ -627,11 +627,17 @@ const MAX_OUTLINE_RMS_MM: f64 = 3.0;
 /// beyond 15 mm.
 const OUTLINE_CURVATURE_SIGNIFICANCE: f64 = 2.0;
 
-/// The check every fused sphere must pass after [`check_sphere_fit`], free
-/// or of the prior radius: a surface curved beyond its noise (`rms`).
-fn check_not_flat(on_sphere: &[Point3<f64>], rms: f64) -> std::result::Result<(), String> {
+/// The check every fused sphere must pass after [`check_sphere_fit`], free,
+/// of the prior radius or the outline's: a surface curved beyond its noise,
+/// its points `significance` times `rms` (their scatter about the sphere)
+/// from a plane.
+fn check_not_flat(
+    on_sphere: &[Point3<f64>],
+    rms: f64,
+    significance: f64,
+) -> std::result::Result<(), String> {
     let flatness = plane_rms_mm(on_sphere);
-    if flatness < CURVATURE_SIGNIFICANCE * rms.max(MIN_NOISE_MM) {
+    if flatness < significance * rms.max(MIN_NOISE_MM) {
         return Err(format!(
             "the points are nearly flat ({flatness:.2} mm RMS from a plane): not a fruit"
         ));

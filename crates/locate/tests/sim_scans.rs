@@ -49,6 +49,22 @@ fn refined_ellipsoid(fit: &FusedFit) -> bool {
     fit.outline_refined && fit.ellipsoid.is_some()
 }
 
+/// A sphere fitted to the fruit's outline, the last resort.
+fn outline_fallback(fit: &FusedFit) -> bool {
+    fit.outline.is_some() && !fit.outline_refined
+}
+
+/// A half-scale scan with a fifth of the fruit hidden by leaves.
+fn fifth_hidden_half_scale(seed: u64, sun: bool) -> RenderedScan {
+    scan(ScanOptions {
+        orchard: OrchardOptions { occlusion: 0.2, ..OrchardOptions::default() },
+        scale: 0.5,
+        sun,
+        seed,
+        ..ScanOptions::default()
+    })
+}
+
 /// The bar: an unoccluded fruit at 0.6-1.2 m within 4 mm in 3-D,
 /// spherical or slightly ellipsoidal. Scans whose plan had to be shifted
 /// into the slide's stroke (the fruit at the edge of the scanner's reach,
@@ -191,15 +207,8 @@ fn a_fruit_deeper_than_wide_is_fixed_by_its_outline_and_its_front_together() {
 #[test]
 fn short_arcs_of_several_frames_confirm_the_outlines_sphere() {
     for seed in [1013, 1043] {
-        let sim = scan(ScanOptions {
-            orchard: OrchardOptions { occlusion: 0.2, ..OrchardOptions::default() },
-            scale: 0.5,
-            sun: seed % 2 == 1,
-            seed,
-            ..ScanOptions::default()
-        });
-        let fallback = |fit: &FusedFit| fit.outline.is_some() && !fit.outline_refined;
-        assert_answered_by(&sim, &format!("seed {seed}"), fallback, 2.0);
+        let sim = fifth_hidden_half_scale(seed, seed % 2 == 1);
+        assert_answered_by(&sim, &format!("seed {seed}"), outline_fallback, 2.0);
     }
 }
 
@@ -214,15 +223,8 @@ fn short_arcs_of_several_frames_confirm_the_outlines_sphere() {
 #[test]
 fn sunlit_arcs_bending_twice_their_noise_confirm_the_outlines_sphere() {
     for seed in [201, 211] {
-        let sim = scan(ScanOptions {
-            orchard: OrchardOptions { occlusion: 0.2, ..OrchardOptions::default() },
-            scale: 0.5,
-            sun: true,
-            seed,
-            ..ScanOptions::default()
-        });
-        let fallback = |fit: &FusedFit| fit.outline.is_some() && !fit.outline_refined;
-        assert_answered_by(&sim, &format!("seed {seed}"), fallback, 3.0);
+        let sim = fifth_hidden_half_scale(seed, true);
+        assert_answered_by(&sim, &format!("seed {seed}"), outline_fallback, 3.0);
     }
 }
 
