@@ -92,6 +92,33 @@ fn main() {
                     .map(|f| format!("{}/{}", f.fruit.len(), f.stripe.len()))
                     .collect();
                 line += &format!(" pts {} |", per.join(" "));
+                if let Some(fit) = &answer.fused {
+                    let s = &fit.sphere;
+                    let mut shares = String::new();
+                    for f in &answer.frames {
+                        let arc: Vec<_> = f
+                            .points_in_camera
+                            .iter()
+                            .filter(|(i, _)| f.fruit.contains(i))
+                            .map(|(_, p)| *p)
+                            .collect();
+                        let on = arc.iter().filter(|p| s.distance_mm(p) <= 2.0).count();
+                        if on > 0 {
+                            shares += &format!(" {on}/{}", arc.len());
+                        }
+                    }
+                    line += &format!(" arcs on{shares} |");
+                }
+                if let Some(e) = answer.fused.as_ref().and_then(|f| f.ellipsoid) {
+                    let a = e.semi_axes_mm();
+                    line += &format!(
+                        " ell {:.1}/{:.1}/{:.1} ratio {:.3} |",
+                        a.x,
+                        a.y,
+                        a.z,
+                        a.max() / a.min()
+                    );
+                }
             }
         }
         line += &format!(" {:.0} ms", start.elapsed().as_secs_f64() * 1000.0 / 2.0);
@@ -156,6 +183,13 @@ fn main() {
             let answer =
                 locate(&scan.camera, &laser, &prior, &frames, &LocateOptions::default()).unwrap();
             println!("truth shape {:?}", scan.scene.objects[0].shape);
+            for (c, r) in scan.scene.neighbours() {
+                println!(
+                    "neighbour at {:.1?} r {r:.1}, {:.1} mm from the target",
+                    c,
+                    (c - truth).norm()
+                );
+            }
             if let alacs_sim::Shape::Ellipsoid { centre, rotation, semi_axes_mm } =
                 &scan.scene.objects[0].shape
             {
