@@ -54,9 +54,9 @@ pub struct LocateOptions {
     /// the prior radius spans at the rough depth.
     pub min_points_fraction: f64,
     /// Smallest fraction of the stripe rows the fitted fruit predicts that
-    /// must hold fruit points for the free fit to count (a fruit behind
-    /// leaves and in the laser's shadow shows part of them, a chance fit to
-    /// clutter few).
+    /// must hold fruit points for the free fit to count, over all frames
+    /// and in each of two of them (a fruit behind leaves and in the laser's
+    /// shadow shows part of them, a chance fit to clutter few).
     pub min_coverage: f64,
     /// When the laser alone cannot fix the fruit, fit a sphere to the
     /// fruit's outline in the image and the laser points together
