@@ -93,8 +93,10 @@ fn main() {
                     .collect();
                 line += &format!(" pts {} |", per.join(" "));
                 if let Some(fit) = &answer.fused {
+                    // How much of each frame's arc the fit holds, and the
+                    // share of the rows its cut spans that they cover.
                     let s = &fit.sphere;
-                    let mut shares = String::new();
+                    let (mut shares, mut cover) = (String::new(), String::new());
                     for f in &answer.frames {
                         let arc: Vec<_> = f
                             .points_in_camera
@@ -106,46 +108,14 @@ fn main() {
                         if on > 0 {
                             shares += &format!(" {on}/{}", arc.len());
                         }
-                    }
-                    line += &format!(" arcs on{shares} |");
-                    // Each frame's arc circle against the sphere's cut.
-                    let mut cuts = String::new();
-                    let mut cov = String::new();
-                    for f in &answer.frames {
-                        let arc: Vec<_> = f
-                            .points_in_camera
-                            .iter()
-                            .filter(|(i, _)| f.fruit.contains(i))
-                            .map(|(_, p)| *p)
-                            .collect();
-                        if arc.len() < 6 {
-                            continue;
-                        }
                         let plane = laser.plane_in_camera(f.slide_mm);
-                        let n = plane.normal.normalize();
-                        let origin =
-                            nalgebra::Point3::from(n * (plane.offset_mm / plane.normal.norm()));
-                        let e1 = (nalgebra::Vector3::y() - n * n.y).normalize();
-                        let e2 = n.cross(&e1);
-                        let q: Vec<_> = arc
-                            .iter()
-                            .map(|p| {
-                                let d = p - origin;
-                                nalgebra::Point2::new(d.dot(&e1), d.dot(&e2))
-                            })
-                            .collect();
-                        let Some(c) = alacs_locate::fit::fit_circle(&q) else { continue };
-                        let dc = n.dot(&(s.centre - origin));
-                        let rho = (s.radius_mm.powi(2) - dc * dc).max(0.0).sqrt();
-                        let cc = s.centre - n * dc - origin;
-                        let cut = nalgebra::Point2::new(cc.dot(&e1), cc.dot(&e2));
-                        cuts +=
-                            &format!(" {:.0}/{:.0}", (c.centre - cut).norm(), c.radius_mm - rho);
-                        let held = arc.iter().filter(|p| s.distance_mm(p) <= 2.0).count();
+                        let d = (plane.normal.dot(&s.centre.coords) - plane.offset_mm)
+                            / plane.normal.norm();
+                        let rho = (s.radius_mm.powi(2) - d * d).max(0.0).sqrt();
                         let rows = 2.0 * rho * scan.camera.fy_px / s.centre.z;
-                        cov += &format!(" {:.2}", held as f64 / rows.max(1.0));
+                        cover += &format!(" {:.2}", on as f64 / rows.max(1.0));
                     }
-                    line += &format!(" cut-vs-arc{cuts} | framecov{cov} |");
+                    line += &format!(" arcs on{shares} | framecov{cover} |");
                 }
                 if let Some(e) = answer.fused.as_ref().and_then(|f| f.ellipsoid) {
                     let a = e.semi_axes_mm();
