@@ -18,9 +18,15 @@ fn scan(options: ScanOptions) -> RenderedScan {
 
 /// Locates the scan's fruit with the true camera and laser.
 fn run(sim: &RenderedScan) -> Localization {
+    run_with_prior(sim, 40.0)
+}
+
+/// Locates the scan's fruit with the true camera and laser and a radius
+/// prior of `fruit_radius_mm`.
+fn run_with_prior(sim: &RenderedScan, fruit_radius_mm: f64) -> Localization {
     let frames: Vec<_> = sim.frames().map(FrameImages::from).collect();
     let scan = &sim.scan;
-    let prior = Prior { rough_position_mm: scan.rough_position_mm, fruit_radius_mm: 40.0 };
+    let prior = Prior { rough_position_mm: scan.rough_position_mm, fruit_radius_mm };
     locate(&scan.camera, &scan.laser, &prior, &frames, &LocateOptions::default()).unwrap()
 }
 
@@ -372,6 +378,20 @@ fn a_free_fit_needs_two_frames_that_each_cut_the_fruit() {
     let answer = run(&sim);
     let rejected = answer.fused_rejected.unwrap_or_default();
     assert!(rejected.contains("a sphere needs two cuts"), "{rejected}");
+}
+
+/// Regression: with a radius prior of 46 mm, a fruit 46 mm across and
+/// 41 mm deep at 1.2 m took a free sphere of 57 mm from its flat front,
+/// 16.4 mm off, and its outline (0.78 of that sphere's silhouette) was not
+/// searched for. A sphere fitted to a fruit's front may be 1.3 times its
+/// silhouette.
+#[test]
+fn a_flat_fronts_big_sphere_is_refined_by_its_smaller_outline() {
+    let sim = fifth_hidden_half_scale(201, false);
+    let answer = run_with_prior(&sim, 46.0);
+    let error = error_mm(&sim.scan, &answer).unwrap();
+    assert!(error < 4.0, "{error:.1} mm: {}", answer.reason);
+    assert!(answer.fused.unwrap().outline_refined);
 }
 
 #[test]
