@@ -183,8 +183,8 @@ fn fuse(results: &[FrameResult], context: &FrameContext) -> std::result::Result<
     // Two cuts, each a cut of this fruit: one frame's arc and a few points
     // of another surface in a second frame also lie on a sphere (seed 324
     // in a cluster of four: 91 points of the target's arc and 12 of a
-    // neighbour's, 16 % of that frame's rows, 20 mm off; on 175 scans the
-    // right fits' second-best frames showed 23 % or more).
+    // neighbour's, 16 % of that frame's rows, 20 mm off; the 174 right free
+    // fits of 432 half-scale scans showed 23 % or more in theirs).
     let mut frame_coverage: Vec<f64> = rows_per_frame
         .iter()
         .enumerate()
@@ -491,9 +491,9 @@ fn fit_with_outline(
 /// e_b) - e_c) along the line of sight, half as much. The outline is
 /// searched around the free fit's image (its radius within
 /// [`OUTLINE_RADIUS_RANGE`] of the fit's, its centre within a third of the
-/// radius); the refinement is kept
-/// only where it still holds [`MIN_REFINED_SHARE`] of the free fit's
-/// points and passes the free fit's checks. Where the outline's sphere does
+/// radius); the refinement is kept only where it still holds
+/// [`MIN_REFINED_SHARE`] of the free fit's points and passes the free
+/// fit's checks. Where the outline's sphere does
 /// not, but the outline is the free sphere's silhouette within
 /// [`MAX_SILHOUETTE_MISMATCH`], the free sphere is refined to the outline's
 /// ellipsoid on the same terms (a fruit 13 % from round, whose front and
@@ -576,12 +576,13 @@ fn refine_with_outline(
 /// fix the semi-axis c along the line of sight, which the front alone
 /// leaves to the roundness prior (seed 116 at 5 MP, a fruit longer in
 /// depth than across: 7.7 -> 1.3 mm). Kept on the sphere's refinement's
-/// terms, if apple-shaped ([`MAX_SEMI_AXIS_RATIO`]), and, where `must_fit_better` (starting from a sphere: the
-/// outline's sphere, whose refinement is already kept, or the free sphere,
-/// where the outline's was refused), only where it also cuts the squared
-/// residuals of the points and rays by [`MIN_SSE_REDUCTION`], as the free
-/// fit's ellipsoid must: on a round fruit the extra freedom only follows
-/// the outline's whole-pixel edges. Else `fit` stands.
+/// terms, if apple-shaped ([`MAX_SEMI_AXIS_RATIO`]), and, where
+/// `must_fit_better` (starting from a sphere: the outline's sphere, whose
+/// refinement is already kept, or the free sphere, where the outline's was
+/// refused), only where it also cuts the squared residuals of the points
+/// and rays by [`MIN_SSE_REDUCTION`], as the free fit's ellipsoid must: on
+/// a round fruit the extra freedom only follows the outline's whole-pixel
+/// edges. Else `fit` stands.
 fn refine_ellipsoid_with_outline(
     fit: FusedFit,
     ellipsoid: Ellipsoid,
@@ -727,9 +728,10 @@ fn check_not_flat(
     Ok(())
 }
 
-/// Share of a frame's arc (its points on one circle) the outline
-/// fallback's sphere must hold for the arc's points on it to count as
-/// support. Measured on the 47 outline-fallback answers of 288 half-scale
+/// Share of a frame's arc (its points on one circle) a sphere must hold
+/// for the arc to count as a cut of it ([`crossing_arcs`]): the free fit
+/// is fitted again without frames whose arcs it crosses, and the outline
+/// fallback counts no support from them. Measured on the 47 outline-fallback answers of 288 half-scale
 /// scans (seeds 100-111 and 200-211 at 0-60 % hidden, shade and sun, and
 /// three clutter sets): the one wrong answer (seed 123, a cluster of three
 /// behind a branch, 73 % hidden: a neighbour's outline behind the target
