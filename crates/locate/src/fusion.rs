@@ -137,7 +137,7 @@ fn fuse(results: &[FrameResult], context: &FrameContext) -> std::result::Result<
     // on the sphere pull it away from the fruit (seed 310 in a cluster of
     // four: 12 such points of 125 made a 39 mm fruit a 52 mm sphere, 15 mm
     // off). The sphere is fitted again without those frames.
-    let crossing = crossing_arcs(results, &outcome.model, threshold);
+    let crossing = crossing_arcs(&points, &frame_of, results.len(), &outcome.model, threshold);
     if outcome.inliers.iter().any(|&i| crossing[frame_of[i]]) {
         let kept: Vec<usize> = (0..points.len()).filter(|&i| !crossing[frame_of[i]]).collect();
         points = kept.iter().map(|&i| points[i]).collect();
@@ -413,7 +413,8 @@ fn fit_with_outline(
             fit.inliers.len()
         ));
     }
-    let crossing = crossing_arcs(results, &fit.sphere, threshold);
+    let (arcs, arc_frame_of) = fruit_points(results);
+    let crossing = crossing_arcs(&arcs, &arc_frame_of, results.len(), &fit.sphere, threshold);
     let support = fit.inliers.iter().filter(|&&i| !(on_arc[i] && crossing[frame_of[i]])).count();
     if support < min_points {
         return Err(format!(
@@ -741,23 +742,26 @@ fn check_not_flat(
 /// they crossed.
 const MIN_ARC_SHARE: f64 = 0.5;
 
-/// For each frame, whether its arc (its points on one circle: one surface)
-/// crosses `sphere`: the sphere holds less than [`MIN_ARC_SHARE`] of it
-/// within `threshold_mm`, so where the two meet is chance, not support.
-fn crossing_arcs(results: &[FrameResult], sphere: &Sphere, threshold_mm: f64) -> Vec<bool> {
-    results
-        .iter()
-        .map(|result| {
-            let arc: Vec<&Point3<f64>> = result
-                .points_in_camera
-                .iter()
-                .filter(|(i, _)| result.fruit.contains(i))
-                .map(|(_, p)| p)
-                .collect();
-            let held = arc.iter().filter(|p| sphere.distance_mm(p) <= threshold_mm).count();
-            (held as f64) < MIN_ARC_SHARE * arc.len() as f64
-        })
-        .collect()
+/// For each of `n_frames` frames, whether its arc (its points on one
+/// circle: one surface; `points` and `frame_of` as [`fruit_points`] gives
+/// them) crosses `sphere`: the sphere holds less than [`MIN_ARC_SHARE`] of
+/// it within `threshold_mm`, so where the two meet is chance, not support.
+fn crossing_arcs(
+    points: &[Point3<f64>],
+    frame_of: &[usize],
+    n_frames: usize,
+    sphere: &Sphere,
+    threshold_mm: f64,
+) -> Vec<bool> {
+    let mut held = vec![0usize; n_frames];
+    let mut total = vec![0usize; n_frames];
+    for (p, &k) in points.iter().zip(frame_of) {
+        if let (Some(h), Some(t)) = (held.get_mut(k), total.get_mut(k)) {
+            *t += 1;
+            *h += usize::from(sphere.distance_mm(p) <= threshold_mm);
+        }
+    }
+    held.iter().zip(&total).map(|(&h, &t)| (h as f64) < MIN_ARC_SHARE * t as f64).collect()
 }
 
 /// The checks of any fitted sphere: the points' scatter about it, its
