@@ -141,6 +141,11 @@ pub fn detect_charuco(gray: &GrayImage, board: &BoardSpec) -> Result<BoardCorner
         .min(REFINE_WINDOW_PER_CELL * cell_px)
         .clamp(2.0, MAX_REFINE_HALF_WINDOW_PX);
     refine_corners_within(gray, &mut corners, radius_px.ceil() as u32, radius_px);
+    // The X-junction fit in the same marker-free disc, if it is not too small.
+    let junction_radius_px = crate::junction::junction_radius_px(cell_px).min(radius_px);
+    if junction_radius_px >= crate::junction::MIN_JUNCTION_RADIUS_PX {
+        crate::junction::fit_junctions(gray, &mut corners, junction_radius_px);
+    }
     Ok(corners)
 }
 

@@ -141,6 +141,12 @@ pub fn detect_checkerboard(gray: &GrayImage, board: &BoardSpec) -> Result<BoardC
     let (mut corners, refined) = found.map_err(no_board)?;
     let half_window = refine_half_window(corners.cell_size_px().unwrap_or(0.0));
     refined.apply(gray, &mut corners, half_window);
+    let cell_px = corners.cell_size_px().unwrap_or(0.0);
+    crate::junction::fit_junctions(
+        gray,
+        &mut corners,
+        crate::junction::junction_radius_px(cell_px),
+    );
     Ok(corners)
 }
 
@@ -833,6 +839,8 @@ pub(crate) mod tests {
             // corners are refined again, as before).
             assert_eq!(refined.half_window_px == half_window, ahead_expected);
             refine_corners(&gray, &mut after, half_window);
+            let radius_px = crate::junction::junction_radius_px(after.cell_size_px().unwrap());
+            crate::junction::fit_junctions(&gray, &mut after, radius_px);
             let ahead = detect_checkerboard(&gray, &board).unwrap();
             assert_eq!(ahead, after);
         }

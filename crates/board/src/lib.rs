@@ -13,6 +13,7 @@ mod charuco;
 mod checkerboard;
 mod chess;
 mod error;
+mod junction;
 
 pub use charuco::{MIN_CHARUCO_CORNERS, charuco_spec, detect_board, detect_charuco};
 pub use checkerboard::{
