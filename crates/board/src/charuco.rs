@@ -1,6 +1,7 @@
 //! ChArUco boards: calib-targets' ChArUco detector (its corner grid labelled
 //! by the markers it decodes), the corners in OpenCV's ChArUco order, then
-//! refined with the image gradients as a checkerboard's are.
+//! refined with the image gradients and fitted as X-junctions as a
+//! checkerboard's are (in a disc that keeps the markers out).
 //!
 //! A ChArUco board needs no complete view: each corner's label comes from
 //! the markers around it, so a board cut by the image's border, or partly

@@ -1,7 +1,8 @@
 //! Board corners of ALACS calibration views: calib-targets' ChESS detector,
 //! fitted to the checkerboard of session.yaml, or its ChArUco detector for a
 //! ChArUco board (views cut by the image's border count), labelled in
-//! OpenCV's order and refined with the image gradients ([`detect_board`]).
+//! OpenCV's order, refined with the image gradients and fitted as
+//! X-junctions ([`detect_board`]).
 //!
 //! Apart from `alacs-vision` (images and the laser stripe) so that fruit
 //! localization, the scanner and the ROS node do not pull the detector.
