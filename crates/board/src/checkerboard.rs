@@ -19,11 +19,8 @@
 //! [`refine_corners`]) in a window of a quarter square: on OpenCV's
 //! photographs this lowers the calibration RMS from 0.215 px to 0.191 px
 //! (0.194 px when measured again on 2026-12-03),
-//! on simulated 5 MP sessions from 0.22 px to 0.034 px. Last, each corner
-//! is fitted as an X-junction (two straight edges through it, see the
-//! `junction` module): on OpenCV's photographs the calibration RMS falls
-//! to 0.158 px, on simulated half-scale sessions the corners' error from
-//! 0.042-0.059 px RMS to 0.011-0.017 px.
+//! on simulated 5 MP sessions from 0.22 px to 0.034 px. For calibration,
+//! each corner is then fitted as an X-junction ([`crate::fit_board_junctions`]).
 //!
 //! Colour images are searched on their green channel: a red laser line
 //! barely shows there, so it cannot break the corner pattern.
@@ -145,12 +142,6 @@ pub fn detect_checkerboard(gray: &GrayImage, board: &BoardSpec) -> Result<BoardC
     let (mut corners, refined) = found.map_err(no_board)?;
     let half_window = refine_half_window(corners.cell_size_px().unwrap_or(0.0));
     refined.apply(gray, &mut corners, half_window);
-    let cell_px = corners.cell_size_px().unwrap_or(0.0);
-    crate::junction::fit_junctions(
-        gray,
-        &mut corners,
-        crate::junction::junction_radius_px(cell_px),
-    );
     Ok(corners)
 }
 
@@ -614,8 +605,7 @@ fn min_max(values: impl Iterator<Item = i64>) -> (i64, i64) {
 /// sum_p (g_p . (q - p))^2 over a Gaussian-weighted window, as OpenCV's
 /// `cornerSubPix` does, iterating until the corner moves less than 0.001 px.
 /// A corner whose refinement wanders off by more than a window is kept where
-/// it was. (The detector then fits each corner as an X-junction; this
-/// refinement alone is OpenCV's.)
+/// it was. ([`crate::fit_board_junctions`] goes further, for calibration.)
 pub fn refine_corners(gray: &GrayImage, corners: &mut BoardCorners, half_window_px: u32) {
     refine_corners_within(gray, corners, half_window_px, f64::INFINITY);
 }
@@ -844,8 +834,6 @@ pub(crate) mod tests {
             // corners are refined again, as before).
             assert_eq!(refined.half_window_px == half_window, ahead_expected);
             refine_corners(&gray, &mut after, half_window);
-            let radius_px = crate::junction::junction_radius_px(after.cell_size_px().unwrap());
-            crate::junction::fit_junctions(&gray, &mut after, radius_px);
             let ahead = detect_checkerboard(&gray, &board).unwrap();
             assert_eq!(ahead, after);
         }

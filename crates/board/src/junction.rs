@@ -22,7 +22,11 @@
 //! working volume of the camera and laser they calibrate, 1.0-1.8 mm in 5
 //! of the 24 before, is 0.86 mm at worst; on OpenCV's 13 right-camera
 //! photographs the calibration's RMS falls from 0.194 px to 0.158 px. It
-//! costs about 2 ms per 640 x 480 board of 54 corners (2.7 -> 4.9 ms).
+//! costs about 2 ms per 640 x 480 board of 54 corners on 2 cores, which
+//! would double the detector's time (and put it behind OpenCV's
+//! `findChessboardCorners` + `cornerSubPix`); so the detector
+//! ([`crate::detect_board`]) stops at the gradient refinement and
+//! calibration takes [`crate::detect_board_precise`].
 //!
 //! The step is the algebraic sigmoid x / sqrt(1 + x^2), whose integral
 //! over the pixel is a difference of two square roots: a logistic step
@@ -31,6 +35,8 @@
 use image::GrayImage;
 use nalgebra::{Point2, SMatrix, SVector};
 use rayon::prelude::*;
+
+use alacs_model::BoardSpec;
 
 use crate::BoardCorners;
 
@@ -42,14 +48,14 @@ use crate::BoardCorners;
 /// and 0.160, 0.3 (at most 10 px) 0.0140 and 0.158. The disc must stay
 /// inside the four squares (at 0.5 it meets the next edges), and the cost
 /// grows with its area.
-pub(crate) const JUNCTION_RADIUS_PER_CELL: f64 = 0.3;
+pub const JUNCTION_RADIUS_PER_CELL: f64 = 0.3;
 
 /// Largest disc radius (px): the fit's cost grows with the disc's area;
 /// 10 px keeps a 640 x 480 board under OpenCV's detection time.
-pub(crate) const MAX_JUNCTION_RADIUS_PX: f64 = 10.0;
+pub const MAX_JUNCTION_RADIUS_PX: f64 = 10.0;
 
 /// Smallest disc radius (px) worth fitting seven parameters in.
-pub(crate) const MIN_JUNCTION_RADIUS_PX: f64 = 3.0;
+pub const MIN_JUNCTION_RADIUS_PX: f64 = 3.0;
 
 /// A fit that moves the corner further than this from the gradient
 /// refinement's (px) is not trusted; the gradient's corner stays.
@@ -63,8 +69,8 @@ const TOLERANCE_PX: f64 = 1e-3;
 type Params = SVector<f64, 7>;
 
 /// The fit's disc radius for squares of `cell_px` in the image.
-pub(crate) fn junction_radius_px(cell_px: f64) -> f64 {
-    (JUNCTION_RADIUS_PER_CELL * cell_px).clamp(MIN_JUNCTION_RADIUS_PX, MAX_JUNCTION_RADIUS_PX)
+fn junction_radius_px(cell_px: f64) -> f64 {
+    (JUNCTION_RADIUS_PER_CELL * cell_px).min(MAX_JUNCTION_RADIUS_PX)
 }
 
 /// A straight edge at signed distance `d` (px) from a pixel's centre, seen
@@ -192,11 +198,27 @@ fn fit(
         .then_some(q)
 }
 
+/// Fits every corner of a board found in `gray` ([`crate::detect_board`])
+/// as an X-junction, in a disc of [`JUNCTION_RADIUS_PER_CELL`] of a square
+/// (at most [`MAX_JUNCTION_RADIUS_PX`]; on a ChArUco board no larger than
+/// the disc without marker pixels). A corner whose fit fails keeps its
+/// position; a disc under [`MIN_JUNCTION_RADIUS_PX`] fits nothing.
+pub fn fit_board_junctions(gray: &GrayImage, board: &BoardSpec, corners: &mut BoardCorners) {
+    let cell_px = corners.cell_size_px().unwrap_or(0.0);
+    let mut radius_px = junction_radius_px(cell_px);
+    if let Some(markers) = &board.markers {
+        radius_px = radius_px.min(crate::charuco::marker_free_radius_px(board, markers, cell_px));
+    }
+    if radius_px >= MIN_JUNCTION_RADIUS_PX {
+        fit_junctions(gray, corners, radius_px);
+    }
+}
+
 /// Fits every corner of `corners` as an X-junction in a disc of
 /// `radius_px`, its edges started along the grid's lines to its neighbours
 /// (a corner without a neighbour along a grid axis keeps its position, as
 /// does one whose fit fails or moves more than [`MAX_MOVE_PX`]).
-pub(crate) fn fit_junctions(gray: &GrayImage, corners: &mut BoardCorners, radius_px: f64) {
+fn fit_junctions(gray: &GrayImage, corners: &mut BoardCorners, radius_px: f64) {
     let (cols, rows) = (corners.cols, corners.rows);
     let original = corners.corners_px.clone();
     let at = |c: i64, r: i64| -> Option<Point2<f64>> {
@@ -218,10 +240,10 @@ pub(crate) fn fit_junctions(gray: &GrayImage, corners: &mut BoardCorners, radius
     corners.corners_px.par_iter_mut().enumerate().for_each(|(index, corner)| {
         let Some(start) = *corner else { return };
         let (c, r) = ((index % cols) as i64, (index / cols) as i64);
-        if let (Some(a), Some(b)) = (direction(c, r, 1, 0), direction(c, r, 0, 1)) {
-            if let Some(q) = fit(gray, start, a, b, radius_px) {
-                *corner = Some(q);
-            }
+        if let (Some(a), Some(b)) = (direction(c, r, 1, 0), direction(c, r, 0, 1))
+            && let Some(q) = fit(gray, start, a, b, radius_px)
+        {
+            *corner = Some(q);
         }
     });
 }

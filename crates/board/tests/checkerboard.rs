@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use alacs_board::{board_gray, detect_checkerboard};
+use alacs_board::{board_gray, detect_board_precise, detect_checkerboard};
 use alacs_model::Session;
 use alacs_vision::read_image;
 use nalgebra::Point2;
@@ -151,7 +151,7 @@ fn skewed_sharp_corners_lie_within_two_hundredths_of_a_pixel() {
         let mut errors = Vec::new();
         for index in 0..session.views.len() {
             let image = image::DynamicImage::ImageRgb8(session.render_view(index).unwrap());
-            let corners = detect_checkerboard(&board_gray(&image), &spec).unwrap();
+            let corners = detect_board_precise(&board_gray(&image), &spec).unwrap();
             errors.extend(corner_errors_px(&session, index, &corners));
         }
         let rms = (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt();

@@ -6,7 +6,7 @@
 //! and their translations averaged, each pose's deviation from the mean
 //! reported.
 
-use alacs_board::{board_gray, detect_board};
+use alacs_board::{board_gray, detect_board_precise};
 use alacs_model::{Camera, Session};
 use alacs_vision::read_image;
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
@@ -67,7 +67,7 @@ fn pose_in(
             camera.height_px
         ));
     }
-    let corners = detect_board(&board_gray(&decoded), &session.board)
+    let corners = detect_board_precise(&board_gray(&decoded), &session.board)
         .map_err(|e| format!("{}: {e}", image.display()))?;
     let (points_in_board, pixels) =
         corners.found().map(|(i, p)| (session.board.corner_in_board(i), p)).unzip();

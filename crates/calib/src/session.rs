@@ -15,7 +15,7 @@
 
 use std::path::Path;
 
-use alacs_board::{BoardCorners, board_gray, detect_board};
+use alacs_board::{BoardCorners, board_gray, detect_board_precise};
 use alacs_model::{Camera, Session, SessionView};
 use alacs_vision::{Region, StripeOptions, extract_stripe_rgb, read_image};
 use nalgebra::{Isometry3, Point2};
@@ -160,7 +160,7 @@ pub fn detect_session_boards(
             let decoded = read_image(&session.path_of(image))?;
             let size = (decoded.width(), decoded.height());
             let gray = board_gray(&decoded);
-            let corners = detect_board(&gray, &session.board).map_err(|e| e.to_string());
+            let corners = detect_board_precise(&gray, &session.board).map_err(|e| e.to_string());
             progress();
             Ok((size, ViewBoard { image: image.display().to_string(), corners }))
         })
@@ -401,7 +401,7 @@ pub fn view_samples(
     }
     let board_image = off.as_ref().unwrap_or(&on);
     let gray = board_gray(board_image);
-    let corners = match detect_board(&gray, &session.board) {
+    let corners = match detect_board_precise(&gray, &session.board) {
         Ok(corners) => corners,
         Err(e) => {
             report.rejected = Some(e.to_string());

@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use alacs_board::{board_gray, detect_checkerboard};
+use alacs_board::{board_gray, detect_board_precise};
 use alacs_calib::{BoardObservation, IntrinsicsOptions, calibrate_intrinsics};
 use alacs_model::Session;
 use alacs_vision::read_image;
@@ -19,7 +19,7 @@ fn observations(session: &Session) -> Vec<BoardObservation> {
         .iter()
         .map(|view| {
             let image = read_image(&session.path_of(&view.image)).unwrap();
-            let corners = detect_checkerboard(&board_gray(&image), &session.board).unwrap();
+            let corners = detect_board_precise(&board_gray(&image), &session.board).unwrap();
             let (points_in_board, pixels) =
                 corners.found().map(|(i, p)| (session.board.corner_in_board(i), p)).unzip();
             BoardObservation { name: view.image.display().to_string(), points_in_board, pixels }
