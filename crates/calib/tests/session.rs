@@ -139,16 +139,18 @@ fn max_depth_error_mm(
 /// steps-per-mm setting, an axis at an angle to the baseline). Half-scale
 /// sessions of 8 poses at slides 0, 100, 200 mm: k within 0.02 % and the
 /// depth error over the working volume (0.6-1.2 m, the whole image) within
-/// 1 mm at every slide position; held at 1 (the seed's model) the same
-/// sessions are up to 5 mm off at 200 mm (k 0.99 and 1.02).
+/// 0.5 mm at every slide position (issue 17 asks 1 mm; 0.06-0.21 mm
+/// measured); held at 1 (the seed's model) the same sessions are up to 5 mm
+/// off at 200 mm (k 0.99 and 1.02).
 #[test]
 fn a_slide_scale_error_is_fitted_to_the_noise_floor() {
     use alacs_sim::SlideError;
     // (scale, angle, seed): k = scale cos(angle) = 0.99, 0.997, 1.02, 0.997
     // from an axis turned by 4.44 deg, and the perfect slide, whose errors
     // are the noise floor (the fitted camera and laser of one session
-    // together: 0.5-0.75 mm on seeds 15 and 16, where the true camera with
-    // the fitted laser is 0.8-4 mm off at the image's corners).
+    // together: 0.19 mm on seed 15; 0.5-0.75 mm on seeds 15 and 16 before
+    // the corners were fitted as X-junctions, where the true camera with
+    // the fitted laser was 0.8-4 mm off at the image's corners).
     let cases =
         [(0.99, 0.0, 11), (0.997, 0.0, 12), (1.02, 0.0, 13), (1.0, 4.44, 14), (1.0, 0.0, 15)];
     for (scale, angle_deg, seed) in cases {
@@ -189,7 +191,7 @@ fn a_slide_scale_error_is_fitted_to_the_noise_floor() {
         );
         assert!(fitted.slide_scale_fitted && !held.slide_scale_fitted);
         assert!(((k - true_k) / true_k).abs() < 2e-4, "k {k} for {true_k}");
-        assert!(errors.iter().all(|&e| e <= 1.0), "{errors:?}");
+        assert!(errors.iter().all(|&e| e <= 0.5), "{errors:?}");
         // The fitted k's standard deviation covers its error.
         assert!((k - true_k).abs() < 3.0 * k_std, "k {k} +- {k_std} for {true_k}");
         let _ = std::fs::remove_dir_all(&dir);
