@@ -15,38 +15,9 @@ use alacs_calib::{
 use alacs_model::{Camera, LaserModel, Session};
 use alacs_sim::{SessionOptions, SlideError, simulate_session};
 
-fn max_depth_error_mm(
-    truth: (&Camera, &LaserModel),
-    fit: (&Camera, &LaserModel),
-    slide_mm: f64,
-) -> f64 {
-    let (true_camera, true_laser) = truth;
-    let (camera, laser) = fit;
-    let half_height_n = f64::from(true_camera.height_px) / 2.0 / true_camera.fy_px;
-    let mut worst: f64 = 0.0;
-    for i in 0..=24 {
-        let z = 600.0 + 25.0 * f64::from(i);
-        for row in (0..true_camera.height_px).step_by(32) {
-            let v_n =
-                (f64::from(row) / f64::from(true_camera.height_px) * 2.0 - 1.0) * half_height_n;
-            let u_n = (true_laser.alpha_rad.sin()
-                - true_laser.laser_distance_mm(slide_mm) / z
-                - v_n * true_laser.beta_rad.tan())
-                / true_laser.alpha_rad.cos();
-            let point = nalgebra::Point3::new(u_n * z, v_n * z, z);
-            let Ok(pixel) = true_camera.project(&point) else { continue };
-            if !((0.0..f64::from(true_camera.width_px)).contains(&pixel.x)
-                && (0.0..f64::from(true_camera.height_px)).contains(&pixel.y))
-            {
-                continue;
-            }
-            let normalized = camera.undistort_pixel(&pixel).unwrap();
-            let z_fit = laser.depth_mm(&normalized, slide_mm).unwrap();
-            worst = worst.max((z_fit - z).abs());
-        }
-    }
-    worst
-}
+#[path = "../tests/volume/mod.rs"]
+mod volume;
+use volume::max_depth_error_mm;
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();

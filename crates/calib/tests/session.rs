@@ -11,6 +11,9 @@ use alacs_calib::{
 use alacs_model::{Camera, LaserModel, Session};
 use alacs_sim::{SessionOptions, simulate_session};
 
+mod volume;
+use volume::max_depth_error_mm;
+
 fn temp_dir(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("alacs-calib-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
@@ -95,44 +98,6 @@ fn simulated_session_calibrates_camera_and_laser_to_the_truth() {
         assert!(laser.warnings.is_empty(), "{:?}", laser.warnings);
         let _ = std::fs::remove_dir_all(&dir);
     }
-}
-
-/// Largest |z_fit - z| over the working volume at slide travel `slide_mm`:
-/// the true laser's points at depths 600-1200 mm (every 25 mm) on every
-/// 32nd image row, seen through the true camera (points outside the image
-/// left out), triangulated through the fitted camera and laser.
-fn max_depth_error_mm(
-    truth: (&Camera, &LaserModel),
-    fit: (&Camera, &LaserModel),
-    slide_mm: f64,
-) -> f64 {
-    let (true_camera, true_laser) = truth;
-    let (camera, laser) = fit;
-    let half_height_n = f64::from(true_camera.height_px) / 2.0 / true_camera.fy_px;
-    let mut worst: f64 = 0.0;
-    for i in 0..=24 {
-        let z = 600.0 + 25.0 * f64::from(i);
-        for row in (0..true_camera.height_px).step_by(32) {
-            let v_n =
-                (f64::from(row) / f64::from(true_camera.height_px) * 2.0 - 1.0) * half_height_n;
-            // eq. (7): z = L / (sin a - u cos a - v tan b), solved for u.
-            let u_n = (true_laser.alpha_rad.sin()
-                - true_laser.laser_distance_mm(slide_mm) / z
-                - v_n * true_laser.beta_rad.tan())
-                / true_laser.alpha_rad.cos();
-            let point = nalgebra::Point3::new(u_n * z, v_n * z, z);
-            let Ok(pixel) = true_camera.project(&point) else { continue };
-            let inside = (0.0..f64::from(true_camera.width_px)).contains(&pixel.x)
-                && (0.0..f64::from(true_camera.height_px)).contains(&pixel.y);
-            if !inside {
-                continue;
-            }
-            let normalized = camera.undistort_pixel(&pixel).unwrap();
-            let z_fit = laser.depth_mm(&normalized, slide_mm).unwrap();
-            worst = worst.max((z_fit - z).abs());
-        }
-    }
-    worst
 }
 
 /// Issue 17: a slide whose travel is k d instead of d (a pitch error, a
