@@ -45,7 +45,6 @@ fn main() {
         let session = Session::read(&dir).unwrap();
         // Corner errors against the truth.
         let (_, boards) = detect_session_boards(&session, &|| {}).unwrap();
-        let (mut sum_sq, mut n, mut worst_px) = (0.0, 0usize, 0.0f64);
         let mut all = Vec::new();
         for board in &boards {
             let Ok(corners) = &board.corners else { continue };
@@ -58,9 +57,6 @@ fn main() {
                 let point = view.camera_from_board * session.board.corner_in_board(i);
                 let truth = simulated.camera.project(&point).unwrap();
                 let e = (pixel - truth).norm();
-                sum_sq += e * e;
-                n += 1;
-                worst_px = worst_px.max(e);
                 all.push(e);
                 if std::env::var("SHOW").is_ok() && e > 0.15 {
                     println!(
@@ -75,6 +71,9 @@ fn main() {
             }
         }
         all.sort_by(f64::total_cmp);
+        let n = all.len();
+        let rms_px = (all.iter().map(|e| e * e).sum::<f64>() / n as f64).sqrt();
+        let worst_px = all.last().copied().unwrap_or(0.0);
         let pct = |q: f64| all[((all.len() - 1) as f64 * q) as usize];
         println!(
             "  p50 {:.4} p90 {:.4} p99 {:.4}, > 0.15 px: {}",
@@ -99,8 +98,7 @@ fn main() {
         let worst = errors.iter().copied().fold(0.0, f64::max);
         over += usize::from(worst > 1.0);
         println!(
-            "seed {seed}: corners rms {:.4} px worst {worst_px:.3} ({n}), fx {:.2} (truth {:.2}) cx {:.2} cy {:.2}, k {:.6} ({:+.4} %), depth error {errors:.2?} mm{}",
-            (sum_sq / n as f64).sqrt(),
+            "seed {seed}: corners rms {rms_px:.4} px worst {worst_px:.3} ({n}), fx {:.2} (truth {:.2}) cx {:.2} cy {:.2}, k {:.6} ({:+.4} %), depth error {errors:.2?} mm{}",
             camera.fx_px,
             simulated.camera.fx_px,
             camera.cx_px - simulated.camera.cx_px,
