@@ -107,9 +107,15 @@ fn main() {
                             .filter(|(i, _)| f.fruit.contains(i))
                             .map(|(_, p)| *p)
                             .collect();
-                        let on = arc.iter().filter(|p| s.distance_mm(p) <= 2.0).count();
+                        let held: Vec<f64> = arc
+                            .iter()
+                            .map(|p| s.distance_mm(p))
+                            .filter(|d| d.abs() <= 2.0)
+                            .collect();
+                        let on = held.len();
                         if on > 0 {
-                            shares += &format!(" {on}/{}", arc.len());
+                            let rms = (held.iter().map(|d| d * d).sum::<f64>() / on as f64).sqrt();
+                            shares += &format!(" {on}/{}@{rms:.2}", arc.len());
                         }
                         let plane = laser.plane_in_camera(f.slide_mm);
                         let d = (plane.normal.dot(&s.centre.coords) - plane.offset_mm)

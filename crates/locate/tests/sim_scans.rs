@@ -371,13 +371,20 @@ fn a_sphere_crossing_a_frames_arc_is_fitted_again_without_that_frame() {
 /// Regression: one frame's whole arc of the target (91 points) and 12
 /// points of a neighbour's arc in another frame (16 % of the rows the
 /// sphere predicts there) made a free sphere 20 mm off. A sphere needs two
-/// cuts of its own fruit.
+/// cuts of its own fruit. Then the sphere of the prior radius through the
+/// same arc and 10 of the neighbour's points (a frame needs 11) was the
+/// mirror of the right one across the laser's plane, 17.5 mm off: it needs
+/// two cuts too.
 #[test]
 fn a_free_fit_needs_two_frames_that_each_cut_the_fruit() {
     let sim = cluster_half_scale(3, 2, 0.4, 324);
     let answer = run(&sim);
-    let rejected = answer.fused_rejected.unwrap_or_default();
+    let rejected = answer.fused_rejected.clone().unwrap_or_default();
     assert!(rejected.contains("a sphere needs two cuts"), "{rejected}");
+    assert!(rejected.contains("rests on one frame's arc"), "{rejected}");
+    if let Some(error) = error_mm(&sim.scan, &answer) {
+        assert!(error < 15.0, "{error:.1} mm: {}", answer.reason);
+    }
 }
 
 /// Regression: with a radius prior of 46 mm, a fruit 46 mm across and
