@@ -1,7 +1,7 @@
 //! Localization errors on a batch of simulated scans, both methods:
 //! `cargo run --release -p alacs-locate --example sweep -- [N] [occlusion] [sun] [scale] [first_seed] [ellipticity]`;
 //! `CLUSTER=N` (0-3 neighbours) and `BRANCHES=N` (0-4 across the front) add clutter;
-//! `PRIOR_MM=35` sets the radius prior (default 40), `COVERAGE=0.1` overrides `LocateOptions::min_coverage`, `FRAMES=1` prints each frame's candidate or rejection, `DEBUG=1` ellipsoid details.
+//! `PRIOR_MM=35` sets the radius prior (default 40), `COVERAGE=0.1` overrides `LocateOptions::min_coverage`, `OFF=1` renders laser-off images too, `FRAMES=1` prints each frame's candidate or rejection, `DEBUG=1` ellipsoid details.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use alacs_locate::{FrameImages, LocateOptions, Method, Prior, Status, locate};
@@ -33,7 +33,17 @@ fn main() {
         };
         let sim = simulate_rendered_scan(&Camera::blackfly_s_5mp(), &laser, &options).unwrap();
         let scan = &sim.scan;
-        let frames: Vec<_> = sim.frames().map(FrameImages::from).collect();
+        // `OFF=1`: each frame with its laser-off image.
+        let offs: Vec<_> = if std::env::var("OFF").is_ok() {
+            (0..scan.frames.len()).map(|i| scan.render_frame(i, false).unwrap()).collect()
+        } else {
+            Vec::new()
+        };
+        let frames: Vec<_> = sim
+            .frames()
+            .enumerate()
+            .map(|(i, f)| FrameImages { image_laser_off: offs.get(i), ..FrameImages::from(f) })
+            .collect();
         let prior = Prior {
             rough_position_mm: scan.rough_position_mm,
             fruit_radius_mm: std::env::var("PRIOR_MM").map_or(40.0, |r| r.parse().unwrap()),
