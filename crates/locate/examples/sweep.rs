@@ -88,8 +88,9 @@ fn main() {
             }
             if let Some(fit) = &answer.fused {
                 line += &format!(
-                    " sphere 3d {:6.2}{} |",
+                    " sphere 3d {:6.2} r {:4.1}{} |",
                     (fit.sphere.centre - truth).norm(),
+                    fit.sphere.radius_mm,
                     match (&fit.outline, fit.outline_refined, fit.radius_from_prior) {
                         (Some(_), true, _) => " (outline refined)".to_string(),
                         (Some(_), false, _) => format!(" (outline, {} frames)", fit.n_frames),

@@ -33,10 +33,16 @@ pub(crate) fn fuse_with_fallbacks(
     views: &[&RgbImage],
 ) -> (Option<FusedFit>, Option<String>) {
     let candidate_positions: Vec<Point3<f64>> = candidates.iter().map(|c| c.position_mm).collect();
-    match fuse(results, context) {
-        Ok(fit) if context.options.use_outline => {
-            (Some(refine_with_outline(fit, results, context, views)), None)
-        }
+    let free = fuse(results, context)
+        .map(|fit| {
+            if context.options.use_outline {
+                refine_with_outline(fit, results, context, views)
+            } else {
+                fit
+            }
+        })
+        .and_then(|fit| check_answer_radius(fit, context));
+    match free {
         Ok(fit) => (Some(fit), None),
         Err(reason) => match fit_prior_radius(results, context, &candidate_positions) {
             Ok(fit) => (Some(fit), Some(reason)),
@@ -46,8 +52,11 @@ pub(crate) fn fuse_with_fallbacks(
                 } else {
                     format!("{reason}; with the radius prior: {second}")
                 };
-                match context.options.use_outline.then(|| fit_with_outline(results, context, views))
-                {
+                let outline = context.options.use_outline.then(|| {
+                    fit_with_outline(results, context, views)
+                        .and_then(|fit| check_answer_radius(fit, context))
+                });
+                match outline {
                     Some(Ok(fit)) => (Some(fit), Some(reason)),
                     Some(Err(third)) => {
                         (None, Some(format!("{reason}; with the outline: {third}")))
@@ -57,6 +66,40 @@ pub(crate) fn fuse_with_fallbacks(
             }
         },
     }
+}
+
+/// Largest radius of an answer's sphere (the free fit's, refined or not,
+/// and the outline's), as a factor of the radius prior; a larger one falls
+/// through to the next fallback. The radius range the fits search
+/// ([`LocateOptions::radius_factors`], up to 1.5) is wider, for the
+/// frames' circles and for a fit to start from; but a sphere that grew this
+/// large has swollen with something beside the fruit (a neighbour's or a
+/// branch's points, a neighbour's outline) or taken a flattened front's
+/// curvature. Measured over 1008 half-scale scans (seeds 100-111 and
+/// 200-211 at 0-60 % hidden, six clutter sets of 2-4 apples and branches in
+/// front, and 432 more: `CLUSTER=3 BRANCHES=2` at 40 %, seeds 500-547,
+/// `CLUSTER=2 BRANCHES=1` at 20 %, 600-647, `CLUSTER=1` at 60 %, 700-747,
+/// `BRANCHES=3` at 30 %, 900-947, fully hidden, 800-823; shade and sun;
+/// prior 40 mm, fruit 35-45 mm): the 590 answers held spheres of 0.6-1.44
+/// times the prior; the four above 1.3 times it were 14.7-20.5 mm off, the
+/// largest other 1.28 times it (5.9 mm off). Of the 586 others, one was
+/// beyond 13 mm (seed 533 of the first set, an outline's sphere of 0.85
+/// times the prior, 25 mm off).
+const MAX_ANSWER_RADIUS_FACTOR: f64 = 1.3;
+
+/// `fit` if its sphere is within [`MAX_ANSWER_RADIUS_FACTOR`] of the radius prior.
+fn check_answer_radius(
+    fit: FusedFit,
+    context: &FrameContext,
+) -> std::result::Result<FusedFit, String> {
+    let largest = MAX_ANSWER_RADIUS_FACTOR * context.prior.fruit_radius_mm;
+    if fit.sphere.radius_mm > largest {
+        return Err(format!(
+            "the fitted radius {:.1} mm is more than {MAX_ANSWER_RADIUS_FACTOR} times the prior's ({largest:.0} mm): the fit took in more than the fruit",
+            fit.sphere.radius_mm
+        ));
+    }
+    Ok(fit)
 }
 
 /// The fused method's answer: the fused fit's centre (the ellipsoid's,

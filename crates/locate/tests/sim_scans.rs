@@ -387,6 +387,21 @@ fn a_free_fit_needs_two_frames_that_each_cut_the_fruit() {
     }
 }
 
+/// Regression: a target 37 % hidden in a cluster of three behind a branch,
+/// 1.07 m away (radius 36.7 mm, prior 40): the free fit through its arcs
+/// and a neighbour's swelled to a sphere of 52.8 mm and stood 17.1 mm off.
+/// No answer's sphere may be more than 1.3 times the prior.
+#[test]
+fn a_sphere_swollen_far_beyond_the_prior_is_no_answer() {
+    let sim = cluster_half_scale(2, 1, 0.2, 603);
+    let answer = run(&sim);
+    let rejected = answer.fused_rejected.clone().unwrap_or_default();
+    assert!(rejected.contains("times the prior's"), "{rejected}");
+    if let Some(error) = error_mm(&sim.scan, &answer) {
+        assert!(error < 15.0, "{error:.1} mm: {}", answer.reason);
+    }
+}
+
 /// Regression: with a radius prior of 46 mm, a fruit 46 mm across and
 /// 41 mm deep at 1.2 m took a free sphere of 57 mm from its flat front,
 /// 16.4 mm off, and its outline (0.78 of that sphere's silhouette) was not
