@@ -1,7 +1,7 @@
 //! Localization errors on a batch of simulated scans, both methods:
 //! `cargo run --release -p alacs-locate --example sweep -- [N] [occlusion] [sun] [scale] [first_seed] [ellipticity]`;
 //! `CLUSTER=N` (0-3 neighbours) and `BRANCHES=N` (0-4 across the front) add clutter;
-//! `PRIOR_MM=35` sets the radius prior (default 40), `COVERAGE=0.1` overrides `LocateOptions::min_coverage`, `OFF=1` renders laser-off images too, `FRAMES=1` prints each frame's candidate or rejection, `DEBUG=1` ellipsoid details.
+//! `PRIOR_MM=35` sets the radius prior (default 40; `random`: 35-45 mm by seed), `COVERAGE=0.1` overrides `LocateOptions::min_coverage`, `OFF=1` renders laser-off images too, `FRAMES=1` prints each frame's candidate or rejection, `DEBUG=1` ellipsoid details.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use alacs_locate::{FrameImages, LocateOptions, Method, Prior, Status, locate};
@@ -46,7 +46,16 @@ fn main() {
             .collect();
         let prior = Prior {
             rough_position_mm: scan.rough_position_mm,
-            fruit_radius_mm: std::env::var("PRIOR_MM").map_or(40.0, |r| r.parse().unwrap()),
+            fruit_radius_mm: std::env::var("PRIOR_MM").map_or(40.0, |r| {
+                // `PRIOR_MM=random`: a prior drawn per seed over the
+                // simulator's fruit radii, 35-45 mm.
+                if r == "random" {
+                    let hash = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 11;
+                    35.0 + 10.0 * (hash as f64 / (1u64 << 53) as f64)
+                } else {
+                    r.parse().unwrap()
+                }
+            }),
         };
         let truth = scan.scene.fruit_centre;
         let start = std::time::Instant::now();
