@@ -80,7 +80,7 @@ pub(crate) fn fuse_with_fallbacks(
 /// front, and 432 more: `CLUSTER=3 BRANCHES=2` at 40 %, seeds 500-547,
 /// `CLUSTER=2 BRANCHES=1` at 20 %, 600-647, `CLUSTER=1` at 60 %, 700-747,
 /// `BRANCHES=3` at 30 %, 900-947, fully hidden, 800-823; shade and sun;
-/// prior 40 mm, fruit 35-45 mm): the 590 answers held spheres of 0.6-1.44
+/// prior 40 mm, fruit 35-45 mm): the 590 answers held spheres of 0.75-1.44
 /// times the prior; the four above 1.3 times it were 14.7-20.5 mm off, the
 /// largest other 1.28 times it (5.9 mm off). Of the 586 others, one was
 /// beyond 13 mm (seed 533 of the first set, an outline's sphere of 0.85
@@ -407,8 +407,8 @@ fn fit_prior_radius(
 /// 40 mm sphere) and 10 points of a neighbour's arc in another frame (11
 /// needed) chose the mirror sphere, 17.5 mm off. The 56 right answers of
 /// this fallback over 576 half-scale scans (seeds 100-111 and 200-211 at
-/// 0-60 % hidden, shade and sun, and six clutter sets) held 11 or more
-/// points in at least two frames, 14 or more where a frame needed 7-12.
+/// 0-60 % hidden, shade and sun, and six clutter sets) each held as many
+/// in two frames or more (the closest: 11 where 11 were needed).
 fn check_two_cuts(
     frame_of: &[usize],
     inliers: &[usize],
