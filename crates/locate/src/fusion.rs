@@ -228,14 +228,9 @@ fn fuse(results: &[FrameResult], context: &FrameContext) -> std::result::Result<
     // in a cluster of four: 91 points of the target's arc and 12 of a
     // neighbour's, 16 % of that frame's rows, 20 mm off; the 174 right free
     // fits of 432 half-scale scans showed 23 % or more in theirs).
-    let mut frame_coverage: Vec<f64> = rows_per_frame
-        .iter()
-        .enumerate()
-        .map(|(k, rows)| {
-            let held = inliers.iter().filter(|&&i| frame_of[i] == k).count();
-            held as f64 / rows.max(1.0)
-        })
-        .collect();
+    let held = points_per_frame(&frame_of, &inliers, results.len());
+    let mut frame_coverage: Vec<f64> =
+        held.iter().zip(&rows_per_frame).map(|(&n, rows)| n as f64 / rows.max(1.0)).collect();
     frame_coverage.sort_by(|a, b| b.total_cmp(a));
     let second = frame_coverage.get(1).copied().unwrap_or(0.0);
     if second < options.min_coverage {
@@ -415,12 +410,7 @@ fn check_two_cuts(
     n_frames: usize,
     min_points: usize,
 ) -> std::result::Result<(), String> {
-    let mut held = vec![0usize; n_frames];
-    for &i in inliers {
-        if let Some(h) = frame_of.get(i).and_then(|&k| held.get_mut(k)) {
-            *h += 1;
-        }
-    }
+    let mut held = points_per_frame(frame_of, inliers, n_frames);
     held.sort_unstable_by(|a, b| b.cmp(a));
     let (first, second) = (held.first().copied().unwrap_or(0), held.get(1).copied().unwrap_or(0));
     if second < min_points {
@@ -911,6 +901,18 @@ fn fit_centre_for_radius(
 /// Every point on a fruit's surface that the camera sees faces it; a few
 /// may not, from noise at the silhouette.
 const MIN_FACING_FRACTION: f64 = 0.9;
+
+/// How many of the points `indices` (into the points `frame_of` describes)
+/// each of `n_frames` frames holds.
+fn points_per_frame(frame_of: &[usize], indices: &[usize], n_frames: usize) -> Vec<usize> {
+    let mut held = vec![0usize; n_frames];
+    for &i in indices {
+        if let Some(h) = frame_of.get(i).and_then(|&k| held.get_mut(k)) {
+            *h += 1;
+        }
+    }
+    held
+}
 
 fn count_frames(frame_of: &[usize], indices: impl Iterator<Item = usize>) -> usize {
     let mut frames: Vec<usize> = indices.map(|i| frame_of[i]).collect();
