@@ -1,7 +1,8 @@
 //! Localization errors on a batch of simulated scans, both methods:
 //! `cargo run --release -p alacs-locate --example sweep -- [N] [occlusion] [sun] [scale] [first_seed] [ellipticity]`;
 //! `CLUSTER=N` (0-3 neighbours) and `BRANCHES=N` (0-4 across the front) add clutter;
-//! `PRIOR_MM=35` sets the radius prior (default 40; `random`: 35-45 mm by seed), `COVERAGE=0.1` overrides `LocateOptions::min_coverage`, `OFF=1` renders laser-off images too, `FRAMES=1` prints each frame's candidate or rejection, `DEBUG=1` ellipsoid details.
+//! `PRIOR_MM=35` sets the radius prior (default 40; `random`: 35-45 mm by seed), `COVERAGE=0.1` overrides `LocateOptions::min_coverage`, `OFF=1` renders laser-off images too, `FRAMES=1` prints each frame's candidate or rejection, `DEBUG=1` ellipsoid details,
+//! `LASER=alpha_deg,beta_deg,l0_mm` renders with another laser, `LOCATE_LASER=...` locates with another calibration.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use alacs_locate::{FrameImages, LocateOptions, Method, Prior, Status, locate};
@@ -16,7 +17,19 @@ fn main() {
     let scale: f64 = args.get(4).map_or(1.0, |a| a.parse().unwrap());
     let first: u64 = args.get(5).map_or(0, |a| a.parse().unwrap());
     let ellipticity: f64 = args.get(6).map_or(0.08, |a| a.parse().unwrap());
-    let laser = LaserModel::from_degrees(Fidelity::High, 19.07, 0.69, 381.98);
+    // `LASER=alpha_deg,beta_deg,l0_mm`: the laser the scans are rendered
+    // with (default the seed's); `LOCATE_LASER=...` the calibration they
+    // are located with (default the same: a calibration error if not).
+    let laser_from = |name: &str, default: [f64; 3]| {
+        let v: Vec<f64> = std::env::var(name)
+            .map_or(default.to_vec(), |s| s.split(',').map(|x| x.parse().unwrap()).collect());
+        LaserModel::from_degrees(Fidelity::High, v[0], v[1], v[2])
+    };
+    let true_laser = laser_from("LASER", [19.07, 0.69, 381.98]);
+    let laser = laser_from(
+        "LOCATE_LASER",
+        [true_laser.alpha_rad.to_degrees(), true_laser.beta_rad.to_degrees(), true_laser.l0_mm],
+    );
     for seed in first..first + n {
         let options = ScanOptions {
             orchard: OrchardOptions {
@@ -31,7 +44,7 @@ fn main() {
             seed,
             ..ScanOptions::default()
         };
-        let sim = simulate_rendered_scan(&Camera::blackfly_s_5mp(), &laser, &options).unwrap();
+        let sim = simulate_rendered_scan(&Camera::blackfly_s_5mp(), &true_laser, &options).unwrap();
         let scan = &sim.scan;
         // `OFF=1`: each frame with its laser-off image.
         let offs: Vec<_> = if std::env::var("OFF").is_ok() {
