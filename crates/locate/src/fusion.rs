@@ -311,8 +311,9 @@ pub(crate) fn fruit_points(results: &[FrameResult]) -> (Vec<Point3<f64>>, Vec<us
 
 /// The fallback when the free fit is not trustworthy: a sphere of the
 /// prior radius through the frames' fruit points (Gauss-Newton on the
-/// centre from each frame's candidate and the rough position, keeping the
-/// start with most points within the inlier threshold), with the same
+/// centre from each frame's candidate and the rough position, each first
+/// with all the points and then with those the start's sphere holds,
+/// keeping the fit with most points within the inlier threshold), with the same
 /// checks as the free fit except the coverage, which a fruit mostly hidden
 /// cannot meet.
 fn fit_prior_radius(
@@ -329,31 +330,41 @@ fn fit_prior_radius(
     let radius = prior.fruit_radius_mm;
     let threshold = options.inlier_threshold_mm;
     let mut best: Option<(Sphere, Vec<usize>, f64)> = None;
+    let all: Vec<usize> = (0..points.len()).collect();
     for start in starts.iter().chain(std::iter::once(&search.centre)) {
-        let mut sphere = Sphere { centre: *start, radius_mm: radius };
-        let mut inliers: Vec<usize> = (0..points.len()).collect();
-        for _ in 0..4 {
-            let chosen: Vec<Point3<f64>> = inliers.iter().map(|&i| points[i]).collect();
-            let Some(centre) = fit_centre_for_radius(&chosen, &sphere.centre, radius) else {
-                break;
+        let start = Sphere { centre: *start, radius_mm: radius };
+        // From all the points, and from those the start's sphere holds: a
+        // frame's candidate near the fruit, pulled off by another frame's
+        // arc on something else in the first step, would not come back.
+        let held: Vec<usize> =
+            all.iter().copied().filter(|&i| start.distance_mm(&points[i]) <= threshold).collect();
+        let first_sets = if held.len() >= 4 { vec![all.clone(), held] } else { vec![all.clone()] };
+        for first in first_sets {
+            let mut sphere = start;
+            let mut inliers = first;
+            for _ in 0..4 {
+                let chosen: Vec<Point3<f64>> = inliers.iter().map(|&i| points[i]).collect();
+                let Some(centre) = fit_centre_for_radius(&chosen, &sphere.centre, radius) else {
+                    break;
+                };
+                sphere.centre = centre;
+                inliers = (0..points.len())
+                    .filter(|&i| sphere.distance_mm(&points[i]) <= threshold)
+                    .collect();
+                if inliers.len() < 4 {
+                    break;
+                }
+            }
+            let rms = rms_mm(inliers.iter().map(|&i| sphere.distance_mm(&points[i])));
+            let better = match &best {
+                None => true,
+                Some((_, b, b_rms)) => {
+                    inliers.len() > b.len() || (inliers.len() == b.len() && rms < *b_rms)
+                }
             };
-            sphere.centre = centre;
-            inliers = (0..points.len())
-                .filter(|&i| sphere.distance_mm(&points[i]) <= threshold)
-                .collect();
-            if inliers.len() < 4 {
-                break;
+            if better {
+                best = Some((sphere, inliers, rms));
             }
-        }
-        let rms = rms_mm(inliers.iter().map(|&i| sphere.distance_mm(&points[i])));
-        let better = match &best {
-            None => true,
-            Some((_, b, b_rms)) => {
-                inliers.len() > b.len() || (inliers.len() == b.len() && rms < *b_rms)
-            }
-        };
-        if better {
-            best = Some((sphere, inliers, rms));
         }
     }
     let Some((sphere, inliers, rms)) = best else {
