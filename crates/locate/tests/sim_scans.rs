@@ -145,13 +145,14 @@ fn a_slide_with_a_scale_error_is_located_with_its_k() {
     assert!(checked >= 2, "only {checked} scans reached the fruit");
 }
 
-/// Nothing is tuned to the seed paper's laser: another rig's mount (alpha
-/// 19.6 deg, beta 0.3 deg, L0 376 mm), full scale, in sun, with radius
-/// priors across the fruit's range (the sweep's `PRIOR_MM=random`). The bars: an unoccluded fruit
-/// within 4 mm, a fifth hidden within 15 mm. Measured on seeds 1200-1215
-/// (`LASER=19.6,0.3,376 PRIOR_MM=random sweep -- 16 OCC sun 1.0 1200`):
-/// 16 of 16 found at 0 % and at 20 %, worst 1.17 and 11.57 mm (seed 1203,
-/// a fruit 11 % flatter across than wide, whose front takes a sphere too big).
+/// Another rig's laser mount (alpha 19.6 deg, beta 0.3 deg, L0 376 mm
+/// instead of the seed paper's), full scale, in sun, with radius priors
+/// across the fruit's range (the sweep's `PRIOR_MM=random`). The issue's
+/// bars: an unoccluded fruit within 4 mm, a fifth hidden within 15 mm.
+/// Measured on seeds 1200-1215 (`LASER=19.6,0.3,376 PRIOR_MM=random sweep
+/// -- 16 OCC sun 1.0 1200`): 16 of 16 found at 0 % and at 20 %, worst 1.17
+/// and 11.57 mm (seed 1203, a fruit 11 % shorter top to bottom than
+/// across, whose front took a sphere of 45.6 mm for a 35.6 mm fruit).
 #[test]
 fn another_lasers_mount_in_sun_is_located_as_well() {
     let true_laser =
