@@ -329,32 +329,37 @@ fn fit_prior_radius(
     }
     let radius = prior.fruit_radius_mm;
     let threshold = options.inlier_threshold_mm;
+    // The points a sphere holds: within the inlier threshold.
+    let held_by = |sphere: &Sphere| -> Vec<usize> {
+        (0..points.len()).filter(|&i| sphere.distance_mm(&points[i]) <= threshold).collect()
+    };
+    // Gauss-Newton on the centre from `sphere` through `inliers`, then
+    // through the points it holds, four times.
+    let refine = |mut sphere: Sphere, mut inliers: Vec<usize>| {
+        for _ in 0..4 {
+            let chosen: Vec<Point3<f64>> = inliers.iter().map(|&i| points[i]).collect();
+            let Some(centre) = fit_centre_for_radius(&chosen, &sphere.centre, radius) else {
+                break;
+            };
+            sphere.centre = centre;
+            inliers = held_by(&sphere);
+            if inliers.len() < 4 {
+                break;
+            }
+        }
+        (sphere, inliers)
+    };
     let mut best: Option<(Sphere, Vec<usize>, f64)> = None;
-    let all: Vec<usize> = (0..points.len()).collect();
     for start in starts.iter().chain(std::iter::once(&search.centre)) {
         let start = Sphere { centre: *start, radius_mm: radius };
         // From all the points, and from those the start's sphere holds: a
         // frame's candidate near the fruit, pulled off by another frame's
         // arc on something else in the first step, would not come back.
-        let held: Vec<usize> =
-            all.iter().copied().filter(|&i| start.distance_mm(&points[i]) <= threshold).collect();
-        let first_sets = if held.len() >= 4 { vec![all.clone(), held] } else { vec![all.clone()] };
+        let all: Vec<usize> = (0..points.len()).collect();
+        let held = held_by(&start);
+        let first_sets = if held.len() >= 4 { vec![all, held] } else { vec![all] };
         for first in first_sets {
-            let mut sphere = start;
-            let mut inliers = first;
-            for _ in 0..4 {
-                let chosen: Vec<Point3<f64>> = inliers.iter().map(|&i| points[i]).collect();
-                let Some(centre) = fit_centre_for_radius(&chosen, &sphere.centre, radius) else {
-                    break;
-                };
-                sphere.centre = centre;
-                inliers = (0..points.len())
-                    .filter(|&i| sphere.distance_mm(&points[i]) <= threshold)
-                    .collect();
-                if inliers.len() < 4 {
-                    break;
-                }
-            }
+            let (sphere, inliers) = refine(start, first);
             let rms = rms_mm(inliers.iter().map(|&i| sphere.distance_mm(&points[i])));
             let better = match &best {
                 None => true,
