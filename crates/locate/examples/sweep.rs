@@ -232,6 +232,7 @@ fn main() {
         if std::env::var("DEBUG").is_ok() {
             let answer =
                 locate(&scan.camera, &laser, &prior, &frames, &LocateOptions::default()).unwrap();
+            println!("reason: {}", answer.reason);
             println!("truth shape {:?}", scan.scene.objects[0].shape);
             for (c, r) in scan.scene.neighbours() {
                 println!(

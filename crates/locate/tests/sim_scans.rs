@@ -437,6 +437,29 @@ fn a_prior_radius_sphere_started_at_the_fruit_is_not_pulled_off_by_another_arc()
     assert!(error < 4.0, "{error:.2} mm: {}", answer.reason);
 }
 
+/// Where the free fit fails and both fallbacks hold, the sphere of the
+/// prior radius and the outline's, and lie within a fifth of the prior of
+/// each other, the outline's answers: it fixes the fruit across the line
+/// of sight and its size, where a sphere of an assumed radius through
+/// short arcs slides along them. Half scale, 40 % hidden (`sweep -- 12 0.4
+/// LIGHT 0.5 200`): seed 202 in shade, the prior's sphere 6.2 mm off, the
+/// outline's 0.4 mm; seed 205 in sun, 6.2 and 1.1 mm.
+#[test]
+fn where_both_fallbacks_agree_the_outline_answers() {
+    for (seed, sun) in [(202, false), (205, true)] {
+        let sim = scan(ScanOptions {
+            orchard: OrchardOptions { occlusion: 0.4, ..OrchardOptions::default() },
+            scale: 0.5,
+            sun,
+            seed,
+            ..ScanOptions::default()
+        });
+        let label = format!("seed {seed}");
+        assert_answered_by(&sim, &label, outline_fallback, 2.0);
+        assert!(run(&sim).reason.contains("the sphere of the prior radius"));
+    }
+}
+
 /// Asserts that the fused fits of `sim` were refused for each of `reasons`
 /// (parts of `fused_rejected`) and that whatever answered, if anything,
 /// is within 15 mm of the fruit.
