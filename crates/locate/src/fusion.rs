@@ -26,8 +26,9 @@ use crate::{Candidate, FrameResult, FusedFit, Localization, LocateOptions, Statu
 /// ([`fuse`]), else a sphere of the prior radius started from the
 /// `candidates` ([`fit_prior_radius`]) or, if the options allow it, the
 /// sphere of the fruit's outline in the `views` ([`fit_with_outline`]):
-/// the outline's where both hold and agree ([`fallbacks_agree`]), the
-/// prior's where they disagree, either where only it holds.
+/// the outline's where both hold and lie within
+/// [`MAX_FALLBACK_DISAGREEMENT`] of each other, the prior's where they
+/// lie farther apart, either where only it holds.
 pub(crate) fn fuse_with_fallbacks(
     results: &[FrameResult],
     context: &FrameContext,
@@ -53,17 +54,26 @@ pub(crate) fn fuse_with_fallbacks(
     match free {
         Ok(fit) => (Some(fit), None),
         Err(reason) => match fit_prior_radius(results, context, &candidate_positions) {
-            Ok(prior_fit) => match outline() {
-                Some(Ok(fit)) if fallbacks_agree(&fit, &prior_fit, context) => {
-                    let apart = (fit.sphere.centre - prior_fit.sphere.centre).norm();
-                    let reason = format!(
-                        "{reason}; the sphere of the prior radius ({} points) lies {apart:.1} mm from the outline's",
-                        prior_fit.n_points
-                    );
-                    (Some(fit), Some(reason))
+            Ok(prior_fit) => {
+                let largest_apart = MAX_FALLBACK_DISAGREEMENT * context.prior.fruit_radius_mm;
+                let agreeing = outline()
+                    .and_then(Result::ok)
+                    .map(|fit| {
+                        let apart = (fit.sphere.centre - prior_fit.sphere.centre).norm();
+                        (fit, apart)
+                    })
+                    .filter(|(_, apart)| *apart <= largest_apart);
+                match agreeing {
+                    Some((fit, apart)) => {
+                        let reason = format!(
+                            "{reason}; the sphere of the prior radius ({} points) lies {apart:.1} mm from the outline's",
+                            prior_fit.n_points
+                        );
+                        (Some(fit), Some(reason))
+                    }
+                    None => (Some(prior_fit), Some(reason)),
                 }
-                _ => (Some(prior_fit), Some(reason)),
-            },
+            }
             Err(second) => {
                 let reason = if candidate_positions.is_empty() {
                     reason
@@ -89,21 +99,14 @@ pub(crate) fn fuse_with_fallbacks(
 /// the outline's wrong answers are neighbours' outlines, far from where the
 /// arcs put the fruit. Measured over 1008 half-scale scans (the sets of
 /// [`MAX_ANSWER_RADIUS_FACTOR`]): of the 176 answers of the prior's sphere,
-/// 75 had an outline's sphere that passed its checks too. Within 7.9 mm of
-/// the prior's (a fifth of its 40 mm), all 73 of them: 0.2-6.1 mm from the
-/// truth, median 1.6 mm, where the prior's were 1.1-7.5 mm off, median
-/// 3.5 mm (10 outlines worse than the prior, by at most 2.7 mm). Beyond it: seed 408 (`CLUSTER=1 BRANCHES=2 sweep -- 24 0.2 shade
-/// 0.5 400`, 10.2 mm apart: the outline 0.2 mm off, the prior 10.2 mm) and
-/// seed 720 (`CLUSTER=1 sweep -- 48 0.6 shade 0.5 700`, 12.5 mm apart: the
+/// 75 had an outline's sphere that passed its checks too. 73 of those lay
+/// within 7.9 mm of the prior's (a fifth of the 40 mm prior is 8 mm), and
+/// were 0.2-6.1 mm from the truth, median 1.6 mm, where the prior's were 1.1-7.5 mm off, median
+/// 3.5 mm (10 outlines worse than the prior, by at most 2.7 mm). Beyond
+/// it: seed 408 (`CLUSTER=1 BRANCHES=2 sweep -- 24 0.2 shade 0.5 400`,
+/// 10.2 mm apart: the outline 0.2 mm off, the prior 10.2 mm) and seed 720 (`CLUSTER=1 sweep -- 48 0.6 shade 0.5 700`, 12.5 mm apart: the
 /// outline 18.6 mm off, the prior 8.7 mm).
 const MAX_FALLBACK_DISAGREEMENT: f64 = 0.2;
-
-/// Whether the outline's sphere `outline` lies within
-/// [`MAX_FALLBACK_DISAGREEMENT`] of the prior radius's sphere `prior_fit`.
-fn fallbacks_agree(outline: &FusedFit, prior_fit: &FusedFit, context: &FrameContext) -> bool {
-    let apart = (outline.sphere.centre - prior_fit.sphere.centre).norm();
-    apart <= MAX_FALLBACK_DISAGREEMENT * context.prior.fruit_radius_mm
-}
 
 /// Largest radius of an answer's sphere (the free fit's, refined or not,
 /// and the outline's), as a factor of the radius prior; a larger one falls
