@@ -101,11 +101,12 @@ pub(crate) fn fuse_with_fallbacks(
 /// [`MAX_ANSWER_RADIUS_FACTOR`]): of the 176 answers of the prior's sphere,
 /// 75 had an outline's sphere that passed its checks too. 73 of those lay
 /// within 7.9 mm of the prior's (a fifth of the 40 mm prior is 8 mm), and
-/// were 0.2-6.1 mm from the truth, median 1.6 mm, where the prior's were 1.1-7.5 mm off, median
-/// 3.5 mm (10 outlines worse than the prior, by at most 2.7 mm). Beyond
-/// it: seed 408 (`CLUSTER=1 BRANCHES=2 sweep -- 24 0.2 shade 0.5 400`,
-/// 10.2 mm apart: the outline 0.2 mm off, the prior 10.2 mm) and seed 720 (`CLUSTER=1 sweep -- 48 0.6 shade 0.5 700`, 12.5 mm apart: the
-/// outline 18.6 mm off, the prior 8.7 mm).
+/// were 0.2-6.1 mm from the truth, median 1.6 mm, where the prior's were
+/// 1.1-7.5 mm off, median 3.5 mm (10 outlines worse than the prior, by at
+/// most 2.7 mm). Beyond it: seed 408 (`CLUSTER=1 BRANCHES=2 sweep -- 24
+/// 0.2 shade 0.5 400`, 10.2 mm apart: the outline 0.2 mm off, the prior
+/// 10.2 mm) and seed 720 (`CLUSTER=1 sweep -- 48 0.6 shade 0.5 700`,
+/// 12.5 mm apart: the outline 18.6 mm off, the prior 8.7 mm).
 const MAX_FALLBACK_DISAGREEMENT: f64 = 0.2;
 
 /// Largest radius of an answer's sphere (the free fit's, refined or not,

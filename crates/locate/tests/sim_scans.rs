@@ -35,19 +35,20 @@ fn error_mm(scan: &SimulatedScan, answer: &Localization) -> Option<f64> {
 }
 
 /// Asserts that `sim` is answered `ok` by a fused fit `kind` accepts,
-/// within `max_error_mm` of the fruit (`label` names the scan).
+/// within `max_error_mm` of the fruit (`label` names the scan); the answer.
 fn assert_answered_by(
     sim: &RenderedScan,
     label: &str,
     kind: impl Fn(&FusedFit) -> bool,
     max_error_mm: f64,
-) {
+) -> Localization {
     let answer = run(sim);
     assert_eq!(answer.status, Status::Ok, "{label}: {}", answer.reason);
     assert!(kind(answer.fused.as_ref().unwrap()), "{label}: {}", answer.reason);
     let error = error_mm(&sim.scan, &answer).unwrap();
     eprintln!("{label}: {error:.2} mm ({})", answer.reason);
     assert!(error < max_error_mm, "{label}: {error:.2} mm");
+    answer
 }
 
 /// Asserts that `sim` is `not_found` or answered within `max_error_mm`.
@@ -455,8 +456,8 @@ fn where_both_fallbacks_agree_the_outline_answers() {
             ..ScanOptions::default()
         });
         let label = format!("seed {seed}");
-        assert_answered_by(&sim, &label, outline_fallback, 2.0);
-        assert!(run(&sim).reason.contains("the sphere of the prior radius"));
+        let answer = assert_answered_by(&sim, &label, outline_fallback, 2.0);
+        assert!(answer.reason.contains("the sphere of the prior radius"), "{}", answer.reason);
     }
 }
 
