@@ -354,9 +354,9 @@ pub(crate) fn fruit_points(results: &[FrameResult]) -> (Vec<Point3<f64>>, Vec<us
 /// prior radius through the frames' fruit points (Gauss-Newton on the
 /// centre from each frame's candidate and the rough position, each first
 /// with all the points and then with those the start's sphere holds,
-/// keeping the fit with most points within the inlier threshold), with the same
-/// checks as the free fit except the coverage, which a fruit mostly hidden
-/// cannot meet.
+/// keeping the fit with most points within the inlier threshold), with
+/// the same checks as the free fit except the coverage, which a fruit
+/// mostly hidden cannot meet.
 fn fit_prior_radius(
     results: &[FrameResult],
     context: &FrameContext,
