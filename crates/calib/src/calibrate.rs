@@ -423,8 +423,8 @@ fn robust_fit(
 /// Rounds of "fit, then set the threshold from the fit's residual scale".
 const MAX_SCALE_ROUNDS: usize = 4;
 
-/// The inlier threshold in robust residual scales: 2.5 sigma keeps 99 % of
-/// Gaussian inliers.
+/// The inlier threshold in robust residual scales: 2.5 sigma keeps 98.8 %
+/// of Gaussian inliers.
 const SCALE_THRESHOLD_FACTOR: f64 = 2.5;
 
 /// The threshold never grows beyond this many times `--threshold-mm`.

@@ -24,7 +24,7 @@
 //!    (s r)^2 along, 4/15 across; the same where the fruit's outline
 //!    refined the fit (its rays fix the two semi-axes across the line of
 //!    sight, and with the front's curvature the one along it: this errs
-//!    on the large side, the measured mean squared distance is 1.1, not
+//!    on the large side, the measured mean squared distance is 1.0, not
 //!    3). A fruit that needed a fallback (the prior's radius, the
 //!    outline) is not seen from limb to limb, and gets the along-sight
 //!    variance across it too.
@@ -33,11 +33,12 @@
 //!    error, taken as uniform over the radius range the options accept.
 //!
 //! The calibration's own error (alpha, L0, beta) is not in it: at the
-//! standard deviations a 10-pose session gives (alpha 0.009 deg, L0
-//! 0.016 mm, beta 0.0025 deg) it moves a point at 1 m by about 0.4-0.6 mm
-//! (dz/d alpha = z^2 (cos a + u sin a) / L, L = 280-380 mm), a variance
-//! under 2 % of the shape's along the line of sight (about 5 mm for a
-//! 40 mm sphere fit).
+//! standard deviations the README's 10-pose session gives (alpha
+//! 0.0017 deg, L0 0.004 mm, beta 0.0006 deg) it moves a point at 1 m by
+//! about 0.07-0.1 mm (dz/d alpha = z^2 (cos a + u sin a) / L, L = 280-380
+//! mm), a variance under 0.1 % of the shape's along the line of sight
+//! (about 5 mm for a 40 mm sphere fit); before the corners were fitted as
+//! X-junctions (alpha 0.009 deg), 0.4-0.6 mm, still under 2 %.
 
 use nalgebra::{DMatrix, Matrix3, Point3, Vector3};
 

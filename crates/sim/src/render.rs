@@ -37,7 +37,9 @@
 //! the 5 MP camera) behind an f/8 lens sees E rho / (4 N^2) of a
 //! Lambertian surface's irradiance E, 0.39 W/m^2 at 100 W/m^2, about
 //! 1.5e7 photons/s at 650 nm, 9,000 electrons per ms at a quantum
-//! efficiency of 0.6. Light scales with the exposure time, the gain
+//! efficiency of 0.6 (the model takes the full well, 12 % more: within
+//! what the albedo, the lens's transmission and the quantum efficiency
+//! are known to). Light scales with the exposure time, the gain
 //! multiplies electrons into DN (and the noise with them); a pixel whose
 //! electrons exceed the full well reads 255 (clipped), as does any value
 //! the gain pushes past 255.
