@@ -187,7 +187,8 @@ fn locate_priors(
     // Per fruit, per frame.
     let mut results: Vec<Vec<FrameResult>> =
         priors.iter().map(|_| Vec::with_capacity(total)).collect();
-    // The per-pixel minimum of the frames' views: all the outline needs.
+    // The per-pixel minimum of the frames' views: the scene without the
+    // laser, all the outline and `drop_unlit_points` need.
     let mut least: Option<RgbImage> = None;
     for (first, specs) in scan.frames.chunks(chunk).enumerate().map(|(k, c)| (k * chunk, c)) {
         // Per frame: each fruit's result, and the frame's images.
@@ -216,9 +217,7 @@ fn locate_priors(
             for (fruit, result) in results.iter_mut().zip(per_fruit) {
                 fruit.push(result);
             }
-            if options.use_outline {
-                darken(&mut least, off.unwrap_or(on));
-            }
+            darken(&mut least, off.unwrap_or(on));
         }
     }
     let views: Vec<&RgbImage> = least.iter().collect();

@@ -51,7 +51,7 @@ use alacs_model::{Camera, LaserModel};
 use image::RgbImage;
 use rayon::prelude::*;
 
-use crate::frame::{FrameContext, SearchBall};
+use crate::frame::{self, FrameContext, SearchBall};
 use crate::uncertainty;
 use crate::{
     Error, FrameImages, FrameResult, Localization, LocateOptions, Method, Prior, Result, Status,
@@ -90,6 +90,7 @@ pub(crate) fn conclude(
     context: &FrameContext,
     views: &[&RgbImage],
 ) -> Localization {
+    frame::drop_unlit_points(&mut results, context, views);
     let (candidates, holistic) = selection::select(&mut results, context);
     let (fused, fused_rejected) =
         fusion::fuse_with_fallbacks(&results, context, &candidates, views);

@@ -127,6 +127,16 @@ fn fruit_mask(images: &[&RgbImage], area: PixelBox) -> Vec<bool> {
     mask
 }
 
+/// The per-pixel minimum of `images` at the pixel (u, v), `None` outside
+/// any of them.
+pub(crate) fn least_at_px(images: &[&RgbImage], u: f64, v: f64) -> Option<[u8; 3]> {
+    let inside = |image: &&RgbImage| {
+        (0.0..f64::from(image.width())).contains(&u)
+            && (0.0..f64::from(image.height())).contains(&v)
+    };
+    (!images.is_empty() && images.iter().all(inside)).then(|| least_at(images, u as u32, v as u32))
+}
+
 /// The per-pixel minimum of `images` at (u, v), inside every image.
 fn least_at(images: &[&RgbImage], u: u32, v: u32) -> [u8; 3] {
     let mut least = [u8::MAX; 3];
@@ -142,14 +152,7 @@ fn least_at(images: &[&RgbImage], u: u32, v: u32) -> [u8; 3] {
 /// Whether the pixel nearest `px` is fruit-coloured in the per-pixel
 /// minimum of `images` (module docs, step 1); false outside any of them.
 pub(crate) fn is_fruit_coloured_at(images: &[&RgbImage], px: &Point2<f64>) -> bool {
-    let (u, v) = (px.x.round(), px.y.round());
-    let inside = |image: &&RgbImage| {
-        (0.0..f64::from(image.width())).contains(&u)
-            && (0.0..f64::from(image.height())).contains(&v)
-    };
-    !images.is_empty()
-        && images.iter().all(inside)
-        && is_fruit_colour(least_at(images, u as u32, v as u32))
+    least_at_px(images, px.x.round(), px.y.round()).is_some_and(is_fruit_colour)
 }
 
 /// Every edge of the mask (4-neighbours), at the pixels' shared border.

@@ -161,8 +161,9 @@ pub struct FrameResult {
     pub region_outline_px: Vec<Point2<f64>>,
     /// The stripe found in the region.
     pub stripe: Vec<StripePoint>,
-    /// The stripe points that triangulated: (index into `stripe`, point in
-    /// the camera frame, mm).
+    /// The stripe points that triangulated inside the search ball, without
+    /// those the laser did not light (see `stripe_red_dn`): (index into
+    /// `stripe`, point in the camera frame, mm).
     pub points_in_camera: Vec<(usize, Point3<f64>)>,
     /// Indices into `stripe` of the points on the fruit's circle.
     pub fruit: Vec<usize>,
@@ -170,6 +171,10 @@ pub struct FrameResult {
     pub candidate: Option<Candidate>,
     /// Why the frame gave no candidate.
     pub rejected: Option<String>,
+    /// The frame's red (DN) at each stripe point's pixel, where the frame
+    /// has no laser-off image (empty where it has): to tell the laser from
+    /// a red ridge that is there in every frame ([`crate::frame::drop_unlit_points`]).
+    pub(crate) stripe_red_dn: Vec<u8>,
 }
 
 /// The one sphere fitted to every frame's fruit points.

@@ -151,9 +151,13 @@ fn a_slide_with_a_scale_error_is_located_with_its_k() {
 /// across the fruit's range (the sweep's `PRIOR_MM=random`). The issue's
 /// bars: an unoccluded fruit within 4 mm, a fifth hidden within 15 mm.
 /// Measured on seeds 1200-1215 (`LASER=19.6,0.3,376 PRIOR_MM=random sweep
-/// -- 16 OCC sun 1.0 1200`): 16 of 16 found at 0 % and at 20 %, worst 1.17
-/// and 11.57 mm (seed 1203, a fruit 11 % shorter top to bottom than
-/// across, whose front took a sphere of 45.6 mm for a 35.6 mm fruit).
+/// -- 16 OCC sun 1.0 1200`): 16 of 16 found at 0 % and at 20 %, worst 1.19
+/// and 13.43 mm (seed 1212, 29 % hidden: without the stripe points the
+/// laser did not light, one frame's arc no longer bends beyond its noise,
+/// the free fit fails and the sphere of the prior radius answers; 1.05 mm
+/// before). Seed 1203 (a fruit 11 % shorter top to bottom than across,
+/// whose front took a sphere of 45.6 mm for a 35.6 mm fruit) was 11.57 mm
+/// off before, 2.43 mm now.
 #[test]
 fn another_lasers_mount_in_sun_is_located_as_well() {
     let true_laser =
@@ -375,6 +379,63 @@ fn an_outline_behind_the_target_does_not_lend_the_target_its_sphere() {
     assert_near_or_not_found(&cluster_half_scale(2, 1, 0.6, 123), 15.0);
 }
 
+/// Regression: where a leaf's shadow hides the laser, a row's stripe peak
+/// can be a red ridge of the scene itself, there in every frame (a sunlit
+/// fruit's rim against a leaf). Triangulated on the frame's laser plane,
+/// such points fixed the depth of the outline's sphere: full scale,
+/// another laser's mount, 64 % hidden, sun (`LASER=18.6,1.1,372
+/// PRIOR_MM=random sweep -- 1 0.6 sun 1.0 4011`), 33.4 mm off, the points
+/// 30 mm behind the fruit's front; half scale, a cluster of four behind
+/// two branches, 73 % hidden, sun (`CLUSTER=3 BRANCHES=2 sweep -- 1 0.4 sun
+/// 0.5 533`), 25.2 mm off. A stripe point whose pixel is no brighter than
+/// in the frames' per-pixel minimum is not the laser's.
+#[test]
+fn a_red_ridge_in_every_frame_is_no_laser_point() {
+    let true_laser =
+        alacs_model::LaserModel::from_degrees(alacs_model::Fidelity::High, 18.6, 1.1, 372.0);
+    let options = ScanOptions {
+        orchard: OrchardOptions { occlusion: 0.6, ..OrchardOptions::default() },
+        sun: true,
+        seed: 4011,
+        ..ScanOptions::default()
+    };
+    let sim = simulate_rendered_scan(&Camera::blackfly_s_5mp(), &true_laser, &options).unwrap();
+    let answer = run_with_prior(&sim, 44.3);
+    if let Some(error) = error_mm(&sim.scan, &answer) {
+        assert!(error < 15.0, "seed 4011: {error:.1} mm: {}", answer.reason);
+    }
+    let orchard = OrchardOptions {
+        cluster: 3,
+        front_branches: 2,
+        occlusion: 0.4,
+        ..OrchardOptions::default()
+    };
+    let sim =
+        scan(ScanOptions { orchard, scale: 0.5, sun: true, seed: 533, ..ScanOptions::default() });
+    assert_near_or_not_found(&sim, 15.0);
+}
+
+/// The frames' per-pixel minimum is the scene without the laser only where
+/// their slides lie apart: copies of one frame at one slide position light
+/// the same pixels, and keep every stripe point the frame alone keeps.
+#[test]
+fn frames_at_one_slide_keep_their_stripe() {
+    let sim = scan(ScanOptions { scale: 0.5, seed: 0, ..ScanOptions::default() });
+    let (image, slide_mm) = sim.frames().nth(2).unwrap();
+    let prior = Prior { rough_position_mm: sim.scan.rough_position_mm, fruit_radius_mm: 40.0 };
+    let at = |n: usize| {
+        let frames: Vec<FrameImages> =
+            (0..n).map(|_| FrameImages::from((image, slide_mm))).collect();
+        let (camera, laser) = (&sim.scan.camera, &sim.scan.laser);
+        locate(camera, laser, &prior, &frames, &LocateOptions::default()).unwrap()
+    };
+    let alone = at(1).frames[0].points_in_camera.len();
+    assert!(alone > 50, "{alone} points");
+    for frame in at(3).frames {
+        assert_eq!(frame.points_in_camera.len(), alone);
+    }
+}
+
 /// Regression: in a cluster of four behind two branches, the outline took
 /// in a neighbour and refined the target's sphere (4.5 mm off) to an
 /// ellipsoid with semi-axes 45, 48 and 60 mm, 17 mm off. No apple is that
@@ -421,21 +482,26 @@ fn a_free_fit_needs_two_frames_that_each_cut_the_fruit() {
 /// first step with every frame's points, a third frame's arc on something
 /// else among them, and settled 14.3 mm off, holding 44 of the 87 fruit
 /// points where the fruit's own surface held 77. Each start now also
-/// begins from the points its own sphere holds: 1.8 mm.
+/// begins from the points its own sphere holds: 1.8 mm. Since the stripe
+/// points the laser did not light are dropped, seed 1401 shows the fruit in
+/// one frame (not found); the start from the held points decides on a
+/// target 66 % hidden in a cluster of four behind two branches, in sun
+/// (`CLUSTER=3 BRANCHES=2 PRIOR_MM=random sweep -- 1 0.4 sun 1.0 1300`):
+/// 4.75 mm, where the starts from every point find no sphere that passes.
 #[test]
 fn a_prior_radius_sphere_started_at_the_fruit_is_not_pulled_off_by_another_arc() {
     let orchard = OrchardOptions {
-        cluster: 2,
-        front_branches: 1,
-        occlusion: 0.6,
+        cluster: 3,
+        front_branches: 2,
+        occlusion: 0.4,
         ..OrchardOptions::default()
     };
-    let sim = scan(ScanOptions { orchard, seed: 1401, ..ScanOptions::default() });
-    let answer = run_with_prior(&sim, 43.66);
+    let sim = scan(ScanOptions { orchard, sun: true, seed: 1300, ..ScanOptions::default() });
+    let answer = run_with_prior(&sim, 39.44);
     assert_eq!(answer.status, Status::Ok, "{}", answer.reason);
     assert!(answer.fused.as_ref().unwrap().radius_from_prior, "{}", answer.reason);
     let error = error_mm(&sim.scan, &answer).unwrap();
-    assert!(error < 4.0, "{error:.2} mm: {}", answer.reason);
+    assert!(error < 6.0, "{error:.2} mm: {}", answer.reason);
 }
 
 /// Where the free fit fails and both fallbacks hold, the sphere of the
@@ -443,11 +509,15 @@ fn a_prior_radius_sphere_started_at_the_fruit_is_not_pulled_off_by_another_arc()
 /// each other, the outline's answers: it fixes the fruit across the line
 /// of sight and its size, where a sphere of an assumed radius through
 /// short arcs slides along them. Half scale, 40 % hidden (`sweep -- 12 0.4
-/// LIGHT 0.5 200`): seed 202 in shade, the prior's sphere 6.2 mm off, the
-/// outline's 0.4 mm; seed 205 in sun, 6.2 and 1.1 mm.
+/// LIGHT 0.5 200`): when this came in, seed 202 in shade, the prior's
+/// sphere 6.2 mm off, the outline's 0.4 mm; seed 205 in sun, 6.2 and 1.1
+/// mm. Since the stripe points the laser did not light are dropped, the
+/// prior's sphere fails on those two (they show one arc each) and the
+/// outline answers them as the last resort; seed 211 in shade and 207 in
+/// sun are answered where both hold, 1.3 and 0.1 mm off.
 #[test]
 fn where_both_fallbacks_agree_the_outline_answers() {
-    for (seed, sun) in [(202, false), (205, true)] {
+    for (seed, sun) in [(211, false), (207, true)] {
         let sim = scan(ScanOptions {
             orchard: OrchardOptions { occlusion: 0.4, ..OrchardOptions::default() },
             scale: 0.5,
@@ -478,10 +548,14 @@ fn assert_refused_and_near(sim: &RenderedScan, reasons: &[&str]) {
 /// Regression: a target 37 % hidden in a cluster of three behind a branch,
 /// 1.07 m away (radius 36.7 mm, prior 40): the free fit through its arcs
 /// and a neighbour's swelled to a sphere of 52.8 mm and stood 17.1 mm off.
-/// No answer's sphere may be more than 1.3 times the prior.
+/// No answer's sphere may be more than 1.3 times the prior. Since the
+/// stripe points the laser did not light are dropped, the free fit of this
+/// scan lies beyond the rough position's error and is refused before its
+/// radius is looked at (the check itself: `fusion`'s unit test
+/// `a_sphere_swollen_beyond_the_prior_is_refused`).
 #[test]
 fn a_sphere_swollen_far_beyond_the_prior_is_no_answer() {
-    assert_refused_and_near(&cluster_half_scale(2, 1, 0.2, 603), &["times the prior's"]);
+    assert_near_or_not_found(&cluster_half_scale(2, 1, 0.2, 603), 15.0);
 }
 
 /// Regression: with a radius prior of 46 mm, a fruit 46 mm across and
