@@ -2,9 +2,10 @@
 //!
 //! [`locate_scan`] decodes a few frames at a time ([`MAX_FRAMES_IN_FLIGHT`])
 //! and keeps of each only what the answer needs (its [`FrameResult`], and
-//! the per-pixel minimum of the views for the outline), so its memory does
-//! not grow with the images. [`read_scan_images`] holds every image, for
-//! callers that show them (the scan report), and refuses scans of more than
+//! the per-pixel minimum of the views, for the outline and the stripe
+//! points the laser did not light), so its memory does not grow with the
+//! images. [`read_scan_images`] holds every image, for callers that show
+//! them (the scan report), and refuses scans of more than
 //! [`MAX_SCAN_FRAMES`].
 
 use std::sync::atomic::{AtomicUsize, Ordering};

@@ -491,9 +491,9 @@ const MIN_PRIOR_FIT_SHARE: f64 = 0.5;
 /// frames, and a sphere fitted to it and to the laser points near the
 /// fruit on fruit-coloured pixels, from every frame (not only the arcs the
 /// frames kept). Enough of them must lie on the sphere besides the
-/// frames' arcs that cross it ([`MIN_ARC_SHARE`]), the laser must confirm
-/// a curved surface, in one frame or across two or more, and the sphere
-/// passes the same checks as the others.
+/// frames' arcs that cross it ([`MIN_ARC_SHARE`]), in two frames or more,
+/// the laser must confirm a curved surface, in one frame or across them,
+/// and the sphere passes the same checks as the others.
 fn fit_with_outline(
     results: &[FrameResult],
     context: &FrameContext,
@@ -590,8 +590,8 @@ fn fit_with_outline(
             fit.inliers.len()
         ));
     }
-    let bends_across_frames = n_frames >= 2
-        && check_not_flat(&on_sphere, fit.rms_mm, OUTLINE_CURVATURE_SIGNIFICANCE).is_ok();
+    let bends_across_frames =
+        check_not_flat(&on_sphere, fit.rms_mm, OUTLINE_CURVATURE_SIGNIFICANCE).is_ok();
     let curved = bends_across_frames
         || results.iter().enumerate().any(|(k, result)| {
             let Some(plane) = PlaneFrame::new(context.laser, result.slide_mm) else { return false };
