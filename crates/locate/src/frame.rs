@@ -9,6 +9,7 @@ use image::RgbImage;
 use nalgebra::{Point2, Point3, Unit, Vector3};
 
 use crate::fit::{Circle, CircleEstimator, line_rms_mm, rms_mm};
+use crate::outline::least_at_px;
 use crate::{Candidate, FrameImages, FrameResult, LocateOptions, Prior, Result};
 
 /// The ball around the rough position that holds the fruit, and the
@@ -161,7 +162,11 @@ impl FrameContext<'_> {
         result.stripe =
             extract_stripe_rgb(frame.image, frame.image_laser_off, &region, &self.options.stripe)?;
         if frame.image_laser_off.is_none() {
-            result.stripe_red_dn = result.stripe.iter().map(|s| red_at(frame.image, s)).collect();
+            // The pixel's red: the per-pixel minimum of this one image.
+            let red_at = |s: &StripePoint| {
+                least_at_px(&[frame.image], s.u_px.round(), s.v_px.round()).map_or(0, |rgb| rgb[0])
+            };
+            result.stripe_red_dn = result.stripe.iter().map(red_at).collect();
         }
         // 3. Triangulated points inside the ball.
         let prepared = self.laser.prepare();
@@ -175,22 +180,15 @@ impl FrameContext<'_> {
                 ((p - self.search.centre).norm() <= self.search.radius_mm).then_some((i, p))
             })
             .collect();
-        match self.frame_candidate(index, frame.slide_mm, &plane, &result) {
-            Ok((fruit, candidate)) => {
-                result.fruit = fruit;
-                result.candidate = Some(candidate);
-            }
-            Err(reason) => result.rejected = Some(reason),
-        }
+        self.find_candidate(index, &plane, &mut result);
         Ok(result)
     }
 
-    /// The frame's fruit points and candidate again, from its
-    /// `points_in_camera` (after [`drop_unlit_points`] took some).
-    fn redo_candidate(&self, index: usize, result: &mut FrameResult) {
-        let Some(plane) = PlaneFrame::new(self.laser, result.slide_mm) else { return };
+    /// The frame's fruit points and candidate, or why it has none, from its
+    /// `points_in_camera` (again after [`drop_unlit_points`] took some).
+    fn find_candidate(&self, index: usize, plane: &PlaneFrame, result: &mut FrameResult) {
         (result.fruit, result.candidate, result.rejected) =
-            match self.frame_candidate(index, result.slide_mm, &plane, result) {
+            match self.frame_candidate(index, result.slide_mm, plane, result) {
                 Ok((fruit, candidate)) => (fruit, Some(candidate), None),
                 Err(reason) => (Vec::new(), None, Some(reason)),
             };
@@ -354,15 +352,6 @@ pub(crate) fn no_candidate_reason(results: &[FrameResult]) -> String {
     }
 }
 
-/// The red channel (DN) at a stripe point's pixel.
-fn red_at(image: &RgbImage, point: &StripePoint) -> u8 {
-    let (u, v) = (point.u_px.round(), point.v_px.round());
-    if u < 0.0 || v < 0.0 || u >= f64::from(image.width()) || v >= f64::from(image.height()) {
-        return 0;
-    }
-    image.get_pixel(u as u32, v as u32).0[0]
-}
-
 /// Slide positions closer than this may light the same pixels (the
 /// stripe, a few pixels wide, moves about 2 px per mm at 1 m): frames
 /// this close do not show each other's unlit view.
@@ -394,16 +383,16 @@ pub(crate) fn drop_unlit_points(
     context: &FrameContext,
     views: &[&RgbImage],
 ) {
+    if views.is_empty() {
+        return;
+    }
     let (lowest, highest) = results
         .iter()
         .map(|r| r.slide_mm)
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), s| (lo.min(s), hi.max(s)));
     for (index, result) in results.iter_mut().enumerate() {
         let farthest_mm = (result.slide_mm - lowest).max(highest - result.slide_mm);
-        if views.is_empty()
-            || farthest_mm < MIN_SLIDES_APART_MM
-            || result.stripe_red_dn.len() != result.stripe.len()
-        {
+        if farthest_mm < MIN_SLIDES_APART_MM || result.stripe_red_dn.len() != result.stripe.len() {
             continue;
         }
         let before = result.points_in_camera.len();
@@ -412,14 +401,16 @@ pub(crate) fn drop_unlit_points(
         result.points_in_camera.retain(|(i, _)| {
             let point = &stripe[*i];
             let (u, v) = (point.u_px.round(), point.v_px.round());
-            let unlit = crate::outline::least_at_px(views, u, v).map_or(0, |rgb| rgb[0]);
+            let unlit = least_at_px(views, u, v).map_or(0, |rgb| rgb[0]);
             // Where the red clips, the laser shows no more than the
             // clipping leaves room for.
             let least_added = min_strength.min(f32::from(u8::MAX - unlit)).max(1.0);
             f32::from(red[*i].saturating_sub(unlit)) >= least_added
         });
-        if result.points_in_camera.len() < before {
-            context.redo_candidate(index, result);
+        if let Some(plane) = PlaneFrame::new(context.laser, result.slide_mm)
+            .filter(|_| result.points_in_camera.len() < before)
+        {
+            context.find_candidate(index, &plane, result);
         }
     }
 }

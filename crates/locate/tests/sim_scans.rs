@@ -13,7 +13,12 @@ mod common;
 
 /// Simulates and renders the scan.
 fn scan(options: ScanOptions) -> RenderedScan {
-    simulate_rendered_scan(&Camera::blackfly_s_5mp(), &laser(), &options).unwrap()
+    scan_with_laser(&laser(), options)
+}
+
+/// Simulates and renders the scan with `laser` (another mount's).
+fn scan_with_laser(laser: &alacs_model::LaserModel, options: ScanOptions) -> RenderedScan {
+    simulate_rendered_scan(&Camera::blackfly_s_5mp(), laser, &options).unwrap()
 }
 
 /// Locates the scan's fruit with the true camera and laser.
@@ -120,7 +125,7 @@ fn a_slide_with_a_scale_error_is_located_with_its_k() {
     let mut checked = 0;
     for seed in [0, 1, 2] {
         let options = ScanOptions { seed, ..ScanOptions::default() };
-        let sim = simulate_rendered_scan(&Camera::blackfly_s_5mp(), &true_laser, &options).unwrap();
+        let sim = scan_with_laser(&true_laser, options);
         if sim.scan.plan.shifted {
             continue;
         }
@@ -170,8 +175,7 @@ fn another_lasers_mount_in_sun_is_located_as_well() {
                 seed,
                 ..ScanOptions::default()
             };
-            let sim =
-                simulate_rendered_scan(&Camera::blackfly_s_5mp(), &true_laser, &options).unwrap();
+            let sim = scan_with_laser(&true_laser, options);
             let answer = run_with_prior(&sim, fruit_radius_mm);
             let label = format!("seed {seed}, {:.0} % hidden", 100.0 * sim.scan.scene.occlusion);
             assert_eq!(answer.status, Status::Ok, "{label}: {}", answer.reason);
@@ -399,7 +403,7 @@ fn a_red_ridge_in_every_frame_is_no_laser_point() {
         seed: 4011,
         ..ScanOptions::default()
     };
-    let sim = simulate_rendered_scan(&Camera::blackfly_s_5mp(), &true_laser, &options).unwrap();
+    let sim = scan_with_laser(&true_laser, options);
     let answer = run_with_prior(&sim, 44.3);
     if let Some(error) = error_mm(&sim.scan, &answer) {
         assert!(error < 15.0, "seed 4011: {error:.1} mm: {}", answer.reason);
