@@ -13,6 +13,13 @@ mod failure;
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
+    // Past a file-size limit (`ulimit -f`), a write fails with EFBIG instead
+    // of the process being killed by SIGXFSZ: the writer then removes its
+    // temporary file and the error names the output.
+    let _ = signal_hook::flag::register(
+        signal_hook::consts::SIGXFSZ,
+        std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false)),
+    );
     let cli = match parse() {
         Ok(cli) => cli,
         Err(error) => return usage_error(&error),
@@ -24,7 +31,7 @@ fn main() -> ExitCode {
         // what it wanted (as ripgrep does).
         Err(failure) if failure.is_broken_pipe() => ExitCode::SUCCESS,
         Err(failure) => {
-            eprintln!("error: {:#}", failure.error);
+            errln!("error: {:#}", failure.error);
             if json {
                 // Standard output may itself be what failed; nothing more to do then.
                 let _ = output::print_json(&failure.to_json());

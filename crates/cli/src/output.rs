@@ -37,6 +37,23 @@ macro_rules! outln {
     };
 }
 
+/// `errln!` through [`print_err`]: a line on standard error that never
+/// panics and never stops the command.
+macro_rules! errln {
+    ($($arg:tt)*) => {
+        $crate::output::print_err(&format!("{}\n", format_args!($($arg)*)))
+    };
+}
+
+/// Writes `text` to standard error, ignoring a closed or full stream: a
+/// message that cannot be shown must not lose the work it is about
+/// (`alacs scan ... 2>&1 | head -1`, `2>/dev/full`).
+pub fn print_err(text: &str) {
+    use std::io::Write as _;
+    let mut stderr = std::io::stderr().lock();
+    let _ = stderr.write_all(text.as_bytes()).and_then(|()| stderr.flush());
+}
+
 /// Prints `value` as the one JSON object on standard output.
 pub fn print_json(value: &Value) -> CmdResult {
     print_text(&format!("{value}\n"))

@@ -49,7 +49,7 @@ pub use html::{
     CalibrationReport, ScanReport, ScanReportFrame, calibration_report,
     calibration_report_from_views, write_calibration_html, write_scan_html,
 };
-pub use output::{KIND_FILE, OutputKind, open_output, open_sub_output};
+pub use output::{OutputKind, open_output, open_sub_output};
 pub use plot::{ViewDiagnostics, write_accuracy_boxplots, write_residual_plot, write_view_plots};
 pub use report::{write_accuracy_report, write_calibration_report};
 pub use stats::{BoxStats, median, quantile_sorted};

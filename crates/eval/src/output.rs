@@ -1,17 +1,14 @@
 //! The folders eval writes into. Every file goes through `alacs-model`'s
-//! [`OutputDir`] (atomic writes, a manifest, the earlier run's stale files
-//! removed); [`open_output`] adds which command owns the folder, so that
-//! one command's report does not replace another's (a scan report over a
-//! calibration report's `index.html`, say).
+//! [`OutputDir`] (atomic writes, a lock, a manifest naming the command, the
+//! earlier run's stale files removed), so that one command's report does
+//! not replace another's (a scan report over a calibration report's
+//! `index.html`, say).
 
 use std::path::Path;
 
 use alacs_model::io::{MANIFEST_FILE, OutputDir};
 
 use crate::Result;
-
-/// The file (listed in the manifest) naming the command that owns a folder.
-pub const KIND_FILE: &str = ".alacs-kind";
 
 /// Which command fills a folder.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -30,7 +27,7 @@ pub enum OutputKind {
 }
 
 impl OutputKind {
-    /// The command's name, as written in [`KIND_FILE`].
+    /// The command's name, as its folder's manifest records it.
     pub fn as_str(self) -> &'static str {
         match self {
             OutputKind::EvaluateCalibration => "evaluate calibration",
@@ -43,28 +40,10 @@ impl OutputKind {
 }
 
 /// Opens `dir` for the output of the command `kind`: refused (unless
-/// `force`) with [`alacs_model::Error::OutputNotEmpty`] when it holds files
-/// the command did not write: files of no alacs command, or those of
-/// another command (another kind, or no kind recorded).
+/// `force`) when it holds files the command did not write, those of no
+/// alacs command or of another command ([`OutputDir::create`]).
 pub fn open_output(dir: &Path, kind: OutputKind, force: bool) -> Result<OutputDir> {
-    if !force {
-        let earlier: Vec<String> = std::fs::read_to_string(dir.join(MANIFEST_FILE))
-            .map(|text| text.lines().filter(|l| !l.is_empty()).map(str::to_owned).collect())
-            .unwrap_or_default();
-        let owner = std::fs::read_to_string(dir.join(KIND_FILE)).unwrap_or_default();
-        let theirs: Vec<&String> = earlier.iter().filter(|name| *name != KIND_FILE).collect();
-        if owner.trim() != kind.as_str() && !theirs.is_empty() {
-            return Err(alacs_model::Error::OutputNotEmpty {
-                path: dir.to_path_buf(),
-                example: theirs[0].clone(),
-                count: theirs.len(),
-            }
-            .into());
-        }
-    }
-    let mut out = OutputDir::create(dir, force)?;
-    out.write(KIND_FILE, format!("{}\n", kind.as_str()))?;
-    Ok(out)
+    Ok(OutputDir::create(dir, kind.as_str(), force)?)
 }
 
 /// Opens the sub-folder `name` of `parent` for the command `kind`, as
@@ -95,11 +74,12 @@ mod tests {
         open_output(&dir, OutputKind::ReportCalibration, false).unwrap();
         let refused = open_output(&dir, OutputKind::ReportScan, false).unwrap_err();
         assert!(refused.is_bad_input(), "{refused}");
-        assert!(refused.to_string().contains("index.html"), "{refused}");
+        assert!(refused.to_string().contains("report calibration"), "{refused}");
         let mut out = open_output(&dir, OutputKind::ReportScan, true).unwrap();
         out.write("index.html", "scan").unwrap();
         out.finish().unwrap();
-        assert_eq!(std::fs::read_to_string(dir.join(KIND_FILE)).unwrap(), "report scan\n");
+        let manifest = std::fs::read_to_string(dir.join(MANIFEST_FILE)).unwrap();
+        assert!(manifest.starts_with("# alacs report scan\n"), "{manifest}");
         std::fs::remove_dir_all(&dir).ok();
     }
 

@@ -225,7 +225,6 @@ fn a_rerun_report_removes_its_stale_frames() {
     assert_eq!(
         files,
         [
-            ".alacs-kind",
             ".alacs-output",
             "images/frame01.jpg",
             "images/frame02.jpg",
@@ -273,11 +272,7 @@ fn scan_report_is_self_contained() {
     let (scan, answer) = (&fixture.scan, &fixture.answer);
     let dir = temp_dir("scan");
     fixture.write(&dir, &fixture.images, false).unwrap();
-    assert_eq!(
-        files_below(&dir).len(),
-        4 + scan.frames.len(),
-        "page, overview, frames, manifest, kind"
-    );
+    assert_eq!(files_below(&dir).len(), 3 + scan.frames.len(), "page, overview, frames, manifest");
     let (html, refs) = check_self_contained(&dir);
     assert!(refs.iter().any(|r| r == "images/overview.jpg"));
     for i in 1..=scan.frames.len() {

@@ -49,6 +49,59 @@ pub enum Error {
         /// How many there are.
         count: usize,
     },
+    /// An output exists and is not a regular file (a device, a FIFO, a
+    /// socket, a folder, or a link inside an output folder): never replaced.
+    #[error("{path}: is {what}, not a regular file; alacs writes only regular files")]
+    NotRegularFile {
+        /// The output.
+        path: PathBuf,
+        /// What it is ("a device", ...).
+        what: &'static str,
+    },
+    /// An input is not a regular file (a FIFO, a device, a folder).
+    #[error("{path}: is {what}, not a regular file; give a file")]
+    NotRegularInput {
+        /// The input.
+        path: PathBuf,
+        /// What it is ("a FIFO", ...).
+        what: &'static str,
+    },
+    /// An output folder's manifest names something alacs does not remove:
+    /// a path outside the folder, an absolute path, a link.
+    #[error(
+        "{path}: names `{entry}`, {reason}; alacs removes only plain files it wrote inside the folder (delete the manifest if the folder is yours)"
+    )]
+    UnsafeManifest {
+        /// The manifest.
+        path: PathBuf,
+        /// The entry.
+        entry: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// An output folder holds another command's output.
+    #[error(
+        "{path}: holds the output of `alacs {owner}`, not of `alacs {command}`; choose another folder or pass --force"
+    )]
+    OutputOfAnotherCommand {
+        /// The folder.
+        path: PathBuf,
+        /// The command that wrote it.
+        owner: String,
+        /// The command writing now.
+        command: String,
+    },
+    /// Another process is writing an output folder.
+    #[error(
+        "{path}: another alacs ({}) is writing this folder; wait for it or choose another folder",
+        if holder.is_empty() { "process unknown".to_owned() } else { format!("process {holder}") }
+    )]
+    OutputLocked {
+        /// The folder.
+        path: PathBuf,
+        /// The process id the lock file names.
+        holder: String,
+    },
     /// A CSV file (samples.csv, pixels.csv) is malformed: a missing or
     /// duplicated column, a value that is not a number, NaN or infinite, or
     /// a value out of range.
@@ -133,6 +186,11 @@ impl Error {
             Error::Io { .. }
             | Error::TooLarge { .. }
             | Error::OutputNotEmpty { .. }
+            | Error::NotRegularFile { .. }
+            | Error::NotRegularInput { .. }
+            | Error::UnsafeManifest { .. }
+            | Error::OutputOfAnotherCommand { .. }
+            | Error::OutputLocked { .. }
             | Error::Csv { .. }
             | Error::InvalidSample { .. }
             | Error::Parse { .. }

@@ -15,7 +15,7 @@
 //! holds one scan or several (the ROS node records every goal).
 
 use std::collections::BTreeMap;
-use std::io::{BufReader, BufWriter};
+use std::io::BufReader;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{SystemTime, UNIX_EPOCH};
@@ -23,6 +23,7 @@ use std::time::{SystemTime, UNIX_EPOCH};
 use alacs_locate::Localization;
 use alacs_model::Camera;
 use alacs_model::ScanPlan;
+use alacs_model::io::OutputFile;
 use alacs_scanner::{CapturedFrame, CapturedScan};
 use byteorder::LittleEndian;
 use image::RgbImage;
@@ -226,7 +227,7 @@ pub struct BagWriter {
 
 /// The MCAP file being written: its channels, opened as topics are first used.
 struct Channels {
-    writer: mcap::Writer<BufWriter<tempfile::NamedTempFile>>,
+    writer: mcap::Writer<OutputFile>,
     path: PathBuf,
     /// Channel ids by topic.
     channels: BTreeMap<String, u16>,
@@ -255,18 +256,13 @@ impl BagWriter {
         if !overwrite && path.exists() {
             return Err(bad("exists; a recording is not replaced unless asked (--force)".into()));
         }
-        let dir = match path.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p,
-            _ => Path::new("."),
-        };
-        let temp = alacs_model::io::temp_file_in(dir, ".mcap.tmp")
-            .map_err(|e| bad(format!("cannot be written: {e}")))?;
+        let file = OutputFile::create(path)?;
         let mut writer = mcap::WriteOptions::new()
             .profile("ros2")
             .library(concat!("alacs ", env!("CARGO_PKG_VERSION")))
             .compression(None)
             .chunk_size(Some(4 << 20))
-            .create(BufWriter::new(temp))
+            .create(file)
             .map_err(|e| bad(format!("cannot be written: {e}")))?;
         let mut schema_ids = BTreeMap::new();
         for (name, text) in schemas() {
@@ -398,13 +394,7 @@ impl BagWriter {
         let mut out = self.out;
         out.writer.finish().map_err(|e| out.bad(e))?;
         let path = out.path.clone();
-        let fail = |e: String| Error::Bag {
-            path: path.clone(),
-            message: format!("cannot be written: {e}"),
-        };
-        let temp = out.writer.into_inner().into_inner().map_err(|e| fail(e.error().to_string()))?;
-        temp.as_file().sync_all().map_err(|e| fail(e.to_string()))?;
-        temp.persist(&path).map_err(|e| fail(e.error.to_string()))?;
+        out.writer.into_inner().commit()?;
         Ok(path)
     }
 }

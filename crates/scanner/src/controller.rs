@@ -628,7 +628,7 @@ impl CapturedScan {
     /// write is refused). Localize it with the rig's calibrated camera.yaml
     /// and laser.yaml.
     pub fn write(&self, dir: &Path) -> Result<()> {
-        OutputDir::fill(dir, false, |out| self.write_into(out)).map(drop)
+        OutputDir::fill(dir, "scan", false, |out| self.write_into(out)).map(drop)
     }
 
     /// [`CapturedScan::write`] into an open output folder (the caller may

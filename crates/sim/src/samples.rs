@@ -201,7 +201,7 @@ impl SimulatedSamples {
             "outliers": self.outliers,
             "true_depth_mm": self.true_depth_mm,
         });
-        OutputDir::fill(dir, force, |out| {
+        OutputDir::fill(dir, "simulate samples", force, |out| {
             out.write_with("samples.csv", |w| write_samples(w, &self.samples))?;
             save_json(out, "truth.json", &truth)
         })

@@ -599,7 +599,7 @@ impl SimulatedScan {
     /// into `dir`, creating it ([`OutputDir`]: a folder holding files this
     /// did not write is refused); `progress(done, total)` after each image.
     pub fn write(&self, dir: &Path, progress: impl FnMut(usize, usize)) -> Result<()> {
-        OutputDir::fill(dir, false, |out| self.write_into(out, progress)).map(drop)
+        OutputDir::fill(dir, "simulate scan", false, |out| self.write_into(out, progress)).map(drop)
     }
 
     /// [`SimulatedScan::write`] into an open output folder (the caller may

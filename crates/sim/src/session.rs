@@ -621,7 +621,8 @@ impl SimulatedSession {
         dir: &Path,
         progress: impl FnMut(usize, usize),
     ) -> Result<()> {
-        OutputDir::fill(dir, false, |out| self.write_into(out, progress)).map(drop)
+        OutputDir::fill(dir, "simulate session", false, |out| self.write_into(out, progress))
+            .map(drop)
     }
 
     /// [`SimulatedSession::write_with_progress`] into an open output folder

@@ -17,7 +17,7 @@ use crate::output;
 /// Runs `alacs bag export`.
 pub fn export(args: &BagExportArgs) -> CmdResult {
     let (scan, summary) = read_scan(&args.bag, args.scan_index)?;
-    let mut out = OutputDir::create(&args.out, args.force)?;
+    let mut out = OutputDir::create(&args.out, "bag export", args.force)?;
     scan.write_into(&mut out)?;
     out.finish()?;
     if args.json {

@@ -142,8 +142,8 @@ fn session_samples(
     })?;
     for view in &result.views {
         match &view.rejected {
-            Some(reason) => eprintln!("warning: {}: not used: {reason}", view.image),
-            None if !args.json => eprintln!(
+            Some(reason) => errln!("warning: {}: not used: {reason}", view.image),
+            None if !args.json => errln!(
                 "{}: slide {:.1} mm, {} samples, board pose RMS {:.3} px",
                 view.image,
                 view.slide_mm,
@@ -154,7 +154,7 @@ fn session_samples(
         }
     }
     for warning in &result.warnings {
-        eprintln!("warning: {warning}");
+        errln!("warning: {warning}");
     }
     if let Some(path) = &args.export_samples {
         write_samples_csv(path, &result.samples)?;

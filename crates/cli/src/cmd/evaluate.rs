@@ -38,7 +38,7 @@ fn session_samples(
             let fit = calibrate_camera_session(&session, &options, &|| bar.inc(1));
             bar.finish_and_clear();
             let fit = fit.map_err(|e| Failure::from(e).with_context(dir))?;
-            eprintln!(
+            errln!(
                 "note: no --camera: calibrated the camera from the session's board views ({:.3} px RMS, {} views)",
                 fit.rms_px,
                 fit.views_used()
@@ -54,7 +54,7 @@ fn session_samples(
     let result = result.map_err(|e| Failure::from(e).with_context(dir))?;
     for view in &result.views {
         if let Some(reason) = &view.rejected {
-            eprintln!("warning: {}: not used: {reason}", view.image);
+            errln!("warning: {}: not used: {reason}", view.image);
         }
     }
     Ok(result.samples)
@@ -151,7 +151,7 @@ pub fn accuracy(args: &EvaluateAccuracyArgs) -> CmdResult {
     let eval = eval.map_err(|e| Failure::from(e).with_context(&args.session))?;
     for view in &eval.views {
         if let Some(reason) = &view.rejected {
-            eprintln!("warning: {}: not used: {reason}", view.image);
+            errln!("warning: {}: not used: {reason}", view.image);
         }
     }
     let files = write_accuracy_report(&mut out, &eval)?;

@@ -172,7 +172,7 @@ pub fn check(args: &RigCheckArgs) -> CmdResult {
     let config = RigConfig::from_file(&args.rig_file)?;
     let scene = if config.has_simulated_devices() {
         if !args.json {
-            eprintln!("building the simulated scene for the rig's \"sim\" devices ...");
+            errln!("building the simulated scene for the rig's \"sim\" devices ...");
         }
         Some(build_scene(&args.scene)?)
     } else {
@@ -188,7 +188,7 @@ pub fn check(args: &RigCheckArgs) -> CmdResult {
                 Ok(detail) => ("ok  ", detail.as_str()),
                 Err(error) => ("FAIL", error.as_str()),
             };
-            eprintln!(
+            errln!(
                 "  {mark} {:<7} {:<28} {:>7.3} s  {text}",
                 step.device.to_string(),
                 step.name,

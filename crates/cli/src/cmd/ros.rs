@@ -16,6 +16,14 @@ use crate::output;
 
 /// Runs `alacs ros` until SIGINT or SIGTERM (or `--max-goals`).
 pub fn run(args: &RosArgs) -> CmdResult {
+    // First of all: a signal while the rig opens or the scene is built (a
+    // simulated scene takes a second) ends the node as any other stop does,
+    // with its summary, not with the default action's exit 130 or 143.
+    let stop = Arc::new(AtomicBool::new(false));
+    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register(signal, Arc::clone(&stop))
+            .map_err(|e| Failure::job_failed(anyhow!("cannot handle signal {signal}: {e}")))?;
+    }
     let env = RosEnvironment::from_env()?;
     env.service_mapping()?;
     let config = NodeConfig {
@@ -28,11 +36,11 @@ pub fn run(args: &RosArgs) -> CmdResult {
     };
     config.validate()?;
     let OpenRig { devices, sim, camera, laser, alacs_from_rgbd, controller } =
-        rig::open(&args.rig, &mut |line| eprintln!("{line}"))?;
+        rig::open(&args.rig, &mut |line| errln!("{line}"))?;
     if let Some(sim) = &sim {
         let c = sim.scene.fruit_centre;
         let rough_in_rgbd = alacs_from_rgbd.inverse() * sim.rough_position_mm;
-        eprintln!(
+        errln!(
             "simulated apple (seed {}) at ({:.1}, {:.1}, {:.1}) mm, radius {:.1} mm; the RGB-D \
              camera sees it at ({:.1}, {:.1}, {:.1}) mm in its frame",
             args.rig.scene.seed,
@@ -48,12 +56,7 @@ pub fn run(args: &RosArgs) -> CmdResult {
     let job = JobContext { camera, laser, config: controller, locate: LocateOptions::default() };
     let rig = devices;
 
-    let stop = Arc::new(AtomicBool::new(false));
-    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-        signal_hook::flag::register(signal, Arc::clone(&stop))
-            .map_err(|e| Failure::job_failed(anyhow!("cannot handle signal {signal}: {e}")))?;
-    }
-    let log = |line: &str| eprintln!("{line}");
+    let log = |line: &str| errln!("{line}");
     let summary = run_node(&config, &env, job, rig, stop, &log)?;
     if args.json {
         output::print_json(&json!({

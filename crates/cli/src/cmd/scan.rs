@@ -62,7 +62,7 @@ pub fn run(args: &ScanArgs) -> CmdResult {
         )));
     }
     let OpenRig { mut devices, sim, camera, laser, alacs_from_rgbd, controller: config } =
-        rig::open(&args.rig, &mut |line| bar.suspend(|| eprintln!("{line}")))?;
+        rig::open(&args.rig, &mut |line| bar.suspend(|| errln!("{line}")))?;
     // The RGB-D camera's rough position: given, or the simulated RGB-D
     // camera's (mounted at `alacs_from_rgbd`, it reports the position in its
     // own frame; the controller carries it back).
@@ -98,7 +98,8 @@ pub fn run(args: &ScanArgs) -> CmdResult {
     let out_was_there = args.out.as_deref().is_some_and(std::path::Path::exists);
     let mut folder = match &args.out {
         Some(dir) => Some(
-            OutputDir::create(dir, args.force).map_err(|e| Failure::from(e).with_context(dir))?,
+            OutputDir::create(dir, "scan", args.force)
+                .map_err(|e| Failure::from(e).with_context(dir))?,
         ),
         None => None,
     };

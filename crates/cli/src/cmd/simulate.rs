@@ -205,7 +205,7 @@ pub fn session(args: &SimulateSessionArgs) -> CmdResult {
     let bar = output::progress_bar(args.json, "computing the camera's rays");
     let session = simulate_session(&camera, &laser, &options)?;
     output::start_progress(&bar, session.image_count(), "rendering");
-    OutputDir::fill(&args.out, args.force, |out| {
+    OutputDir::fill(&args.out, "simulate session", args.force, |out| {
         session.write_into(out, |done, _| bar.set_position(done as u64))
     })?;
     bar.finish_and_clear();
@@ -251,7 +251,7 @@ pub fn scan(args: &SimulateScanArgs) -> CmdResult {
     let bar = output::progress_bar(args.json, "building the scene and the camera's rays");
     let scan = simulate_scan(&camera, &laser, &options)?;
     output::start_progress(&bar, scan.image_count(), "rendering");
-    OutputDir::fill(&args.out, args.force, |out| {
+    OutputDir::fill(&args.out, "simulate scan", args.force, |out| {
         scan.write_into(out, |done, _| bar.set_position(done as u64))
     })?;
     bar.finish_and_clear();

@@ -27,7 +27,7 @@ pub fn run(args: &TriangulateArgs) -> CmdResult {
             match point {
                 Ok(p) => Some([p.x, p.y, p.z]),
                 Err(e) => {
-                    eprintln!("warning: {}, row {}: {e}", args.pixels.display(), row + 1);
+                    errln!("warning: {}, row {}: {e}", args.pixels.display(), row + 1);
                     None
                 }
             }
