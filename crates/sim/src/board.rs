@@ -300,6 +300,7 @@ impl BoardScene {
             // A printed board is matte.
             specular: 0.0,
             shininess: 1.0,
+            translucent: false,
         })
     }
 }

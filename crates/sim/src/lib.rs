@@ -49,12 +49,13 @@ mod scan;
 mod session;
 mod slide;
 mod truth;
+mod variation;
 
 pub use board::{BoardScene, CHARUCO_MARKER_PER_SQUARE, Checkerboard};
 pub use error::{Error, MAX_SAMPLES, MAX_SCALE, MAX_SESSION_VIEWS, MAX_SLIDE_POSITIONS, Result};
 pub use orchard::{
-    CameraRayGrid, Hit, Kind, MAX_CLUSTER, Material, Object, OrchardOptions, OrchardScene, Shape,
-    orchard_scene, value_noise,
+    Appearance, CameraRayGrid, Hit, Kind, MAX_CLUSTER, Material, Object, OrchardOptions,
+    OrchardScene, Shape, orchard_scene, value_noise,
 };
 pub use render::{
     AmbientCache, Exposure, IRRADIANCE_UNIT_W_PER_M2, LaserLight, LaserStripe, Lighting,
@@ -71,3 +72,4 @@ pub use session::{
 };
 pub use slide::{MAX_SLIDE_ANGLE_DEG, SlideError};
 pub use truth::{camera_to_json, laser_to_json};
+pub use variation::{DrawRange, FruitColour, FruitColourRanges, RigVariation};

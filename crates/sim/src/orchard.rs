@@ -7,6 +7,7 @@ use alacs_model::Ray;
 use nalgebra::{Point3, Rotation3, Unit, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use serde::Serialize;
 
 use crate::error::check_positive_range;
 use crate::{Error, Result};
@@ -24,6 +25,57 @@ pub struct Material {
     pub specular: f64,
     /// Phong exponent of the highlight.
     pub shininess: f64,
+    /// Whether laser light enters the surface and glows around the line
+    /// (fruit flesh: [`crate::LaserLight::subsurface_sigma_mm`]).
+    pub translucent: bool,
+}
+
+/// The colours and gloss of a scene's materials: one fruit cultivar (the
+/// target and its cluster), its leaves and the background foliage.
+/// `Default`: a bicolour apple, the scene's look without randomization.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Appearance {
+    /// The fruit's blush (linear RGB albedo), in patches of a few cm.
+    pub fruit_blush_rgb: [f64; 3],
+    /// The fruit's ground colour under the blush.
+    pub fruit_ground_rgb: [f64; 3],
+    /// How much of the fruit the blush covers: blush = clamp(1.6 n + this)
+    /// for value noise n in 0..1 (-0.3: about half; below -1.6: none).
+    pub fruit_blush_offset: f64,
+    /// Strength of the fruit's waxy highlight.
+    pub fruit_specular: f64,
+    /// Phong exponent of the fruit's highlight.
+    pub fruit_shininess: f64,
+    /// Leaf albedo (linear RGB), before its +-25 % shading.
+    pub leaf_rgb: [f64; 3],
+    /// Leaf albedo at the laser's 650 nm.
+    pub leaf_laser_reflectance: f64,
+    /// Strength of a leaf's highlight.
+    pub leaf_specular: f64,
+    /// Phong exponent of a leaf's highlight.
+    pub leaf_shininess: f64,
+    /// Background foliage albedo (linear RGB), before its patches of shade.
+    pub background_rgb: [f64; 3],
+    /// Background foliage albedo at 650 nm.
+    pub background_laser_reflectance: f64,
+}
+
+impl Default for Appearance {
+    fn default() -> Self {
+        Self {
+            fruit_blush_rgb: [0.55, 0.06, 0.05],
+            fruit_ground_rgb: [0.42, 0.55, 0.12],
+            fruit_blush_offset: -0.3,
+            fruit_specular: 0.25,
+            fruit_shininess: 40.0,
+            leaf_rgb: [0.06, 0.22, 0.05],
+            leaf_laser_reflectance: 0.08,
+            leaf_specular: 0.08,
+            leaf_shininess: 15.0,
+            background_rgb: [0.07, 0.2, 0.06],
+            background_laser_reflectance: 0.07,
+        }
+    }
 }
 
 /// Where a ray meets a surface.
@@ -119,6 +171,8 @@ pub struct OrchardScene {
     pub fruit_radius_mm: f64,
     /// Fraction of the fruit's silhouette hidden by leaves and branches, as built.
     pub occlusion: f64,
+    /// The materials' colours and gloss.
+    pub appearance: Appearance,
 }
 
 /// How to build an orchard scene. `Default`: a 35-45 mm apple, slightly
@@ -597,31 +651,35 @@ fn lattice_value(x: i64, y: i64, z: i64, seed: u64) -> f64 {
 }
 
 impl Object {
-    /// The material at `point` on this object.
-    pub fn material_at(&self, point: &Point3<f64>) -> Material {
+    /// The material at `point` on this object, coloured per `look`.
+    pub fn material_at(&self, point: &Point3<f64>, look: &Appearance) -> Material {
         match self.kind {
             Kind::Fruit => {
-                // Red blush over green-yellow ground colour, in patches of a few cm.
-                let blush =
-                    (value_noise(point, 18.0, self.texture_seed) * 1.6 - 0.3).clamp(0.0, 1.0);
+                // Blush over the ground colour, in patches of a few cm.
+                let blush = (value_noise(point, 18.0, self.texture_seed) * 1.6
+                    + look.fruit_blush_offset)
+                    .clamp(0.0, 1.0);
                 let speckle = value_noise(point, 2.5, self.texture_seed ^ 1) * 0.1;
-                let red = [0.55, 0.06, 0.05];
-                let green = [0.42, 0.55, 0.12];
-                let mix = |i: usize| (blush * red[i] + (1.0 - blush) * green[i]) * (0.95 + speckle);
+                let (red, ground) = (&look.fruit_blush_rgb, &look.fruit_ground_rgb);
+                let mix =
+                    |i: usize| (blush * red[i] + (1.0 - blush) * ground[i]) * (0.95 + speckle);
                 Material {
                     albedo_rgb: [mix(0), mix(1), mix(2)],
                     laser_reflectance: mix(0),
-                    specular: 0.25,
-                    shininess: 40.0,
+                    specular: look.fruit_specular,
+                    shininess: look.fruit_shininess,
+                    translucent: true,
                 }
             }
             Kind::Leaf => {
                 let shade = 0.75 + 0.5 * value_noise(point, 8.0, self.texture_seed);
+                let rgb = &look.leaf_rgb;
                 Material {
-                    albedo_rgb: [0.06 * shade, 0.22 * shade, 0.05 * shade],
-                    laser_reflectance: 0.08 * shade,
-                    specular: 0.08,
-                    shininess: 15.0,
+                    albedo_rgb: [rgb[0] * shade, rgb[1] * shade, rgb[2] * shade],
+                    laser_reflectance: look.leaf_laser_reflectance * shade,
+                    specular: look.leaf_specular,
+                    shininess: look.leaf_shininess,
+                    translucent: false,
                 }
             }
             Kind::Branch => {
@@ -631,17 +689,20 @@ impl Object {
                     laser_reflectance: 0.3 * shade,
                     specular: 0.0,
                     shininess: 1.0,
+                    translucent: false,
                 }
             }
             Kind::Background => {
                 // Out-of-focus foliage: leaf-sized patches of light and shade.
                 let patches = value_noise_xy(point, 25.0, self.texture_seed);
                 let shade = 0.25 + 1.1 * patches * patches;
+                let rgb = &look.background_rgb;
                 Material {
-                    albedo_rgb: [0.07 * shade, 0.2 * shade, 0.06 * shade],
-                    laser_reflectance: 0.07 * shade,
+                    albedo_rgb: [rgb[0] * shade, rgb[1] * shade, rgb[2] * shade],
+                    laser_reflectance: look.background_laser_reflectance * shade,
                     specular: 0.0,
                     shininess: 1.0,
+                    translucent: false,
                 }
             }
         }
@@ -697,7 +758,8 @@ impl OrchardScene {
         let (t, normal, object) = best?;
         let point = ray.at(t);
         let normal = if normal.dot(&ray.direction) > 0.0 { -normal } else { normal };
-        Some(Hit { t, point, normal, material: self.objects[object].material_at(&point), object })
+        let material = self.objects[object].material_at(&point, &self.appearance);
+        Some(Hit { t, point, normal, material, object })
     }
 
     /// Whether the straight segment from `from` to `to` is blocked by any
@@ -793,7 +855,13 @@ pub fn orchard_scene(options: &OrchardOptions) -> Result<OrchardScene> {
     }
 
     // Clutter leaves around the fruit, placed so that they do not cover it.
-    let mut scene = OrchardScene { objects, fruit_centre, fruit_radius_mm: radius, occlusion: 0.0 };
+    let mut scene = OrchardScene {
+        objects,
+        fruit_centre,
+        fruit_radius_mm: radius,
+        occlusion: 0.0,
+        appearance: Appearance::default(),
+    };
     let mut placed = 0;
     for _ in 0..options.clutter_leaves * 20 {
         if placed == options.clutter_leaves {

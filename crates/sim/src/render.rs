@@ -74,6 +74,9 @@ pub struct SurfaceHit {
     pub specular: f64,
     /// Blinn-Phong exponent of the highlight (larger is tighter).
     pub shininess: f64,
+    /// Whether the laser's light enters the surface and glows around the
+    /// line ([`LaserLight::subsurface_sigma_mm`]): fruit flesh.
+    pub translucent: bool,
 }
 
 /// What the renderer needs of a scene: the first surface along a ray, and
@@ -568,6 +571,8 @@ impl AmbientCache {
 struct Reach {
     normal: Vector3<f64>,
     half_width_per_depth: f64,
+    /// Added to the half width on translucent surfaces, mm (the glow).
+    glow_mm: f64,
 }
 
 /// Margin added to each side of a pixel's offset range, mm: far more than
@@ -579,6 +584,7 @@ impl Reach {
         Reach {
             normal: stripe.plane.normal,
             half_width_per_depth: STRIPE_CUTOFF_SIGMAS * stripe.sigma_per_depth,
+            glow_mm: stripe.glow_reach_mm(),
         }
     }
 
@@ -586,7 +592,10 @@ impl Reach {
     /// (everything, where that is not finite).
     fn widen(&self, low: f64, high: f64, hit: &SurfaceHit) -> (f64, f64) {
         let centre = self.normal.dot(&hit.point.coords);
-        let half = self.half_width_per_depth * hit.point.z.abs();
+        let mut half = self.half_width_per_depth * hit.point.z.abs();
+        if hit.translucent {
+            half += self.glow_mm;
+        }
         if centre.is_finite() && half.is_finite() {
             (low.min(centre - half), high.max(centre + half))
         } else {
@@ -873,6 +882,16 @@ pub struct LaserLight {
     /// 1 + c (2 n - 1) for a pixel-sized granular pattern n in 0..1 fixed on
     /// the surface. 0 turns it off.
     pub speckle_contrast: f64,
+    /// Subsurface scattering on translucent surfaces ([`SurfaceHit::translucent`]):
+    /// light entering the flesh leaves it around the line, a Gaussian of
+    /// this sigma (mm, along the surface) added in quadrature to the
+    /// line's cross-section, the light's total kept. 0 turns it off.
+    pub subsurface_sigma_mm: f64,
+    /// How far the glow's centre moves along the surface in the beam's
+    /// direction, per mm of [`LaserLight::subsurface_sigma_mm`] and per unit
+    /// of the sine of the beam's incidence across the line (light entering
+    /// obliquely travels on before it scatters back out).
+    pub subsurface_shift: f64,
 }
 
 impl Default for LaserLight {
@@ -882,7 +901,14 @@ impl Default for LaserLight {
     /// channel peaks near 220 DN without saturating; on a black square
     /// (albedo 0.05) it adds only about 5 DN.
     fn default() -> Self {
-        Self { power: 0.4, rgb: [1.0, 0.08, 0.05], stripe_sigma_px: 1.5, speckle_contrast: 0.0 }
+        Self {
+            power: 0.4,
+            rgb: [1.0, 0.08, 0.05],
+            stripe_sigma_px: 1.5,
+            speckle_contrast: 0.0,
+            subsurface_sigma_mm: 0.0,
+            subsurface_shift: 0.0,
+        }
     }
 }
 
@@ -915,6 +941,10 @@ pub struct LaserStripe {
     /// exposure, mm: a laser on a moving slide ([`LaserStripe::sweeping`]).
     /// `plane` is then where it stands at mid-exposure. 0 for a still slide.
     pub half_sweep_mm: f64,
+    /// Subsurface glow on translucent surfaces, mm ([`LaserLight::subsurface_sigma_mm`]).
+    pub subsurface_sigma_mm: f64,
+    /// The glow's shift per mm of its sigma ([`LaserLight::subsurface_shift`]).
+    pub subsurface_shift: f64,
 }
 
 impl LaserStripe {
@@ -932,6 +962,8 @@ impl LaserStripe {
             speckle_contrast: look.speckle_contrast,
             grain_per_depth: 1.0 / fx_px,
             half_sweep_mm: 0.0,
+            subsurface_sigma_mm: look.subsurface_sigma_mm,
+            subsurface_shift: look.subsurface_shift,
         }
     }
 
@@ -957,15 +989,36 @@ impl LaserStripe {
     /// power * exp(-d^2 / (2 sigma^2)) * cos(incidence), d the point's
     /// distance from the laser plane; 0 where the lit side faces away from
     /// the laser origin or something in `scene` shadows the point.
+    ///
+    /// On a translucent surface with [`LaserStripe::subsurface_sigma_mm`]
+    /// the cross-section is the subsurface glow's: wider, its centre moved.
     #[inline]
     pub fn irradiance(&self, scene: &impl Scene, hit: &SurfaceHit) -> f64 {
         let sigma_mm = self.sigma_per_depth * hit.point.z.abs();
         let distance_mm = self.plane.normal.dot(&hit.point.coords) - self.plane.offset_mm;
+        if hit.translucent && self.subsurface_sigma_mm > 0.0 {
+            let (distance_mm, glow_sigma_mm) = self.glow(hit, distance_mm, sigma_mm);
+            let near =
+                distance_mm.abs() < STRIPE_CUTOFF_SIGMAS * glow_sigma_mm + self.half_sweep_mm;
+            if !near {
+                return 0.0;
+            }
+            // The glow spreads the light, it does not add any.
+            let spread = sigma_mm / glow_sigma_mm;
+            return spread * self.lit(scene, hit, distance_mm, glow_sigma_mm);
+        }
         // Written so that NaN distances count as far.
         let near = distance_mm.abs() < STRIPE_CUTOFF_SIGMAS * sigma_mm + self.half_sweep_mm;
         if !near {
             return 0.0;
         }
+        self.lit(scene, hit, distance_mm, sigma_mm)
+    }
+
+    /// The irradiance at `distance_mm` from the plane through a cross-section
+    /// of `sigma_mm`, where the point faces the laser and nothing shadows it.
+    #[inline]
+    fn lit(&self, scene: &impl Scene, hit: &SurfaceHit, distance_mm: f64, sigma_mm: f64) -> f64 {
         let to_origin = self.origin - hit.point;
         let cosine = hit.normal.dot(&to_origin) / to_origin.norm();
         let faces_laser = cosine > 0.0;
@@ -973,6 +1026,41 @@ impl LaserStripe {
             return 0.0;
         }
         self.power * self.profile(distance_mm, sigma_mm) * cosine
+    }
+
+    /// Subsurface scattering in plane-distance terms: the point's distance
+    /// from the glow's centre and the glow's sigma, both along the plane's
+    /// normal. The surface's tangent plane holds the direction across the
+    /// line, `across` = n_plane - n (n . n_plane), along which the plane
+    /// distance grows by |across| per mm of surface: the glow's sigma
+    /// (mm of surface) adds sigma_s |across| in quadrature, and its centre
+    /// moves by shift sigma_s sin(i) along the surface, sin(i) the beam's
+    /// direction along `across` (0 at normal incidence).
+    fn glow(&self, hit: &SurfaceHit, distance_mm: f64, sigma_mm: f64) -> (f64, f64) {
+        let n_plane = self.plane.normal;
+        let across = n_plane - hit.normal * hit.normal.dot(&n_plane);
+        let stretch = across.norm();
+        let glow_mm = self.subsurface_sigma_mm * stretch;
+        let sigma = (sigma_mm * sigma_mm + glow_mm * glow_mm).sqrt();
+        let beam = hit.point - self.origin;
+        let beam_norm = beam.norm();
+        if !(stretch > 1e-9 && beam_norm > 0.0) {
+            return (distance_mm, sigma);
+        }
+        let sin_incidence = beam.dot(&across) / (beam_norm * stretch);
+        let shift_mm = self.subsurface_shift * self.subsurface_sigma_mm * sin_incidence;
+        (distance_mm - shift_mm * stretch, sigma)
+    }
+
+    /// How far beyond the line's own cutoff (mm) the glow of a translucent
+    /// surface may reach: its sigma at most adds `subsurface_sigma_mm`, its
+    /// centre moves at most `|subsurface_shift| subsurface_sigma_mm`.
+    fn glow_reach_mm(&self) -> f64 {
+        if self.subsurface_sigma_mm > 0.0 {
+            self.subsurface_sigma_mm * (STRIPE_CUTOFF_SIGMAS + self.subsurface_shift.abs())
+        } else {
+            0.0
+        }
     }
 
     /// The stripe's cross-section at `distance_mm` from the plane, 1 at the
@@ -1132,6 +1220,8 @@ impl RenderOptions {
             ("blur_sigma_px", self.sensor.blur_sigma_px),
             ("exposure_us", self.sensor.exposure.exposure_us),
             ("speckle contrast", self.laser.speckle_contrast),
+            ("subsurface sigma", self.laser.subsurface_sigma_mm),
+            ("subsurface shift", self.laser.subsurface_shift),
         ];
         let laser_rgb = self.laser.rgb.iter().map(|&c| ("laser colour", c));
         if let Some((name, value)) = non_negative
@@ -1185,6 +1275,8 @@ mod tests {
             speckle_contrast: 0.0,
             grain_per_depth: 1e-3,
             half_sweep_mm,
+            subsurface_sigma_mm: 0.0,
+            subsurface_shift: 0.0,
         }
     }
 

@@ -10,6 +10,10 @@
 //! fruit, then 4 steps of 10 mm, shifted into the 0-200 mm stroke. By
 //! default only fruit the plan reaches unshifted are placed
 //! ([`ScanOptions::within_reach`]).
+//!
+//! [`ScanOptions::randomize`] draws per scan what real rigs and fruit vary
+//! in ([`RigVariation`]): the same scene, other looks, sensor, calibration
+//! errors and rough-position error.
 
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
@@ -33,6 +37,7 @@ use crate::render::{
     AmbientCache, Exposure, LaserLight, LaserStripe, Lighting, RayMap, RenderOptions, Scene,
     Sensor, SurfaceHit, mix_seed,
 };
+use crate::variation::RigVariation;
 use crate::{Error, Result, SlideError, camera_to_json, laser_to_json};
 
 /// How to simulate a scan. `Default`: an unoccluded apple at 0.6-1.2 m in
@@ -73,6 +78,13 @@ pub struct ScanOptions {
     /// The slide's own error (scale and axis angle); the default is the
     /// seed's perfect slide.
     pub slide: SlideError,
+    /// Draw the rig, fruit colour and camera per scan ([`RigVariation`],
+    /// from the seed): laser look, subsurface glow, materials, sky, sensor,
+    /// calibration errors (camera.yaml and laser.yaml stay the calibration
+    /// given, the images show the drawn errors) and the rough position's
+    /// error (replacing `rough_depth_error` and `rough_lateral_sigma_mm`).
+    /// The scene, its lighting and the fruit are the same either way.
+    pub randomize: bool,
 }
 
 impl Default for ScanOptions {
@@ -100,6 +112,7 @@ impl Default for ScanOptions {
             neighbours_as_targets: false,
             seed: 0,
             slide: SlideError::default(),
+            randomize: false,
         }
     }
 }
@@ -164,10 +177,21 @@ pub struct ScanFrame {
 /// A simulated scan: the scene, the plan, and how to render its frames.
 #[derive(Debug)]
 pub struct SimulatedScan {
-    /// The camera rendered (scaled).
+    /// The camera's calibration (scaled), camera.yaml: what a localizer is
+    /// given. The images show [`SimulatedScan::rendered_camera`].
     pub camera: Camera,
-    /// The true laser: the laser given, with the slide's k (see [`SlideError`]).
+    /// The laser's calibration, laser.yaml: the laser given, with the
+    /// slide's k (see [`SlideError`]). The images show
+    /// [`SimulatedScan::rendered_laser`].
     pub laser: LaserModel,
+    /// The camera the images are taken with: [`SimulatedScan::camera`]
+    /// unless [`ScanOptions::randomize`] drew calibration errors.
+    pub rendered_camera: Camera,
+    /// The laser the images show: [`SimulatedScan::laser`] unless
+    /// [`ScanOptions::randomize`] drew calibration errors.
+    pub rendered_laser: LaserModel,
+    /// What [`ScanOptions::randomize`] drew, if on.
+    pub variation: Option<RigVariation>,
     /// The slide's own error.
     pub slide: SlideError,
     /// The orchard scene; the fruit is `scene.objects[0]`.
@@ -206,6 +230,7 @@ fn surface_hit(hit: Hit) -> SurfaceHit {
         laser_reflectance: hit.material.laser_reflectance,
         specular: hit.material.specular,
         shininess: hit.material.shininess,
+        translucent: hit.material.translucent,
     }
 }
 
@@ -217,7 +242,7 @@ impl Scene for GriddedScene<'_> {
     fn intersect_camera_ray(&self, x_n: f64, y_n: f64) -> Option<SurfaceHit> {
         let (t, normal, index) = self.grid.nearest(x_n, y_n)?;
         let point = Ray::through_normalized(x_n, y_n).at(t);
-        let material = self.scene.objects[index].material_at(&point);
+        let material = self.scene.objects[index].material_at(&point, &self.scene.appearance);
         Some(surface_hit(Hit { t, point, normal, material, object: index }))
     }
 
@@ -252,17 +277,20 @@ impl Scene for GriddedScene<'_> {
                 laser_reflectance: 0.0,
                 specular: 0.0,
                 shininess: 1.0,
+                translucent: false,
             });
         }
         match object {
             Some(index) if uniform => {
                 let centre = Point3::from(sum / rays.len() as f64);
-                let material = self.scene.objects[index].material_at(&centre);
+                let material =
+                    self.scene.objects[index].material_at(&centre, &self.scene.appearance);
                 for hit in hits.iter_mut().flatten() {
                     hit.albedo_rgb = material.albedo_rgb;
                     hit.laser_reflectance = material.laser_reflectance;
                     hit.specular = material.specular;
                     hit.shininess = material.shininess;
+                    hit.translucent = material.translucent;
                 }
             }
             _ => {
@@ -298,6 +326,7 @@ pub fn simulate_scan(
     let camera = camera.scaled(options.scale);
     camera.validate()?;
     options.render.validate()?;
+    let variation = options.randomize.then(|| RigVariation::for_seed(options.seed));
     let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
     let mut draws = 0;
     let (scene, rough_position_mm, plan) = loop {
@@ -320,11 +349,34 @@ pub fn simulate_scan(
     // The neighbours' rough positions from a generator of their own: the
     // lighting drawn next is the seed's either way.
     let mut more_targets = Vec::new();
-    let mut plan = plan;
+    let (mut rough_position_mm, mut plan) = (rough_position_mm, plan);
+    // The rough position's error drawn again, with the variation's bounds,
+    // from a generator of its own: the scene above is the seed's either way.
+    // With `within_reach`, drawn until the plan is unshifted (the scene's
+    // first rough position was), at most MAX_SCENE_DRAWS times.
+    let rough_options = match &variation {
+        Some(v) => ScanOptions {
+            rough_depth_error: v.rough_depth_error,
+            rough_lateral_sigma_mm: v.rough_lateral_sigma_mm,
+            ..options.clone()
+        },
+        None => options.clone(),
+    };
+    if variation.is_some() {
+        let mut rough_rng = ChaCha8Rng::seed_from_u64(options.seed ^ VARIED_ROUGH_SEED);
+        for _ in 0..MAX_SCENE_DRAWS {
+            rough_position_mm =
+                rough_position(&scene.fruit_centre, &rough_options, &mut rough_rng)?;
+            plan = options.strategy.plan(laser, &rough_position_mm, FRUIT_RADIUS_PRIOR_MM);
+            if !(options.within_reach && plan.shifted) {
+                break;
+            }
+        }
+    }
     if options.neighbours_as_targets {
         let mut neighbour_rng = ChaCha8Rng::seed_from_u64(options.seed ^ NEIGHBOUR_ROUGH_SEED);
         for (centre, _) in scene.neighbours() {
-            more_targets.push(rough_position(&centre, options, &mut neighbour_rng)?);
+            more_targets.push(rough_position(&centre, &rough_options, &mut neighbour_rng)?);
         }
         let fruit: Vec<(Point3<f64>, f64)> = std::iter::once(rough_position_mm)
             .chain(more_targets.iter().copied())
@@ -344,11 +396,26 @@ pub fn simulate_scan(
         })
         .collect();
     let lighting = if options.sun { sun_lighting(&mut rng) } else { shade_lighting() };
-    let ray_map = RayMap::new(&camera, options.render.supersampling)?;
+    let (mut scene, mut lighting, mut render) = (scene, lighting, options.render);
+    let (mut rendered_camera, mut rendered_laser) = (camera.clone(), *laser);
+    if let Some(v) = &variation {
+        scene.appearance = v.appearance;
+        lighting = v.lighting(&lighting);
+        render = v.render_options(&render);
+        render.validate()?;
+        rendered_camera = v.rendered_camera(&camera, options.scale);
+        rendered_camera.validate()?;
+        rendered_laser = v.rendered_laser(laser);
+        rendered_laser.validate()?;
+    }
+    let ray_map = RayMap::new(&rendered_camera, render.supersampling)?;
     let grid = CameraRayGrid::new(&scene);
     Ok(SimulatedScan {
         camera,
         laser: *laser,
+        rendered_camera,
+        rendered_laser,
+        variation,
         slide: options.slide,
         scene,
         rough_position_mm,
@@ -356,7 +423,7 @@ pub fn simulate_scan(
         plan,
         frames,
         lighting,
-        render: options.render,
+        render,
         ray_map,
         grid,
         cache: Mutex::new(AmbientCache::default()),
@@ -367,6 +434,10 @@ pub fn simulate_scan(
 
 /// Seeds the generator of the neighbours' rough positions (with the scan's seed).
 const NEIGHBOUR_ROUGH_SEED: u64 = 0x6e65_6967_6862_6f75;
+
+/// Seeds the generator of the target's rough position with
+/// [`ScanOptions::randomize`] (with the scan's seed).
+const VARIED_ROUGH_SEED: u64 = 0x726f_7567_6876_6172;
 
 /// A rough position for a fruit centred at `truth`: the RGB-D camera's
 /// error, uniform along the line of sight (a fraction of the depth) and
@@ -471,9 +542,9 @@ impl SimulatedScan {
             return Err(Error::InvalidOptions(format!("slide travel {d} mm is not finite")));
         }
         let stripe_at = |slide_mm: f64| {
-            let mut stripe =
-                LaserStripe::new(&self.laser, slide_mm, &self.render.laser, self.camera.fx_px);
-            stripe.origin = self.slide.origin_in_camera(&self.laser, slide_mm);
+            let (laser, fx_px) = (&self.rendered_laser, self.rendered_camera.fx_px);
+            let mut stripe = LaserStripe::new(laser, slide_mm, &self.render.laser, fx_px);
+            stripe.origin = self.slide.origin_in_camera(laser, slide_mm);
             stripe
         };
         let stripe = if slide_mm[0] == slide_mm[1] {
@@ -498,7 +569,8 @@ impl SimulatedScan {
         ))
     }
 
-    /// The render options (supersampling, laser look, sensor).
+    /// The render options (supersampling, laser look, sensor), as drawn
+    /// with [`ScanOptions::randomize`].
     pub fn render_options(&self) -> &RenderOptions {
         &self.render
     }
@@ -542,13 +614,16 @@ impl SimulatedScan {
         ))
     }
 
-    /// truth.json (FORMATS.md): camera, laser, the fruit's centre and
-    /// equal-volume radius, plus how the scene was built.
+    /// truth.json (FORMATS.md): the camera and laser the images show, the
+    /// fruit's centre and equal-volume radius, plus how the scene was built
+    /// and, with [`ScanOptions::randomize`], `variation`: every drawn value
+    /// ([`RigVariation::to_json`]; camera.yaml and laser.yaml hold the
+    /// calibration).
     pub fn truth_json(&self) -> serde_json::Value {
         let c = &self.scene.fruit_centre;
-        json!({
-            "camera": camera_to_json(&self.camera),
-            "laser": laser_to_json(&self.laser),
+        let mut truth = json!({
+            "camera": camera_to_json(&self.rendered_camera),
+            "laser": laser_to_json(&self.rendered_laser),
             "slide": self.slide.to_json(),
             "fruit": {"position_mm": [c.x, c.y, c.z], "radius_mm": self.scene.fruit_radius_mm},
             "occlusion": self.scene.occlusion,
@@ -563,7 +638,11 @@ impl SimulatedScan {
             "gain_db": self.render.sensor.exposure.gain_db,
             "targets": self.targets_json(),
             "seed": self.seed,
-        })
+        });
+        if let (Some(v), Some(map)) = (&self.variation, truth.as_object_mut()) {
+            map.insert("variation".into(), v.to_json());
+        }
+        truth
     }
 
     /// truth.json's `targets`: per fruit of scan.yaml's `targets` (the
@@ -618,7 +697,12 @@ impl SimulatedScan {
         }
         out.write(SCAN_FILE, self.scan_yaml())?;
         out.write("camera.yaml", self.camera.to_yaml_string())?;
-        self.laser.to_yaml_file(&out.file("laser.yaml")?, "true laser of the simulated scan")?;
+        let comment = if self.variation.is_some() {
+            "calibrated laser of the simulated scan (truth.json: the laser the images show)"
+        } else {
+            "true laser of the simulated scan"
+        };
+        self.laser.to_yaml_file(&out.file("laser.yaml")?, comment)?;
         save_json(out, "truth.json", &self.truth_json())
     }
 }
@@ -662,9 +746,16 @@ mod tests {
     /// The frames of a scan rendered with the cache of the light without
     /// the laser ([`RayMap::render_cached`]) are the uncached renders, byte
     /// for byte, in any order, with the laser on and off and across an
-    /// exposure change: sun, leaves, a cluster and branches in front.
+    /// exposure change: sun, leaves, a cluster and branches in front;
+    /// randomized too (the fruit's subsurface glow reaches farther).
     #[test]
     fn cached_frames_are_the_uncached_frames_byte_for_byte() {
+        for randomize in [false, true] {
+            cached_frames_match(randomize);
+        }
+    }
+
+    fn cached_frames_match(randomize: bool) {
         let options = ScanOptions {
             orchard: OrchardOptions {
                 occlusion: 0.3,
@@ -675,14 +766,16 @@ mod tests {
             sun: true,
             scale: 0.2,
             seed: 11,
+            randomize,
             ..ScanOptions::default()
         };
         let scan =
             simulate_scan(&Camera::blackfly_s_5mp(), &LaserModel::seed_paper(), &options).unwrap();
         let uncached = |slide_mm: f64, laser_on: bool, stream: u64, exposure: Exposure| {
             let sensor = Sensor { exposure, ..scan.render.sensor };
-            let stripe =
-                LaserStripe::new(&scan.laser, slide_mm, &scan.render.laser, scan.camera.fx_px);
+            let (laser, fx_px) = (&scan.rendered_laser, scan.rendered_camera.fx_px);
+            let mut stripe = LaserStripe::new(laser, slide_mm, &scan.render.laser, fx_px);
+            stripe.origin = scan.slide.origin_in_camera(laser, slide_mm);
             let stream = if laser_on { stream } else { LASER_OFF_STREAM.wrapping_add(stream) };
             scan.ray_map.render(
                 &GriddedScene { scene: &scan.scene, grid: &scan.grid },
