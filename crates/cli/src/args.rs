@@ -808,9 +808,11 @@ pub struct SimulateScanArgs {
 /// How `localize` chooses the final position.
 #[derive(Debug, Clone, Copy, ValueEnum)]
 pub enum LocalizeMethodArg {
-    /// One robust sphere (then ellipsoid) fit over every frame's fruit points.
+    /// One estimator over every frame's laser points: hypotheses scored by one
+    /// objective, the best accepted where it beats every other explanation.
     Fused,
-    /// The best single-frame candidate (the seed paper's holistic evaluation).
+    /// The best single-frame candidate (the seed paper's holistic evaluation),
+    /// answered only where the frames together confirm it.
     Holistic,
 }
 

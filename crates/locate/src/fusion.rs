@@ -1,8 +1,9 @@
-//! The fused answer: one robust sphere fit over every frame's fruit points,
-//! refined to an ellipsoid where it fits clearly better and by the fruit's
-//! outline where it agrees, with the checks that make it trustworthy; the
-//! fallbacks of a sphere of the prior radius and of the fruit's outline
-//! ([`crate::outline`]).
+//! The fused answer: the hypotheses of the one estimator
+//! ([`crate::estimate`]) from today's fits (a robust sphere over every
+//! frame's fruit points, a sphere of the prior radius, the sphere of the
+//! fruit's outline, [`crate::outline`]), the acceptance, and the accepted
+//! sphere's refinement by the outline. The fits' own checks only decide
+//! whether they propose a sphere; the estimator decides the answer.
 
 use alacs_model::ransac::{RansacOptions, ransac_refit};
 use image::RgbImage;
@@ -22,126 +23,121 @@ use crate::outline::{
 };
 use crate::{Candidate, FrameResult, FusedFit, Localization, LocateOptions, Status};
 
-/// The fused fit and, when it was not trustworthy, why: the free fit
-/// ([`fuse`]), else a sphere of the prior radius started from the
-/// `candidates` ([`fit_prior_radius`]) or, if the options allow it, the
-/// sphere of the fruit's outline in the `views` ([`fit_with_outline`]):
-/// the outline's where both hold and lie within
-/// [`MAX_FALLBACK_DISAGREEMENT`] of each other, the prior's where they
-/// lie farther apart, either where only it holds.
-pub(crate) fn fuse_with_fallbacks(
+/// The fused fit by the one estimator ([`crate::estimate`]): every fit
+/// below proposes a sphere (whatever its own checks say), as do robust
+/// spheres through all frames' points, each frame's arc at the prior
+/// radius on both sides of its laser plane, and the rough position; all
+/// are refined and scored by one objective, and the best is the answer
+/// where it beats every other explanation by the stated margin and its
+/// position is known within the harvester's tolerance. Returns the fit and
+/// the answer's note, or why the fruit was not found.
+pub(crate) fn estimate_fruit(
     results: &[FrameResult],
     context: &FrameContext,
     candidates: &[Candidate],
     views: &[&RgbImage],
-) -> (Option<FusedFit>, Option<String>) {
-    let candidate_positions: Vec<Point3<f64>> = candidates.iter().map(|c| c.position_mm).collect();
-    let free = fuse(results, context)
-        .map(|fit| {
-            if context.options.use_outline {
-                refine_with_outline(fit, results, context, views)
-            } else {
-                fit
-            }
-        })
-        .and_then(|fit| check_answer_radius(fit, context));
-    let outline = || {
-        context.options.use_outline.then(|| {
-            fit_with_outline(results, context, views)
-                .and_then(|fit| check_answer_radius(fit, context))
-        })
-    };
-    match free {
-        Ok(fit) => (Some(fit), None),
-        Err(reason) => match fit_prior_radius(results, context, &candidate_positions) {
-            Ok(prior_fit) => {
-                let largest_apart = MAX_FALLBACK_DISAGREEMENT * context.prior.fruit_radius_mm;
-                let agreeing = outline()
-                    .and_then(Result::ok)
-                    .map(|fit| {
-                        let apart = (fit.sphere.centre - prior_fit.sphere.centre).norm();
-                        (fit, apart)
-                    })
-                    .filter(|(_, apart)| *apart <= largest_apart);
-                match agreeing {
-                    Some((fit, apart)) => {
-                        let reason = format!(
-                            "{reason}; the sphere of the prior radius ({} points) lies {apart:.1} mm from the outline's",
-                            prior_fit.n_points
-                        );
-                        (Some(fit), Some(reason))
-                    }
-                    None => (Some(prior_fit), Some(reason)),
-                }
-            }
-            Err(second) => {
-                let reason = if candidate_positions.is_empty() {
-                    reason
-                } else {
-                    format!("{reason}; with the radius prior: {second}")
-                };
-                match outline() {
-                    Some(Ok(fit)) => (Some(fit), Some(reason)),
-                    Some(Err(third)) => {
-                        (None, Some(format!("{reason}; with the outline: {third}")))
-                    }
-                    None => (None, Some(reason)),
-                }
-            }
-        },
-    }
-}
-
-/// How far apart, as a factor of the radius prior, the two fallbacks'
-/// spheres may lie for the outline's to answer where both hold. The
-/// outline fixes the fruit across the line of sight and its size, where a
-/// sphere of an assumed radius through short arcs slides along them; but
-/// the outline's wrong answers are neighbours' outlines, far from where the
-/// arcs put the fruit. Measured over 1008 half-scale scans (the sets of
-/// [`MAX_ANSWER_RADIUS_FACTOR`]): of the 176 answers of the prior's sphere,
-/// 75 had an outline's sphere that passed its checks too. 73 of those lay
-/// within 7.9 mm of the prior's (a fifth of the 40 mm prior is 8 mm), and
-/// were 0.2-6.1 mm from the truth, median 1.6 mm, where the prior's were
-/// 1.1-7.5 mm off, median 3.5 mm (10 outlines worse than the prior, by at
-/// most 2.7 mm). Beyond it: seed 408 (`CLUSTER=1 BRANCHES=2 sweep -- 24
-/// 0.2 shade 0.5 400`, 10.2 mm apart: the outline 0.2 mm off, the prior
-/// 10.2 mm) and seed 720 (`CLUSTER=1 sweep -- 48 0.6 shade 0.5 700`,
-/// 12.5 mm apart: the outline 18.6 mm off, the prior 8.7 mm).
-const MAX_FALLBACK_DISAGREEMENT: f64 = 0.2;
-
-/// Largest radius of an answer's sphere (the free fit's, refined or not,
-/// and the outline's), as a factor of the radius prior; a larger one falls
-/// through to the next fallback. The radius range the fits search
-/// ([`LocateOptions::radius_factors`], up to 1.5) is wider, for the
-/// frames' circles and for a fit to start from; but a sphere that grew this
-/// large has swollen with something beside the fruit (a neighbour's or a
-/// branch's points, a neighbour's outline) or taken a flattened front's
-/// curvature. Measured over 1008 half-scale scans (seeds 100-111 and
-/// 200-211 at 0-60 % hidden, six clutter sets of 2-4 apples and branches in
-/// front, and 432 more: `CLUSTER=3 BRANCHES=2` at 40 %, seeds 500-547,
-/// `CLUSTER=2 BRANCHES=1` at 20 %, 600-647, `CLUSTER=1` at 60 %, 700-747,
-/// `BRANCHES=3` at 30 %, 900-947, fully hidden, 800-823; shade and sun;
-/// prior 40 mm, fruit 35-45 mm): the 590 answers held spheres of 0.75-1.44
-/// times the prior; the four above 1.3 times it were 14.7-20.5 mm off, the
-/// largest other 1.28 times it (5.9 mm off). Of the 586 others, one was
-/// beyond 13 mm (seed 533 of the first set, an outline's sphere of 0.85
-/// times the prior, 25 mm off; not found since the stripe points the laser
-/// did not light are dropped).
-const MAX_ANSWER_RADIUS_FACTOR: f64 = 1.3;
-
-/// `fit` if its sphere is within [`MAX_ANSWER_RADIUS_FACTOR`] of the radius prior.
-fn check_answer_radius(
-    fit: FusedFit,
-    context: &FrameContext,
-) -> std::result::Result<FusedFit, String> {
-    let largest = MAX_ANSWER_RADIUS_FACTOR * context.prior.fruit_radius_mm;
-    if fit.sphere.radius_mm > largest {
-        return Err(format!(
-            "the fitted radius {:.1} mm is more than {MAX_ANSWER_RADIUS_FACTOR} times the prior's ({largest:.0} mm): the fit took in more than the fruit",
-            fit.sphere.radius_mm
+) -> (Option<FusedFit>, std::result::Result<String, String>) {
+    use crate::estimate::{self, Decision, Evidence, Source};
+    let scene_outline =
+        if context.options.use_outline { find_scene_outline(context, views).ok() } else { None };
+    let rays = scene_outline.as_ref().map(|o| outline_rays(context.camera, o)).unwrap_or_default();
+    let evidence = Evidence::new(results, context, rays);
+    let (prior, options) = (context.prior, context.options);
+    let (lo, hi) = options.radius_factors;
+    let radius_range_mm = (lo * prior.fruit_radius_mm, hi * prior.fruit_radius_mm);
+    let mut starts = estimate::point_starts(&evidence, radius_range_mm, options.seed);
+    for c in candidates {
+        starts.extend(estimate::arc_starts(
+            c.frame,
+            &c.position_mm,
+            &evidence,
+            prior.fruit_radius_mm,
         ));
     }
-    Ok(fit)
+    let positions: Vec<Point3<f64>> = candidates.iter().map(|c| c.position_mm).collect();
+    let mut outline = None;
+    if let Ok(fit) = fuse(results, context) {
+        starts.push((fit.sphere, Source::Fit("the free sphere fit")));
+    }
+    if let Ok(fit) = fit_prior_radius(results, context, &positions) {
+        starts.push((fit.sphere, Source::Fit("the sphere of the prior radius")));
+    }
+    if let Some(found) = scene_outline.clone()
+        && let Ok(fit) = fit_with_this_outline(results, context, views, found)
+    {
+        starts.push((fit.sphere, Source::Fit("the fruit's outline")));
+        outline = fit.outline;
+    }
+    starts.push((
+        Sphere { centre: prior.rough_position_mm, radius_mm: prior.fruit_radius_mm },
+        Source::Rough,
+    ));
+    // Prune what cannot be the target: a radius out of the options' range
+    // or a centre beyond the rough position's error (a neighbour's).
+    let ranked: Vec<_> = estimate::rank(&starts, &evidence)
+        .into_iter()
+        .filter(|h| {
+            (radius_range_mm.0..=radius_range_mm.1).contains(&h.sphere.radius_mm)
+                && context.search.centre_rejection(&h.sphere.centre).is_none()
+                && h.sphere.centre.z > 0.0
+        })
+        .collect();
+    if ranked.iter().all(|h| h.score.explained == 0) {
+        return (None, Err(no_candidate_reason(results)));
+    }
+    let (best, margin) = match estimate::accept(&ranked, prior) {
+        Decision::Accept { best, margin } => (best, margin),
+        Decision::Refuse(reason) => return (None, Err(reason)),
+    };
+    let rms = best.score.rms_mm;
+    let mut fit = FusedFit {
+        sphere: best.sphere,
+        ellipsoid: None,
+        n_points: best.score.explained,
+        n_frames: best.score.frames,
+        rms_mm: rms,
+        // One cut fixes a circle: the radius then rests on the prior.
+        radius_from_prior: best.score.frames < 2,
+        outline: if matches!(best.source, Source::Fit("the fruit's outline")) {
+            outline
+        } else {
+            None
+        },
+        outline_refined: false,
+    };
+    // The accepted sphere refined by the fruit's outline where the two
+    // agree, to an ellipsoid where that fits clearly better: the silhouette
+    // fixes the semi-axes across the line of sight, which the front's
+    // curvature does not. (An ellipsoid fitted to the laser points alone
+    // follows whatever lies within the band of the sphere: over the tuning
+    // families it doubled the 90th percentile of the error.)
+    if options.use_outline && fit.outline.is_none() && best.score.frames >= 2 {
+        fit = refine_with_outline(fit, results, context, views);
+    }
+    if let Some(cov) = crate::uncertainty::position_covariance(&fit, results, options) {
+        let worst = cov.symmetric_eigenvalues().max().max(0.0).sqrt();
+        if worst > estimate::MAX_POSITION_STD_MM {
+            return (
+                None,
+                Err(format!(
+                    "the best sphere ({}) is uncertain by {worst:.1} mm along its worst direction, more than {:.0} mm",
+                    best.source.describe(),
+                    estimate::MAX_POSITION_STD_MM
+                )),
+            );
+        }
+    }
+    let note = format!(
+        "{} over {} points from {} frames, RMS {:.2} mm, from {}; it beats the next explanation by {margin:.0} rows ({} of {} predicted rows missing)",
+        if fit.ellipsoid.is_some() { "ellipsoid" } else { "sphere" },
+        fit.n_points,
+        fit.n_frames,
+        rms,
+        best.source.describe(),
+        best.score.missing,
+        best.score.predicted
+    );
+    (Some(fit), Ok(note))
 }
 
 /// The fused method's answer: the fused fit's centre (the ellipsoid's,
@@ -487,18 +483,12 @@ fn check_two_cuts(
 /// front of it, 29 mm off) 44 %.
 const MIN_PRIOR_FIT_SHARE: f64 = 0.5;
 
-/// The last resort ([`crate::outline`]): the fruit's outline in the
-/// frames, and a sphere fitted to it and to the laser points near the
-/// fruit on fruit-coloured pixels, from every frame (not only the arcs the
-/// frames kept). Enough of them must lie on the sphere besides the
-/// frames' arcs that cross it ([`MIN_ARC_SHARE`]), in two frames or more,
-/// the laser must confirm a curved surface, in one frame or across them,
-/// and the sphere passes the same checks as the others.
-fn fit_with_outline(
-    results: &[FrameResult],
+/// The fruit's outline in the image of the search ball: a circle of the
+/// radius range the options accept, its centre where the ball's may lie.
+pub(crate) fn find_scene_outline(
     context: &FrameContext,
     views: &[&RgbImage],
-) -> std::result::Result<FusedFit, String> {
+) -> std::result::Result<Outline, String> {
     let (camera, search, options) = (context.camera, context.search, context.options);
     // The search ball's image: a box, the outline's radius range, and where
     // its centre may lie.
@@ -510,13 +500,24 @@ fn fit_with_outline(
     let (lo_mm, hi_mm) = context.radius_range_mm();
     let f_px = 0.5 * (camera.fx_px + camera.fy_px);
     let radius_range_px = (f_px * lo_mm / (centre.z + search.radius_mm), f_px * hi_mm / near_mm);
-    let outline = find_outline(
-        views,
-        area,
-        radius_range_px,
-        |c| (c - centre_px).norm() <= ball_px,
-        options.seed,
-    )?;
+    find_outline(views, area, radius_range_px, |c| (c - centre_px).norm() <= ball_px, options.seed)
+}
+
+/// A hypothesis from the fruit's outline ([`crate::outline`]) in the
+/// frames, and a sphere fitted to it and to the laser points near the
+/// fruit on fruit-coloured pixels, from every frame (not only the arcs the
+/// frames kept). Enough of them must lie on the sphere besides the
+/// frames' arcs that cross it ([`MIN_ARC_SHARE`]), in two frames or more,
+/// the laser must confirm a curved surface, in one frame or across them,
+/// and the sphere passes the same checks as the others.
+fn fit_with_this_outline(
+    results: &[FrameResult],
+    context: &FrameContext,
+    views: &[&RgbImage],
+    outline: Outline,
+) -> std::result::Result<FusedFit, String> {
+    let (camera, search, options) = (context.camera, context.search, context.options);
+    let (lo_mm, hi_mm) = context.radius_range_mm();
     // The laser points on the fruit: where the view is fruit-coloured (the
     // laser points on a leaf in front may lie on one sphere of the
     // outline's family and fix a wrong depth).
@@ -995,47 +996,4 @@ fn count_frames(frame_of: &[usize], indices: impl Iterator<Item = usize>) -> usi
     frames.sort_unstable();
     frames.dedup();
     frames.len()
-}
-
-#[cfg(test)]
-mod tests {
-    #![allow(clippy::unwrap_used)]
-    use alacs_model::{Camera, LaserModel};
-
-    use super::*;
-    use crate::Prior;
-
-    /// Regression (seed 603, `CLUSTER=2 BRANCHES=1 sweep -- 1 0.2 shade 0.5
-    /// 603`, when the check came in): a free fit through the target's arcs
-    /// and a neighbour's swelled to 52.8 mm for a 40 mm prior and stood
-    /// 17.1 mm off. No answer's sphere may be more than
-    /// [`MAX_ANSWER_RADIUS_FACTOR`] times the prior.
-    #[test]
-    fn a_sphere_swollen_beyond_the_prior_is_refused() {
-        let (camera, laser) = (Camera::blackfly_s_5mp(), LaserModel::seed_paper());
-        let centre = Point3::new(0.0, 0.0, 800.0);
-        let prior = Prior { rough_position_mm: centre, fruit_radius_mm: 40.0 };
-        let options = LocateOptions::default();
-        let search = SearchBall::new(&prior, &options);
-        let context = FrameContext {
-            camera: &camera,
-            laser: &laser,
-            prior: &prior,
-            search: &search,
-            options: &options,
-        };
-        let fit = |radius_mm| FusedFit {
-            sphere: Sphere { centre, radius_mm },
-            ellipsoid: None,
-            n_points: 100,
-            n_frames: 5,
-            radius_from_prior: false,
-            rms_mm: 0.3,
-            outline: None,
-            outline_refined: false,
-        };
-        assert!(check_answer_radius(fit(51.0), &context).is_ok());
-        let error = check_answer_radius(fit(52.8), &context).unwrap_err();
-        assert!(error.contains("times the prior's"), "{error}");
-    }
 }

@@ -12,13 +12,17 @@
 //!   [`Candidate`]s and [`FusedFit`]);
 //! - `frame`: one frame, from the search region to its candidate;
 //! - `selection`: the seed paper's holistic scoring and selection;
-//! - `fusion`: the fused sphere and ellipsoid fit, its checks and its
-//!   fallbacks (a sphere of the prior radius, the fruit's [`outline`]);
+//! - `estimate`: the one estimator: hypotheses, one objective, the
+//!   acceptance test;
+//! - `fusion`: the fits that propose hypotheses (a free sphere, a sphere
+//!   of the prior radius, the fruit's [`outline`]) and the accepted
+//!   sphere's refinement;
 //! - `folder`: reading a scan folder (scan.yaml and its images);
 //! - `output`: the `localize --json` object ([`LocalizeOutput`]);
 //! - [`fit`]: the geometric fits (circle, sphere, ellipsoid).
 
 mod error;
+mod estimate;
 pub mod fit;
 mod folder;
 mod frame;

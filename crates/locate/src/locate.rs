@@ -25,27 +25,23 @@
 //!   ([`crate::Candidate::score`]) from its point count, stripe continuity, fit
 //!   residual, agreement with the other frames' candidates and distance from
 //!   the rough position; the best one is the answer.
-//! - **Fused** (the default): one robust sphere fit (RANSAC, then least
-//!   squares) over every frame's fruit points. Five parallel cuts 10 mm
-//!   apart fix the sphere's centre and radius without the radius prior,
-//!   which is what limits a single frame. Where an ellipsoid (roundness
-//!   prior, Cauchy-weighted) fits clearly better, its centre is the answer:
-//!   a sphere fitted to the front of an elongated fruit misplaces the
-//!   centre by millimetres. Where the fruit's outline in the image agrees
-//!   with the laser, the fit is refined by both: the silhouette fixes the
-//!   fruit's size across the line of sight, which the front's curvature
-//!   does not, and with the curvature the depth semi-axis (an ellipsoid
-//!   touching the outline's rays). When the free fit is not trustworthy (short
-//!   arcs of a fruit mostly hidden), a sphere of the prior radius through
-//!   the arcs may answer, under the same checks. The last resort, when the
-//!   laser shows one short arc or arcs that fix no sphere, is the fruit's
-//!   outline in the image ([`crate::outline`]): its rays touch the sphere,
-//!   and the laser points that agree fix its depth. The README compares
-//!   the methods on simulated scans.
+//! - **Fused** (the default): one estimator ([`crate::estimate`]). Spheres
+//!   that might be the fruit are proposed from every source (robust spheres
+//!   through all frames' points, each frame's arc at the prior radius on
+//!   both sides of its plane, the free fit, the prior radius's fit, the
+//!   outline's sphere, the rough position), refined and scored by one
+//!   objective: the laser points each explains, the points inside it, the
+//!   stripe rows it predicts and the image does not show, the outline's
+//!   tangency, the radius prior and the rough position's prior. The best
+//!   is the answer where it beats every other explanation (and the empty
+//!   scene) by a stated margin and its position is known within the
+//!   harvester's tolerance; the fruit's outline then refines it (to an
+//!   ellipsoid where that fits clearly better). Per-frame steps only
+//!   propose and prune. docs/ACCURACY.md judges it per family of scans.
 //!
-//! A fit that is not trustworthy (too few points, a large residual, a
-//! radius or centre out of range, a surface facing away from the camera, a
-//! flat patch) gives `not_found` with the reason, never a point.
+//! An answer that does not pass the acceptance test gives `not_found` with
+//! the reason (the best sphere and the explanation it could not rule
+//! out), never a point.
 
 use alacs_model::{Camera, LaserModel};
 use image::RgbImage;
@@ -92,8 +88,11 @@ pub(crate) fn conclude(
 ) -> Localization {
     frame::drop_unlit_points(&mut results, context, views);
     let (candidates, holistic) = selection::select(&mut results, context);
-    let (fused, fused_rejected) =
-        fusion::fuse_with_fallbacks(&results, context, &candidates, views);
+    let (fused, outcome) = fusion::estimate_fruit(&results, context, &candidates, views);
+    let (note, fused_rejected) = match outcome {
+        Ok(note) => (Some(note), None),
+        Err(reason) => (None, Some(reason)),
+    };
     let mut answer = Localization {
         status: Status::NotFound,
         position_mm: None,
@@ -112,6 +111,9 @@ pub(crate) fn conclude(
     match context.options.method {
         Method::Fused => {
             fusion::answer_fused(&mut answer);
+            if let Some(note) = note {
+                answer.reason = note;
+            }
             if answer.status == Status::Ok {
                 answer.position_cov_mm2 = answer.fused.as_ref().and_then(|fit| {
                     uncertainty::position_covariance(fit, &answer.frames, context.options)

@@ -58,20 +58,45 @@ pub(crate) fn select(
 
 /// The holistic method's answer: the selected candidate, at the prior radius.
 pub(crate) fn answer_holistic(answer: &mut Localization, prior: &Prior) {
-    match answer.holistic {
-        Some(i) => {
-            let best = &answer.candidates[i];
+    let Some(i) = answer.holistic else {
+        answer.reason = no_candidate_reason(&answer.frames);
+        return;
+    };
+    let best = &answer.candidates[i];
+    // The one acceptance test holds for every method: the selected frame's
+    // candidate must be the fruit the estimator accepted from all frames
+    // (within its rival distance), or the scan contradicts it.
+    let agreed = answer.fused.as_ref().map(|fit| {
+        let centre = fit.ellipsoid.as_ref().map_or(fit.sphere.centre, |e| e.centre);
+        (best.position_mm - centre).norm()
+    });
+    let same_fruit = crate::estimate::RIVAL_DISTANCE * prior.fruit_radius_mm;
+    match agreed {
+        Some(apart) if apart <= same_fruit => {
             answer.status = Status::Ok;
             answer.position_mm = Some(best.position_mm);
             answer.radius_mm = Some(prior.fruit_radius_mm);
             answer.selected = Some(i);
             answer.reason = format!(
-                "frame {} selected from {} candidates (score {:.2})",
+                "frame {} selected from {} candidates (score {:.2}); {apart:.1} mm from the fruit all frames support",
                 best.frame,
                 answer.candidates.len(),
                 best.score
             );
         }
-        None => answer.reason = no_candidate_reason(&answer.frames),
+        Some(apart) => {
+            answer.reason = format!(
+                "frame {}'s candidate (score {:.2}) lies {apart:.0} mm from the fruit all frames support, more than {same_fruit:.0} mm: the frames contradict it",
+                best.frame, best.score
+            );
+        }
+        None => {
+            answer.reason = format!(
+                "frame {}'s candidate (score {:.2}) is not confirmed by the frames together: {}",
+                best.frame,
+                best.score,
+                answer.fused_rejected.as_deref().unwrap_or("no fruit accepted")
+            );
+        }
     }
 }

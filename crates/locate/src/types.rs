@@ -15,10 +15,12 @@ use crate::outline::Outline;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Method {
-    /// One robust sphere fit over every frame's fruit points.
+    /// The one estimator over every frame's laser points ([`crate::locate()`]).
     #[default]
     Fused,
-    /// The best-scoring single-frame candidate (the seed paper's holistic evaluation).
+    /// The best-scoring single-frame candidate (the seed paper's holistic
+    /// evaluation), answered only where it is the fruit the fused estimator
+    /// accepts from all frames (the one acceptance test).
     Holistic,
 }
 

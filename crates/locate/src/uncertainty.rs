@@ -28,12 +28,12 @@
 //!    3). A fruit that needed a fallback (the prior's radius, the
 //!    outline) is not seen from limb to limb, and gets the along-sight
 //!    variance across it too.
-//! 3. The radius, where it was not fitted but taken from the prior (the
-//!    fallback): the centre moves along the line of sight by the radius's
-//!    error, taken as uniform over the radius range the options accept.
+//! 3. The radius, where one cut cannot fix it and the radius prior does:
+//!    the centre moves along the line of sight by the prior's standard
+//!    deviation ([`crate::estimate`]'s `RADIUS_PRIOR_STD`).
 //!
 //! The calibration's own error (alpha, L0, beta) is not in it: at the
-//! standard deviations the README's 10-pose session gives (alpha
+//! standard deviations docs/calibration.md's 10-pose session gives (alpha
 //! 0.0017 deg, L0 0.004 mm, beta 0.0006 deg) it moves a point at 1 m by
 //! about 0.07-0.1 mm (dz/d alpha = z^2 (cos a + u sin a) / L, L = 280-380
 //! mm), a variance under 0.1 % of the shape's along the line of sight
@@ -44,7 +44,6 @@ use nalgebra::{DMatrix, Matrix3, Point3, Vector3};
 
 use crate::fit::Sphere;
 use crate::frame::MIN_NOISE_MM;
-use crate::fusion::fruit_points;
 use crate::{FrameResult, FusedFit, LocateOptions};
 
 /// The shape's variances (along, across the line of sight) in (s r)^2
@@ -55,7 +54,7 @@ const SPHERE_SHAPE: (f64, f64) = (6.0, 16.0 / 15.0);
 const ELLIPSOID_SHAPE: (f64, f64) = (1.5, 4.0 / 15.0);
 
 /// The covariance of `fit`'s centre (mm^2, camera frame), from the frames'
-/// fruit points within the inlier threshold of its sphere; `None` when
+/// laser points within the inlier threshold of its sphere; `None` when
 /// the points do not fix it.
 pub(crate) fn position_covariance(
     fit: &FusedFit,
@@ -63,18 +62,17 @@ pub(crate) fn position_covariance(
     options: &LocateOptions,
 ) -> Option<Matrix3<f64>> {
     let sphere = &fit.sphere;
-    let points: Vec<Point3<f64>> = fruit_points(results)
-        .0
-        .into_iter()
+    let points: Vec<Point3<f64>> = results
+        .iter()
+        .flat_map(|r| r.points_in_camera.iter().map(|(_, p)| *p))
         .filter(|p| sphere.distance_mm(p).abs() <= options.inlier_threshold_mm)
         .collect();
     let free_radius = !fit.radius_from_prior;
     let centre = fit.ellipsoid.as_ref().map_or(sphere.centre, |e| e.centre);
     let radius = fit.ellipsoid.as_ref().map_or(sphere.radius_mm, |e| e.equal_volume_radius_mm());
-    // The radius range the options accept, as a standard deviation (uniform
-    // over it): what is known of the fruit where the points do not fix it.
-    let (lo, hi) = options.radius_factors;
-    let radius_std = (hi - lo) * radius / 12f64.sqrt();
+    // The radius prior's standard deviation: what is known of the fruit's
+    // size where the points do not fix it (the estimator's own prior).
+    let radius_std = crate::estimate::RADIUS_PRIOR_STD * radius;
     let fit_part = fit_covariance(&points, sphere, free_radius)
         .unwrap_or_else(|| Matrix3::identity() * radius_std * radius_std);
     let sight: Vector3<f64> = centre.coords.try_normalize(1e-9)?;
