@@ -7,7 +7,7 @@
 //!
 //! The inputs are made with `alacs simulate` into a temporary folder first
 //! (a few minutes on 2 cores: one full-resolution scan, 2 million samples).
-//! The numbers go into README.md's "Memory" table.
+//! The numbers go into docs/SPEED.md's "Memory" table.
 
 // A benchmark program: failing loudly is its error handling.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]

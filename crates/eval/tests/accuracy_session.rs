@@ -117,7 +117,7 @@ fn five_slide_positions_agree_with_the_noise_floor() {
         assert!((0.75..1.33).contains(&ratio), "d = {}: ratio {ratio}", slide.slide_mm);
     }
     // The stripe noise in pixels: 0.05-0.15 px (measured 0.089 px on these
-    // half-scale renders; 0.061 px RMS on full-scale boards in the README).
+    // half-scale renders; 0.061 px RMS on full-scale boards in docs/calibration.md).
     assert!((0.05..0.15).contains(&eval.measured_sigma_px), "{}", eval.measured_sigma_px);
     // The depth error grows with d as L = L0 - d shrinks: predicted 1.9 x
     // from d = 0 to 200 mm, measured 1.5 x; the far half of the stroke

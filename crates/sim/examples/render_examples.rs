@@ -1,4 +1,4 @@
-//! Renders the small example images shown in the README (docs/images/):
+//! Renders the small example images shown in docs/simulator.md (docs/images/):
 //! a calibration-session view and a sunny, occluded scan frame.
 //!
 //! `cargo run --release -p alacs-sim --example render_examples -- docs/images`

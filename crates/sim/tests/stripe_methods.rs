@@ -9,7 +9,7 @@
 //! column whose camera ray first meets the fruit on the laser plane, at a
 //! point the laser lights; rows whose stripe lies on anything else are left
 //! out. `STRIPE_METHODS_SETS=N` repeats the six scans with N - 1 more sets
-//! of seeds (the README's table: 4).
+//! of seeds (docs/calibration.md's table: 4).
 //!
 //! Calibration board: a seeded session with laser-off views, with
 //! [`StripeOptions::default`] on both scores, the truth found the same way

@@ -47,7 +47,7 @@ pub enum PeakMethod {
     ///
     /// The default: measured against the simulator's truth, the most
     /// accurate of the four on orchard scans and on calibration boards
-    /// (README, "Sub-pixel stripe centre: which method").
+    /// (docs/calibration.md, "Sub-pixel stripe centre").
     #[default]
     Steger,
 }
