@@ -275,8 +275,9 @@ mod tests {
 
     #[test]
     fn a_scan_of_more_frames_than_the_limit_is_refused() {
-        // Regression: a scan of 10,000 frames was decoded all at once until
-        // the process aborted (948 MB at 1,000 frames).
+        // A scan.yaml that lists more frames than a scan has is bad input:
+        // held at once, its images (about 1 MB a frame at the simulator's
+        // scaled resolution) would grow the memory without bound.
         let mut text = String::from("rough_position_mm: [0, 0, 800]\nframes:\n");
         for k in 0..=MAX_SCAN_FRAMES {
             text.push_str(&format!("  - {{image: frame{k}.png, slide_mm: {k}}}\n"));

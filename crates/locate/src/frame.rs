@@ -366,18 +366,13 @@ const MIN_SLIDES_APART_MM: f64 = 2.5;
 /// (`StripeOptions::min_strength`, the least the laser must show; where
 /// the red clips, what the clipping leaves room for) is a red ridge of the
 /// scene itself (a sunlit fruit's rim against a leaf), found where the
-/// laser lies in a leaf's shadow. Over the stripe points of 96 half-scale
-/// scans (seeds 100-111 and 200-211, 20 and 40 % hidden, shade and sun),
-/// 17 % gained 0-7 DN of red in their frame, nearly all others more than
-/// 20 DN. (The points' strength, their colour's contrast with the
-/// neighbours, is no measure: a ridge beside a dark branch scores 100
-/// where the laser adds 40 DN.) Before this, a ridge's points,
-/// triangulated on the frame's laser plane, lay 30 mm behind the fruit's
-/// front and fixed the depth of its outline's sphere (full scale, 60 %
-/// hidden, sun: `LASER=18.6,1.1,372 PRIOR_MM=random sweep -- 1 0.6 sun 1.0
-/// 4011`, 33 mm off). A frame with no other frame beyond
-/// [`MIN_SLIDES_APART_MM`] of it has no unlit view: nothing is dropped
-/// there.
+/// laser lies in a leaf's shadow; triangulated on the frame's laser plane,
+/// its points lie centimetres behind the fruit's front and would fix a
+/// wrong depth for the outline's sphere. (The points' strength, their
+/// colour's contrast with the neighbours, is no measure: a ridge beside a
+/// dark branch scores 100 where the laser adds 40 DN.) A frame with no
+/// other frame beyond [`MIN_SLIDES_APART_MM`] of it has no unlit view:
+/// nothing is dropped there.
 pub(crate) fn drop_unlit_points(
     results: &mut [FrameResult],
     context: &FrameContext,

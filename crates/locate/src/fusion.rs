@@ -109,8 +109,8 @@ pub(crate) fn estimate_fruit(
     // agree, to an ellipsoid where that fits clearly better: the silhouette
     // fixes the semi-axes across the line of sight, which the front's
     // curvature does not. (An ellipsoid fitted to the laser points alone
-    // follows whatever lies within the band of the sphere: over the tuning
-    // families it doubled the 90th percentile of the error.)
+    // follows whatever lies within the band of the sphere, a neighbour's or
+    // a leaf's points as readily as the fruit's.)
     if options.use_outline && fit.outline.is_none() && best.score.frames >= 2 {
         fit = refine_with_outline(fit, results, context, views);
     }
@@ -193,8 +193,8 @@ pub(crate) fn answer_fused(answer: &mut Localization) {
     }
 }
 
-/// The fused estimate: one robust sphere fit over every frame's fruit
-/// points, with the checks that make it trustworthy.
+/// The free fit: one robust sphere over every frame's fruit points. Its
+/// checks decide whether it proposes a sphere to [`estimate_fruit`].
 fn fuse(results: &[FrameResult], context: &FrameContext) -> std::result::Result<FusedFit, String> {
     let (search, prior, options) = (context.search, context.prior, context.options);
     let (mut points, mut frame_of) = fruit_points(results);
@@ -215,9 +215,9 @@ fn fuse(results: &[FrameResult], context: &FrameContext) -> std::result::Result<
     let mut outcome = ransac_refit(&estimator, &ransac_options, 3).ok_or_else(no_sphere)?;
     // A frame whose arc the sphere crosses saw another surface (a
     // neighbour, a leaf) that meets the fruit's sphere by chance; its points
-    // on the sphere pull it away from the fruit (seed 310 in a cluster of
-    // four: 12 such points of 125 made a 39 mm fruit a 52 mm sphere, 15 mm
-    // off). The sphere is fitted again without those frames.
+    // on the sphere pull it away from the fruit (in a cluster, to a larger
+    // sphere off the fruit's centre). The sphere is fitted again without
+    // those frames.
     let crossing = crossing_arcs(&points, &frame_of, results.len(), &outcome.model, threshold);
     if outcome.inliers.iter().any(|&i| crossing[frame_of[i]]) {
         let kept: Vec<usize> = (0..points.len()).filter(|&i| !crossing[frame_of[i]]).collect();
@@ -262,10 +262,8 @@ fn fuse(results: &[FrameResult], context: &FrameContext) -> std::result::Result<
         ));
     }
     // Two cuts, each a cut of this fruit: one frame's arc and a few points
-    // of another surface in a second frame also lie on a sphere (seed 324
-    // in a cluster of four: 91 points of the target's arc and 12 of a
-    // neighbour's, 16 % of that frame's rows, 20 mm off; the 174 right free
-    // fits of 432 half-scale scans showed 23 % or more in theirs).
+    // of another surface (a neighbour's arc) in a second frame also lie on
+    // a sphere, so the second-best frame must show its share of rows too.
     let held = points_per_frame(&frame_of, &inliers, results.len());
     let mut frame_coverage: Vec<f64> =
         held.iter().zip(&rows_per_frame).map(|(&n, rows)| n as f64 / rows.max(1.0)).collect();
@@ -302,16 +300,10 @@ fn fuse(results: &[FrameResult], context: &FrameContext) -> std::result::Result<
     })
 }
 
-/// Largest ratio of an answer's longest semi-axis to its shortest. Apples
-/// are round to a few per cent (a tall variety's height is at most about
-/// 1.2 times its width), and the simulator's within 8 % of their mean
-/// (ratios up to 1.17); an ellipsoid beyond this has followed a neighbour,
-/// a leaf's edge or an outline that is not the fruit's, and the sphere
-/// stands. Measured on 288 half-scale scans (seeds 100-111 and 200-211,
-/// 0-60 % hidden, shade and sun, and the three clutter sets): the 135
-/// ellipsoid answers within 15 mm had ratios up to 1.15; the two beyond it
-/// (a cluster of four behind two branches, seed 303 in shade and sun, an
-/// outline that took in a neighbour) 1.33 and 1.39, 17 and 19 mm off.
+/// Largest ratio of an ellipsoid's longest semi-axis to its shortest. Apples
+/// are round to a few per cent (a tall variety's height is at most about 1.2
+/// times its width); an ellipsoid beyond this has followed a neighbour, a
+/// leaf's edge or an outline that is not the fruit's, and the sphere stands.
 const MAX_SEMI_AXIS_RATIO: f64 = 1.25;
 
 /// Whether an ellipsoid may be an apple ([`MAX_SEMI_AXIS_RATIO`]).
@@ -320,16 +312,14 @@ fn is_apple_shaped(ellipsoid: &Ellipsoid) -> bool {
     axes.max() <= MAX_SEMI_AXIS_RATIO * axes.min()
 }
 
-/// Weight of the ellipsoid's roundness prior, in points. On 21 simulated
-/// ellipsoidal fruit (semi-axes within 8 % of the mean) weights of 10 and
-/// 50 gave the same mean 3-D error, 1.7 mm (the sphere alone: 2.6 mm); the
-/// front of a fruit does not fix its depth semi-axis, so the prior decides
-/// it, and the worst cases stay near 5 mm either way.
+/// Weight of the ellipsoid's roundness prior, in points: the front of a
+/// fruit does not fix its depth semi-axis, so the prior decides it; against
+/// a fit's hundred or more laser points, a few tens leave the rest to them.
 const ELLIPSOID_PRIOR_POINTS: f64 = 20.0;
 
-/// The ellipsoid must cut the sum of squared distances by this fraction
-/// (measured: on simulated spheres it cuts 1-25 %, on fruit with semi-axes
-/// 8 % apart mostly 40-90 %).
+/// The ellipsoid must cut the sum of squared distances by this fraction: on
+/// a round fruit its five extra parameters fit only noise and cut it by a
+/// quarter at most; on a fruit a few per cent from round, by 40 % or more.
 const MIN_SSE_REDUCTION: f64 = 0.3;
 
 /// Every frame's fruit points, with the frame each came from.
@@ -347,13 +337,12 @@ pub(crate) fn fruit_points(results: &[FrameResult]) -> (Vec<Point3<f64>>, Vec<us
     (points, frame_of)
 }
 
-/// The fallback when the free fit is not trustworthy: a sphere of the
-/// prior radius through the frames' fruit points (Gauss-Newton on the
-/// centre from each frame's candidate and the rough position, each first
-/// with all the points and then with those the start's sphere holds,
-/// keeping the fit with most points within the inlier threshold), with
-/// the same checks as the free fit except the coverage, which a fruit
-/// mostly hidden cannot meet.
+/// A sphere of the prior radius through the frames' fruit points
+/// (Gauss-Newton on the centre from each frame's candidate and the rough
+/// position, each first with all the points and then with those the start's
+/// sphere holds, keeping the fit with most points within the inlier
+/// threshold). It proposes a sphere where it passes the free fit's checks
+/// except the coverage, which a fruit mostly hidden cannot meet.
 fn fit_prior_radius(
     results: &[FrameResult],
     context: &FrameContext,
@@ -449,16 +438,9 @@ fn fit_prior_radius(
 /// describes) in each of two of the `n_frames` frames, as many as a frame
 /// needs for a candidate of its own. One frame's arc is a circle in the
 /// laser's plane, and two spheres of any radius hold it, mirrored across
-/// that plane; a few points of another frame cannot choose between them.
-/// Regression: seed 324 (`CLUSTER=3 BRANCHES=2 sweep -- 1 0.4 shade 0.5
-/// 324`, a cluster of four behind two branches, 57 % hidden): the target's
-/// one arc (91 points, a circle of 39.1 mm, 8.4 mm from the centre of a
-/// 40 mm sphere) and 10 points of a neighbour's arc in another frame (11
-/// needed) chose the mirror sphere, 17.5 mm off. When this check came in,
-/// it refused none of the 56 right answers of this fallback over 576
-/// half-scale scans (seeds 100-111 and 200-211 at 0-60 % hidden, shade and
-/// sun, and six clutter sets): each held as many in two frames or more
-/// (the closest: 11 where 11 were needed).
+/// that plane; a few points of another frame (a neighbour's arc, in a
+/// cluster) cannot choose between them. Decides whether the fit proposes
+/// a sphere.
 fn check_two_cuts(
     frame_of: &[usize],
     inliers: &[usize],
@@ -476,11 +458,9 @@ fn check_two_cuts(
     Ok(())
 }
 
-/// Smallest share of the fruit points a sphere of the prior radius must
-/// hold. Measured over 96 simulated scans (half scale, sun and shade, 0-60 %
-/// hidden, clusters, branches in front): the fallback's right answers held
-/// 55-100 % of them, the one wrong answer (a fruit's edge and a branch in
-/// front of it, 29 mm off) 44 %.
+/// Smallest share of the fruit points a sphere of the prior radius must hold
+/// to be proposed: one fruit's sphere holds most of them, a sphere through a
+/// fruit's edge and a branch in front of it holds a part of each.
 const MIN_PRIOR_FIT_SHARE: f64 = 0.5;
 
 /// The fruit's outline in the image of the search ball: a circle of the
@@ -509,7 +489,8 @@ pub(crate) fn find_scene_outline(
 /// frames kept). Enough of them must lie on the sphere besides the
 /// frames' arcs that cross it ([`MIN_ARC_SHARE`]), in two frames or more,
 /// the laser must confirm a curved surface, in one frame or across them,
-/// and the sphere passes the same checks as the others.
+/// and the sphere must pass the same checks as the others. These checks
+/// decide whether the outline proposes a sphere.
 fn fit_with_this_outline(
     results: &[FrameResult],
     context: &FrameContext,
@@ -575,16 +556,8 @@ fn fit_with_this_outline(
     let on_sphere: Vec<Point3<f64>> = fit.inliers.iter().map(|&i| points[i]).collect();
     let n_frames = count_frames(&frame_of, fit.inliers.iter().copied());
     // Two cuts, as for every other sphere: one frame's points fix a depth
-    // for any outline they fall inside, a neighbour's too. Before the
-    // stripe points the laser did not light were dropped, this never
-    // decided (seed 123 took 5 such points in its arc, which made it a
-    // crossing one); after, the outline's sphere of a neighbour behind the
-    // target rested on half of one frame's arc (13 of 26 points, 14 in
-    // all), 20.4 mm off (`CLUSTER=2 BRANCHES=1 sweep -- 1 0.6 shade 0.5
-    // 123`). In the 1008 half-scale scans the one other answer from one
-    // frame was seed 937 (`sweep -- 48 0.3 shade 0.5 900` with
-    // `BRANCHES=3`, 61 % hidden: 2.0 mm off, 44 of its arc's 45 points),
-    // now not found; the full-scale sets had none.
+    // for any outline they fall inside, a neighbour's too (the outline of a
+    // neighbour behind the target takes its depth from the target's arc).
     if n_frames < 2 {
         return Err(format!(
             "the {} laser points on the outline's sphere lie in one frame: one cut does not tell the fruit's outline from a neighbour's",
@@ -624,8 +597,8 @@ fn fit_with_this_outline(
     })
 }
 
-/// The free fit refined by the fruit's outline, where the outline agrees
-/// with the laser: a sphere to the outline's sphere and, where it fits
+/// The accepted sphere refined by the fruit's outline, where the outline
+/// agrees with the laser: a sphere to the outline's sphere and, where it fits
 /// clearly better, to an ellipsoid; an ellipsoid to the outline's
 /// ellipsoid ([`refine_ellipsoid_with_outline`]). The front of a fruit
 /// that is not quite round fixes its curvature radius, not its size: a
@@ -637,17 +610,17 @@ fn fit_with_this_outline(
 /// touch the fruit at a and b, so the sphere fitted to the laser points and
 /// the outline together ([`fit_outline_sphere`]) errs by about r (mean(e_a,
 /// e_b) - e_c) along the line of sight, half as much. The outline is
-/// searched around the free fit's image (its radius within
-/// [`OUTLINE_RADIUS_RANGE`] of the fit's, its centre within a third of the
-/// radius); the refinement is kept only where it still holds
-/// [`MIN_REFINED_SHARE`] of the free fit's points and passes the free
-/// fit's checks. Where the outline's sphere does
-/// not, but the outline is the free sphere's silhouette within
-/// [`MAX_SILHOUETTE_MISMATCH`], the free sphere is refined to the outline's
+/// searched around the accepted sphere's image (its radius within
+/// [`OUTLINE_RADIUS_RANGE`] of the sphere's, its centre within a third of
+/// the radius); the outline refines the sphere only where the refinement
+/// still holds [`MIN_REFINED_SHARE`] of its points and passes the checks of
+/// every fitted sphere ([`refinement_agrees`]). Where the outline's sphere
+/// does not, but the outline is the accepted sphere's silhouette within
+/// [`MAX_SILHOUETTE_MISMATCH`], the sphere is refined to the outline's
 /// ellipsoid on the same terms (a fruit 13 % from round, whose front and
-/// silhouette no one sphere holds). Else the free fit stands (a fruit whose
-/// silhouette is far from a circle, an outline that took in a neighbour or
-/// lost a part to a leaf).
+/// silhouette no one sphere holds). Else the accepted sphere stands (a
+/// fruit whose silhouette is far from a circle, an outline that took in a
+/// neighbour or lost a part to a leaf).
 fn refine_with_outline(
     fit: FusedFit,
     results: &[FrameResult],
@@ -722,15 +695,14 @@ fn refine_with_outline(
 /// rays together ([`fit_ellipsoid_with_rays`]). The front's curvature
 /// radius is a^2 / c and the silhouette shows a and b, so together they
 /// fix the semi-axis c along the line of sight, which the front alone
-/// leaves to the roundness prior (seed 116 at 5 MP, a fruit longer in
-/// depth than across: 7.7 -> 1.3 mm). Kept on the sphere's refinement's
-/// terms, if apple-shaped ([`MAX_SEMI_AXIS_RATIO`]), and, where
-/// `must_fit_better` (starting from a sphere: the outline's sphere, whose
-/// refinement is already kept, or the free sphere, where the outline's was
-/// refused), only where it also cuts the squared residuals of the points
-/// and rays by [`MIN_SSE_REDUCTION`], as the free fit's ellipsoid must: on
-/// a round fruit the extra freedom only follows the outline's whole-pixel
-/// edges. Else `fit` stands.
+/// leaves to the roundness prior. The outline refines `fit` to it on the
+/// sphere's refinement's terms, if apple-shaped ([`MAX_SEMI_AXIS_RATIO`]),
+/// and, where `must_fit_better` (starting from a sphere: the outline's
+/// sphere, whose refinement is already kept, or the accepted sphere, where
+/// the outline's sphere does not refine it), only where it also cuts the
+/// squared residuals of the points and rays by [`MIN_SSE_REDUCTION`], as
+/// the free fit's ellipsoid must: on a round fruit the extra freedom only
+/// follows the outline's whole-pixel edges. Else `fit` stands.
 fn refine_ellipsoid_with_outline(
     fit: FusedFit,
     ellipsoid: Ellipsoid,
@@ -781,12 +753,12 @@ fn refine_ellipsoid_with_outline(
     }
 }
 
-/// Whether an outline's refinement of `fit` may replace it: its surface
-/// (`sphere`, an ellipsoid's centre and equal-volume radius) holds
+/// Whether the outline refines the accepted sphere `fit`: the refinement's
+/// surface (`sphere`, an ellipsoid's centre and equal-volume radius) holds
 /// [`MIN_REFINED_SHARE`] of the fit's points (`on_surface`, scattering
 /// `rms_mm` about it), the outline's rays miss it by at most
-/// [`MAX_OUTLINE_RMS_MM`], its radius is in range and it passes the free
-/// fit's checks.
+/// [`MAX_OUTLINE_RMS_MM`], its radius is in range and it passes the checks
+/// of every fitted sphere ([`check_sphere_fit`]).
 fn refinement_agrees(
     fit: &FusedFit,
     sphere: &Sphere,
@@ -802,38 +774,24 @@ fn refinement_agrees(
         && check_sphere_fit(sphere, on_surface, rms_mm, context.search, context.options).is_ok()
 }
 
-/// The radii, as factors of the free fit's, among which the outline that
-/// refines it is searched. A sphere fitted to the front of a fruit takes
-/// the front's curvature radius, a^2 / c for semi-axes a across the line
-/// of sight and c along it: up to 1.27 times the silhouette's for semi-axes
-/// 8 % from their mean, more with noise at 1.2 m. Seed 201 at half scale
-/// (20 % hidden, shade, a fruit 46 mm across and 41 mm deep, radius prior
-/// 46 mm): the free sphere took 57 mm, its silhouette is 0.78 of that, and
-/// the fit stood 16.4 mm off with the earlier range 0.8-1.2; refined,
-/// 2.6 mm. On 768 half-scale scans (the README's 432 with the prior
-/// 40 mm, and 336 with priors 34 and 46 mm) the wider range changed four
-/// others, each 0.9-2.3 mm worse, none beyond 3.7 mm.
+/// The radii, as factors of the accepted sphere's image radius, among which
+/// the outline that refines it is searched: a sphere fitted to a fruit's
+/// front takes its curvature radius a^2 / c (semi-axes a across the line of
+/// sight, c along it), so for semi-axes within 8 % of their mean the
+/// silhouette is 0.85-1.17 of the sphere, further with the stripe's noise.
 const OUTLINE_RADIUS_RANGE: (f64, f64) = (0.7, 1.3);
 
-/// Share of the free fit's points the outline's refinement must keep on
-/// its sphere. Measured on 72 simulated scans (half scale, seeds 100-111,
-/// shade and sun, 0-40 % hidden), against the frames' fruit points: where
-/// the refinement helped it kept 92-100 % of them; where the fruit's
-/// silhouette was an ellipse far from a circle, or partly a leaf's, 62-82 %,
-/// and it moved the centre 1-5 mm the wrong way. Against the free fit's
-/// own points (this test) one of those passes: seed 100 at 20 % hidden in
-/// shade, 2.5 -> 3.7 mm.
+/// Share of the accepted sphere's points the outline's refinement must keep
+/// on its surface: an outline that agrees with the laser keeps nearly all of
+/// them; a silhouette far from a circle, or partly a leaf's, pulls the
+/// surface off the laser's points and loses a sixth or more.
 const MIN_REFINED_SHARE: f64 = 0.9;
 
-/// Where the outline's sphere refinement is refused, the outline may still
-/// refine the free sphere into an ellipsoid if its radius is within this
-/// fraction of the free sphere's silhouette (the simulator's fruit have
-/// semi-axes within 8 % of their mean). Measured on 172 half-scale scans
-/// (seeds 100-111 and 200-211 at 0-40 % hidden, the covariance test's
-/// 1000-1099): the sphere refinement was refused in 6; the 4 within 10 %
-/// (outline / silhouette 0.93-1.07) went from 4.5-5.9 to 0.5-2.8 mm; the 2
-/// beyond it (0.89, a leaf cutting the outline, and 1.11) would have gone
-/// from 5.2 to 11.4 and from 0.5 to 2.4 mm, and keep the free fit.
+/// Where the outline's sphere does not refine the accepted sphere, the
+/// outline may still refine it into an ellipsoid if its radius is within this
+/// fraction of the sphere's silhouette: an apple's semi-axes lie within about
+/// 8 % of their mean; an outline further off took in a neighbour or lost a
+/// part to a leaf.
 const MAX_SILHOUETTE_MISMATCH: f64 = 0.1;
 
 /// Largest RMS distance of the outline's rays from the fitted sphere, mm: a
@@ -841,25 +799,21 @@ const MAX_SILHOUETTE_MISMATCH: f64 = 0.1;
 /// millimetres from any sphere.
 const MAX_OUTLINE_RMS_MM: f64 = 3.0;
 
-/// How far the outline fallback's laser points, across frames, must bend
-/// away from a plane, in multiples of their scatter about the sphere. The
+/// How far the laser points on the outline's sphere, across frames, must
+/// bend away from a plane, in multiples of their scatter about the sphere,
+/// for the outline to propose it (or one frame's arc must bend). The
 /// free fit asks `CURVATURE_SIGNIFICANCE` (4) because its sphere is fitted
 /// to those points alone and follows part of their noise; the outline's
 /// sphere takes its size and its place across the line of sight from the
 /// outline, so the laser points only fix its depth and cannot bend it
 /// towards themselves, and a flat surface's points, which would lie on
-/// any plane within their noise, give a ratio near 1. Measured over 126
-/// outline fallbacks (half scale, seeds 100-111 and 200-211 at 0-100 %
-/// hidden, sun and shade, and both clutter sets): of the fits that pass
-/// the sphere checks, the right ones (0.4-6.8 mm from the truth) have
-/// ratios 0.7-6, the two wrong ones 0.6 (held by one frame's curved arc
-/// instead) and 1.55 (18 mm off); with 2 instead of 4, 7 more of 144 scans
-/// at 0-40 % hidden are found and 3 more of 48 at 60 %, with no new answer
-/// beyond 15 mm.
+/// any plane within their noise, give a ratio near 1; twice their scatter
+/// lies clear of that.
 const OUTLINE_CURVATURE_SIGNIFICANCE: f64 = 2.0;
 
-/// The check every fused sphere must pass after [`check_sphere_fit`], free,
-/// of the prior radius or the outline's: a surface curved beyond its noise,
+/// The check a fit's sphere must pass after [`check_sphere_fit`] to be
+/// proposed, free, of the prior radius or (across frames) the outline's: a
+/// surface curved beyond its noise,
 /// its points `significance` times `rms` (their scatter about the sphere)
 /// from a plane.
 fn check_not_flat(
@@ -878,15 +832,9 @@ fn check_not_flat(
 
 /// Share of a frame's arc (its points on one circle) a sphere must hold
 /// for the arc to count as a cut of it ([`crossing_arcs`]): the free fit
-/// is fitted again without frames whose arcs it crosses, and the outline
-/// fallback counts no support from them. Measured on the 47 outline-fallback answers of 288 half-scale
-/// scans (seeds 100-111 and 200-211 at 0-60 % hidden, shade and sun, and
-/// three clutter sets): the one wrong answer (seed 123, a cluster of three
-/// behind a branch, 73 % hidden: a neighbour's outline behind the target
-/// and the target's laser points, 20 mm off) took 13 of its 15 points from
-/// an arc it held 13 of 31 of; the right ones (0.4-6.8 mm off) held their
-/// arcs or took at most 11 points (at most a third of theirs) from arcs
-/// they crossed.
+/// is fitted again without frames whose arcs it crosses, and the outline's
+/// fit counts no support from them. A cut of the sphere's own fruit lies on
+/// it nearly whole; a surface that meets it by chance, over a short stretch.
 const MIN_ARC_SHARE: f64 = 0.5;
 
 /// For each of `n_frames` frames, whether its arc (its points on one
@@ -913,6 +861,8 @@ fn crossing_arcs(
 
 /// The checks of any fitted sphere: the points' scatter about it, its
 /// centre within the search ball, and the points facing the camera from it.
+/// They decide whether a fit proposes its sphere, and whether an outline's
+/// refinement replaces the accepted one.
 fn check_sphere_fit(
     sphere: &Sphere,
     on_sphere: &[Point3<f64>],

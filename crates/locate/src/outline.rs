@@ -1,10 +1,11 @@
 //! The fruit's outline in the image, and a sphere fitted to it and to the
-//! laser points together: a refinement of the laser's own fit where the
+//! laser points together: a hypothesis for the estimator
+//! ([`crate::estimate`]), which matters most where the laser shows too
+//! little of a fruit (mostly hidden, or in the laser's shadow) for a fit
+//! from the laser alone, and a refinement of the accepted sphere where the
 //! two agree (the silhouette fixes the fruit's size across the line of
 //! sight; [`crate::fit::fit_ellipsoid_with_rays`] takes its rays for an
-//! ellipsoid), and the last resort when the laser shows too little of a
-//! fruit (mostly hidden, or in the laser's shadow) for a fit from the
-//! laser alone.
+//! ellipsoid).
 //!
 //! 1. **Fruit colour.** The frames of a scan share one view, and the laser
 //!    only adds light, so the per-pixel minimum over the frames is the view
