@@ -95,10 +95,10 @@ fn rig_check_against_an_emulated_grbl_reports_every_step() {
 #[test]
 fn a_controller_that_stops_answering_mid_scan_exits_1_naming_the_slide_with_m5_last() {
     let dir = tempfile::tempdir().unwrap();
-    // Line 1 $H, 2 M5 (laser off at connect), 3 the first move, 4 M5
-    // (metering there with the laser off), 5 its M3: silent from then on, so
-    // the second move never ends.
-    let grbl = emulator(dir.path(), &["--silent-after", "5"]);
+    // Line 1 $H, 2 $$ (the laser's settings checked), 3 M5 (laser off at
+    // connect), 4 the first move, 5 M5 (metering there with the laser off),
+    // 6 its M3: silent from then on, so the second move never ends.
+    let grbl = emulator(dir.path(), &["--silent-after", "6"]);
     let rig = rig_toml(dir.path(), &grbl.port);
     let out = dir.path().join("scan");
     let output = alacs(&[
@@ -126,9 +126,9 @@ fn a_controller_that_stops_answering_mid_scan_exits_1_naming_the_slide_with_m5_l
 #[test]
 fn rig_check_names_the_device_and_step_that_failed() {
     let dir = tempfile::tempdir().unwrap();
-    // Line 1 $H, 2 M5, 3 the move to 0 mm, 4 the move to 100 mm: silent
-    // after its `ok`, so it never reports standing there.
-    let grbl = emulator(dir.path(), &["--silent-after", "4"]);
+    // Line 1 $H, 2 $$, 3 M5, 4 the move to 0 mm, 5 the move to 100 mm:
+    // silent after its `ok`, so it never reports standing there.
+    let grbl = emulator(dir.path(), &["--silent-after", "5"]);
     let rig = rig_toml(dir.path(), &grbl.port);
     let output =
         alacs(&["rig", "check", "--rig", rig.to_str().unwrap(), "--scale", "0.25", "--json"]);

@@ -20,6 +20,7 @@
 //! - every failure names the port, the command and GRBL's own words for
 //!   the error or alarm code; lines that are not GRBL's are skipped.
 
+use std::collections::BTreeMap;
 use std::io::{Read as _, Write as _};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
@@ -383,6 +384,59 @@ impl GrblController {
         }
     }
 
+    /// The controller's settings (`$$`): number and value, as GRBL prints
+    /// them (`$32=0`), within `timeout`.
+    fn settings(&mut self, timeout: Duration) -> Result<BTreeMap<u32, String>, Fault> {
+        self.send_line("$$")?;
+        let deadline = Instant::now() + timeout;
+        let mut settings = BTreeMap::new();
+        loop {
+            match self.next_reply(deadline)? {
+                Some(Reply::Ok) => return Ok(settings),
+                Some(Reply::Message(line)) => {
+                    if let Some((number, value)) =
+                        line.strip_prefix('$').and_then(|rest| rest.split_once('='))
+                        && let Ok(number) = number.trim().parse()
+                    {
+                        // A comment may follow the value: `$32=0 (laser mode)`.
+                        let value = value.split_whitespace().next().unwrap_or_default();
+                        settings.insert(number, value.to_string());
+                    }
+                }
+                Some(Reply::Error(code)) => {
+                    return Err(self
+                        .failed(format!("`$$` refused: error:{code} ({})", error_meaning(code))));
+                }
+                Some(Reply::Alarm(code)) => {
+                    return Err(
+                        self.failed(format!("ALARM:{code} ({}) after `$$`", alarm_meaning(code)))
+                    );
+                }
+                Some(_) => {}
+                None => {
+                    return Err(Fault::Timeout {
+                        timeout,
+                        detail: format!("no `ok` from GRBL on {} for `$$`", self.name),
+                    });
+                }
+            }
+        }
+    }
+
+    /// Refuses settings that break a scan with the laser on the spindle
+    /// output: laser mode (`$32=1`) powers the output only while the axes
+    /// move, so the laser would be dark in every frame taken at a standing
+    /// slide.
+    fn check_spindle_laser_settings(&mut self, timeout: Duration) -> Result<(), Fault> {
+        let settings = self.settings(timeout)?;
+        match settings.get(&LASER_MODE_SETTING).map(String::as_str) {
+            Some("0") | None => Ok(()),
+            Some(value) => Err(self.failed(format!(
+                "${LASER_MODE_SETTING}={value} (laser mode) powers the spindle output only while the slide moves, so the laser would be dark in every frame; set ${LASER_MODE_SETTING}=0"
+            ))),
+        }
+    }
+
     /// One status report, within `timeout`.
     pub fn status(&mut self, timeout: Duration) -> Result<AxisStatus, DeviceError> {
         self.query_status(timeout).map_err(|f| f.on(Device::Slide))
@@ -525,6 +579,10 @@ fn lock(controller: &Mutex<GrblController>) -> MutexGuard<'_, GrblController> {
     controller.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
+/// GRBL 1.1's laser-mode setting (`$32`; 1: the spindle output is powered
+/// only while the axes move, for laser cutters).
+const LASER_MODE_SETTING: u32 = 32;
+
 /// Opens the GRBL controller of `config` (a soft reset and its banner);
 /// the slide and the laser on it share it.
 pub fn connect(config: &SlideConfig) -> Result<Arc<Mutex<GrblController>>, DeviceError> {
@@ -651,12 +709,15 @@ pub struct GrblLaser {
 
 impl GrblLaser {
     /// The laser of `config` on `controller`; `timeout` for each command.
+    /// The controller's settings (`$$`) are read first: laser mode
+    /// (`$32=1`) is refused, naming the setting.
     pub fn new(
         controller: Arc<Mutex<GrblController>>,
         config: LaserConfig,
         timeout: Duration,
-    ) -> Self {
-        Self { controller, config, timeout }
+    ) -> Result<Self, DeviceError> {
+        lock(&controller).check_spindle_laser_settings(timeout).map_err(|f| f.on(Device::Laser))?;
+        Ok(Self { controller, config, timeout })
     }
 }
 

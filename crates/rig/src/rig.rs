@@ -295,7 +295,7 @@ impl<'a> Parts<'a> {
                     laser.off_command
                 );
                 let timeout = self.config.slide.command_timeout();
-                (Box::new(GrblLaser::new(controller, laser.clone(), timeout)), detail)
+                (Box::new(GrblLaser::new(controller, laser.clone(), timeout)?), detail)
             }
             LaserDriver::SerialRelay => (
                 Box::new(crate::relay::SerialRelayLaser::open(laser)?),

@@ -205,17 +205,18 @@ fn a_continuous_sweep_on_the_emulated_slide_takes_each_frame_where_grbl_reported
 
 #[test]
 fn a_lost_ok_and_a_garbage_line_do_not_stop_the_scan() {
-    // Line 1 is $H, 2 the first M5, 3 the first move: its `ok` is lost and a
-    // garbage line follows the next move's `ok`.
-    let emulator = Emulator::start(&["--drop-ok", "3", "--garbage-after", "5"]);
+    // Line 1 is $H, 2 $$ (the laser's settings), 3 the first M5, 4 the first
+    // move: its `ok` is lost and a garbage line follows the next move's `ok`.
+    let emulator = Emulator::start(&["--drop-ok", "4", "--garbage-after", "6"]);
     let mut rig = RealRig::open(&emulator.rig(""), Some(scene())).unwrap();
     scan(&mut rig, Duration::from_secs(3)).unwrap();
 }
 
 #[test]
 fn a_controller_that_stops_answering_mid_scan_ends_in_a_slide_error_with_m5_last() {
-    // Silent after the first frame's M3 (line 4): the second move hangs.
-    let emulator = Emulator::start(&["--silent-after", "4"]);
+    // Silent after the first frame's M3 (line 5, after $H, $$, M5 and the
+    // first move): the second move hangs.
+    let emulator = Emulator::start(&["--silent-after", "5"]);
     let mut rig = RealRig::open(&emulator.rig(""), Some(scene())).unwrap();
     let error = scan(&mut rig, Duration::from_secs(1)).unwrap_err();
     assert_eq!(error.device(), Some(Device::Slide), "{error}");
@@ -229,7 +230,7 @@ fn a_controller_that_stops_answering_mid_scan_ends_in_a_slide_error_with_m5_last
 
 #[test]
 fn the_port_vanishing_mid_scan_is_an_error_naming_the_slide() {
-    let emulator = Emulator::start(&["--vanish-after", "5"]);
+    let emulator = Emulator::start(&["--vanish-after", "6"]);
     let mut rig = RealRig::open(&emulator.rig(""), Some(scene())).unwrap();
     let error = scan(&mut rig, Duration::from_secs(3)).unwrap_err();
     assert_eq!(error.device(), Some(Device::Slide), "{error}");
@@ -276,4 +277,19 @@ fn no_controller_on_the_port_is_an_error_naming_the_slide_and_the_port() {
     .unwrap();
     let message = RealRig::open(&missing, None).unwrap_err().to_string();
     assert!(message.contains("cannot open the serial port /dev/alacs-no-such-port"), "{message}");
+}
+
+#[test]
+fn grbl_laser_mode_is_refused_naming_the_setting() {
+    // $32=1: the spindle output (the laser) is powered only while the axes
+    // move, so every frame at a standing slide would be dark.
+    let emulator = Emulator::start(&["--setting", "32=1"]);
+    let Err(alacs_rig::Error::Device(error)) = RealRig::open(&emulator.rig(""), Some(scene()))
+    else {
+        panic!("a controller in laser mode was accepted, or refused for another reason");
+    };
+    assert_eq!(error.device(), Some(Device::Laser), "{error}");
+    let message = error.to_string();
+    assert!(message.contains("$32=1") && message.contains("$32=0"), "{message}");
+    assert!(emulator.received().contains(&"$$".to_string()));
 }
