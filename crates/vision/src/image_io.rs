@@ -98,11 +98,18 @@ pub fn read_laser_off_image(path: &Path, on: &RgbImage, on_path: &Path) -> Resul
     Ok(off)
 }
 
-/// Whether every sampled pixel (about 10,000 over the image) has R = G = B.
+/// Whether every sampled pixel (about 10,000 over the image) has R = G = B
+/// and some are lit: an all-black RGB frame (the laser met nothing, the
+/// exposure was too short) is a frame without a stripe, not a grey image.
 fn looks_grey(image: &RgbImage) -> bool {
     let n = image.as_raw().len() / 3;
     let step = (n / 10_000).max(1);
-    image.as_raw().chunks_exact(3).step_by(step).all(|p| p[0] == p[1] && p[1] == p[2])
+    let mut lit = false;
+    let grey = image.as_raw().chunks_exact(3).step_by(step).all(|p| {
+        lit |= p[0] > 0;
+        p[0] == p[1] && p[1] == p[2]
+    });
+    grey && lit
 }
 
 #[cfg(test)]
@@ -144,6 +151,15 @@ mod tests {
         let as_rgb = dir.path().join("grey_rgb.png");
         DynamicImage::ImageLuma8(grey).into_rgb8().save(&as_rgb).unwrap();
         assert!(read_colour_image(&as_rgb, false).is_err());
+    }
+
+    #[test]
+    fn an_all_black_rgb_frame_is_a_frame_without_a_stripe_not_a_grey_image() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("frame2.png");
+        RgbImage::new(64, 48).save(&path).unwrap();
+        let image = read_colour_image(&path, false).unwrap();
+        assert_eq!(image.dimensions(), (64, 48));
     }
 
     #[test]
