@@ -35,6 +35,6 @@ pub use alacs_sim as sim;
 pub use alacs_vision as vision;
 
 pub use alacs_calib::{
-    CalibrationOptions, LaserCalibration, LaserSample, Method, calibrate, compare,
+    CalibrationOptions, Comparison, LaserCalibration, LaserSample, Method, calibrate, compare,
 };
 pub use alacs_model::{Camera, Distortion, Fidelity, LaserModel, Scan, Session};

@@ -273,12 +273,45 @@ pub fn calibrate(
     })
 }
 
-/// All four methods on the same samples, as the paper's Table 1.
-pub fn compare(
-    samples: &[LaserSample],
-    options: &CalibrationOptions,
-) -> Result<Vec<LaserCalibration>> {
-    Method::ALL.into_iter().map(|m| calibrate(samples, m, options)).collect()
+/// The paper's four methods on the same samples (Table 1): the methods
+/// that fitted, and for each that could not, why.
+#[derive(Debug, Clone)]
+pub struct Comparison {
+    /// The calibrations that fitted, in the paper's order.
+    pub fitted: Vec<LaserCalibration>,
+    /// The methods that could not fit the samples, with the reason (the
+    /// low-fidelity model cannot model a laser tilted in beta, a refinement
+    /// diverged, ...), in the paper's order.
+    pub failed: Vec<(Method, String)>,
+}
+
+impl Comparison {
+    /// The calibration of `method`, if it fitted.
+    pub fn get(&self, method: Method) -> Option<&LaserCalibration> {
+        self.fitted.iter().find(|c| c.method == method)
+    }
+}
+
+/// All four methods on the same samples, as the paper's Table 1. One
+/// method that cannot fit is a row with its reason, not the end of the
+/// table; the comparison fails only when Method 4 (high fidelity with
+/// RANSAC, the one calibrations use) fails, with its error.
+pub fn compare(samples: &[LaserSample], options: &CalibrationOptions) -> Result<Comparison> {
+    let mut comparison = Comparison { fitted: Vec::new(), failed: Vec::new() };
+    for method in Method::ALL {
+        match calibrate(samples, method, options) {
+            Ok(fit) => comparison.fitted.push(fit),
+            Err(error) if method == Method::HighFidelityRansac => return Err(error),
+            Err(error) => {
+                let reason = match method.fidelity() {
+                    Fidelity::Low => format!("{error} (the low-fidelity model has no beta)"),
+                    Fidelity::High => error.to_string(),
+                };
+                comparison.failed.push((method, reason));
+            }
+        }
+    }
+    Ok(comparison)
 }
 
 /// z - z_hat for one sample under `laser` (eq. (9)'s residual).

@@ -56,8 +56,8 @@ pub use alacs_model::{
     write_samples_csv,
 };
 pub use calibrate::{
-    CalibrationOptions, DEFAULT_THRESHOLD_MM, LaserCalibration, Method, ParameterStdDev, calibrate,
-    compare, depth_error_mm,
+    CalibrationOptions, Comparison, DEFAULT_THRESHOLD_MM, LaserCalibration, Method,
+    ParameterStdDev, calibrate, compare, depth_error_mm,
 };
 pub use error::{Error, Result};
 pub use intrinsics::{

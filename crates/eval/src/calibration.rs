@@ -7,7 +7,9 @@
 
 use std::fmt::Write as _;
 
-use alacs_calib::{CalibrationOptions, LaserCalibration, LaserSample, compare, depth_error_mm};
+use alacs_calib::{
+    CalibrationOptions, LaserCalibration, LaserSample, Method, compare, depth_error_mm,
+};
 use alacs_model::Fidelity;
 use serde_json::{Value, json};
 
@@ -43,8 +45,10 @@ impl MethodEvaluation {
 pub struct CalibrationEvaluation {
     /// The samples, in input order.
     pub samples: Vec<LaserSample>,
-    /// Methods 1 to 4, in the paper's order.
+    /// The methods that fitted, in the paper's order.
     pub methods: Vec<MethodEvaluation>,
+    /// The methods that could not fit the samples, with the reason.
+    pub failed: Vec<(Method, String)>,
     /// The options every method ran with.
     pub options: CalibrationOptions,
 }
@@ -55,8 +59,9 @@ pub fn evaluate_calibration(
     samples: &[LaserSample],
     options: &CalibrationOptions,
 ) -> Result<CalibrationEvaluation> {
-    let results = compare(samples, options)?;
-    let methods = results
+    let comparison = compare(samples, options)?;
+    let methods = comparison
+        .fitted
         .into_iter()
         .map(|calibration| {
             let residuals_mm =
@@ -70,7 +75,23 @@ pub fn evaluate_calibration(
             MethodEvaluation { calibration, residuals_mm, is_inlier }
         })
         .collect();
-    Ok(CalibrationEvaluation { samples: samples.to_vec(), methods, options: *options })
+    Ok(CalibrationEvaluation {
+        samples: samples.to_vec(),
+        methods,
+        failed: comparison.failed,
+        options: *options,
+    })
+}
+
+/// The methods that could not fit, as FORMATS.md's `failed` list:
+/// `{"method": 1, "name": "...", "reason": "..."}` each.
+pub fn failed_json(failed: &[(Method, String)]) -> Value {
+    Value::Array(
+        failed
+            .iter()
+            .map(|(m, reason)| json!({"method": m.number(), "name": m.name(), "reason": reason}))
+            .collect(),
+    )
 }
 
 /// One calibration as FORMATS.md's `calibrate laser --json` object
@@ -79,10 +100,10 @@ fn calibration_json(c: &LaserCalibration) -> Value {
     serde_json::to_value(c.to_output()).unwrap_or(Value::Null)
 }
 
-/// The seed paper's Table 1 for `results`, as text; with a column for the
-/// slide scale k where a method fitted it (samples from several slide
-/// positions).
-pub fn table_1(results: &[LaserCalibration]) -> String {
+/// The seed paper's Table 1 for `results`, as text, with a row saying why
+/// for each method in `failed`; with a column for the slide scale k where
+/// a method fitted it (samples from several slide positions).
+pub fn table_1(results: &[LaserCalibration], failed: &[(Method, String)]) -> String {
     let with_k = results.iter().any(|c| c.slide_scale_fitted);
     let mut out = String::new();
     let _ = write!(
@@ -91,25 +112,28 @@ pub fn table_1(results: &[LaserCalibration]) -> String {
         "", "alpha (deg)", "L0 (mm)", "beta (deg)", "Mean error (mm)", "inliers"
     );
     out.push_str(if with_k { "   slide scale k\n" } else { "\n" });
-    for c in results {
-        let beta = match c.laser.fidelity {
-            Fidelity::Low => "/".to_string(),
-            Fidelity::High => format!("{:.2}", c.laser.beta_deg()),
-        };
-        let _ = write!(
-            out,
-            "{:<44} {:>11.2} {:>9.2} {:>10} {:>15.2} {:>9}",
-            format!("Method {} ({})", c.method.number(), c.method.name()),
-            c.laser.alpha_deg(),
-            c.laser.l0_mm,
-            beta,
-            c.mean_abs_error_mm,
-            format!("{}/{}", c.inliers.len(), c.n_samples)
-        );
-        if with_k {
-            let _ = write!(out, " {:>17.5}", c.laser.slide_scale);
+    for method in Method::ALL {
+        let name = format!("Method {} ({})", method.number(), method.name());
+        if let Some(c) = results.iter().find(|c| c.method == method) {
+            let beta = match c.laser.fidelity {
+                Fidelity::Low => "/".to_string(),
+                Fidelity::High => format!("{:.2}", c.laser.beta_deg()),
+            };
+            let _ = write!(
+                out,
+                "{name:<44} {:>11.2} {:>9.2} {beta:>10} {:>15.2} {:>9}",
+                c.laser.alpha_deg(),
+                c.laser.l0_mm,
+                c.mean_abs_error_mm,
+                format!("{}/{}", c.inliers.len(), c.n_samples)
+            );
+            if with_k {
+                let _ = write!(out, " {:>17.5}", c.laser.slide_scale);
+            }
+            out.push('\n');
+        } else if let Some((_, reason)) = failed.iter().find(|(m, _)| *m == method) {
+            let _ = writeln!(out, "{name:<44} cannot fit: {reason}");
         }
-        out.push('\n');
     }
     out
 }
@@ -120,9 +144,9 @@ impl CalibrationEvaluation {
         self.methods.iter().map(|m| m.calibration.clone()).collect()
     }
 
-    /// Table 1 as text.
+    /// Table 1 as text, a row with the reason for each method that failed.
     pub fn table_1(&self) -> String {
-        table_1(&self.calibrations())
+        table_1(&self.calibrations(), &self.failed)
     }
 
     /// The evaluation as JSON: `{"methods": [...]}` as `calibrate laser
@@ -140,6 +164,7 @@ impl CalibrationEvaluation {
                 }
                 value
             }).collect::<Vec<_>>(),
+            "failed": failed_json(&self.failed),
         })
     }
 }

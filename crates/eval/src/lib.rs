@@ -43,7 +43,9 @@ pub use accuracy::{
     AccuracyEvaluation, AccuracyOptions, AccuracyPoint, PointsPerView, SlideAccuracy,
     evaluate_accuracy, noise_floor_mm,
 };
-pub use calibration::{CalibrationEvaluation, MethodEvaluation, evaluate_calibration, table_1};
+pub use calibration::{
+    CalibrationEvaluation, MethodEvaluation, evaluate_calibration, failed_json, table_1,
+};
 pub use error::{Error, Result};
 pub use html::{
     CalibrationReport, ScanReport, ScanReportFrame, calibration_report,

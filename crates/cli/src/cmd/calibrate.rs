@@ -66,17 +66,31 @@ pub fn laser(args: &CalibrateLaserArgs) -> CmdResult {
 
     // A session's calibration of --method is the one with the session's
     // uncertainties (its camera and board poses); --compare adds the others.
-    let (chosen, results) = match (args.compare, session_fit) {
+    // --compare: one method that cannot fit is a row with its reason; the
+    // chosen method must fit.
+    let (chosen, results, failed) = match (args.compare, session_fit) {
         (true, session_fit) => {
-            let mut results = alacs::compare(&samples, &options).map_err(context)?;
-            let chosen = results.iter().position(|c| c.method == method).unwrap_or(3);
+            let alacs::Comparison { fitted: mut results, failed } =
+                alacs::compare(&samples, &options).map_err(context)?;
+            let Some(chosen) = results.iter().position(|c| c.method == method) else {
+                let reason = failed
+                    .iter()
+                    .find(|(m, _)| *m == method)
+                    .map_or_else(String::new, |(_, r)| r.clone());
+                return Err(Failure::job_failed(anyhow!(
+                    "{source}: Method {} cannot fit the samples: {reason}",
+                    method.number()
+                )));
+            };
             if let Some(fit) = session_fit {
                 results[chosen] = fit;
             }
-            (chosen, results)
+            (chosen, results, failed)
         }
-        (false, Some(fit)) => (0, vec![fit]),
-        (false, None) => (0, vec![alacs::calibrate(&samples, method, &options).map_err(context)?]),
+        (false, Some(fit)) => (0, vec![fit], Vec::new()),
+        (false, None) => {
+            (0, vec![alacs::calibrate(&samples, method, &options).map_err(context)?], Vec::new())
+        }
     };
     let fit = &results[chosen];
 
@@ -96,14 +110,17 @@ pub fn laser(args: &CalibrateLaserArgs) -> CmdResult {
 
     if args.json {
         let value = if args.compare {
-            json!({"methods": results.iter().map(output::calibration_json).collect::<Vec<_>>()})
+            json!({
+                "methods": results.iter().map(output::calibration_json).collect::<Vec<_>>(),
+                "failed": alacs::eval::failed_json(&failed),
+            })
         } else {
             output::calibration_json(fit)
         };
         output::print_json(&value)?;
     } else {
         if args.compare {
-            out!("{}", output::table_1(&results));
+            out!("{}", output::table_1(&results, &failed));
             outln!();
         }
         out!("{}", output::summary(fit));

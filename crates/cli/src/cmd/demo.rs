@@ -381,7 +381,7 @@ pub fn run(args: &DemoArgs) -> CmdResult {
         sim.samples.len(),
         sim.outliers.len()
     );
-    out!("{}", output::table_1(&results));
+    out!("{}", output::table_1(&results, &calibration_eval.failed));
     outln!("{:<44} {:>11.2} {:>9.2} {:>10.2}", "Truth", TRUE_ALPHA_DEG, TRUE_L0_MM, TRUE_BETA_DEG);
     outln!("Method 4 rejected {outliers_found} of the {} planted outliers.\n", sim.outliers.len());
     outln!(

@@ -602,6 +602,16 @@ fn summary(page: &mut Page, report: &CalibrationReport, coverage: &CornerCoverag
                 ],
                 &rows,
             );
+            for (method, reason) in &eval.failed {
+                page.paragraph(
+                    &format!(
+                        "Method {} ({}) cannot fit these samples: {reason}",
+                        method.number(),
+                        method.name()
+                    ),
+                    Some("flag"),
+                );
+            }
             page.paragraph(
                 &format!(
                     "Mean error over each method's inliers (all samples for methods without RANSAC); inlier threshold {} mm.",
