@@ -452,11 +452,29 @@ fn label_grid(
     let (cols, rows) = (board.cols as i64, board.rows as i64);
     let needed = board.corner_count();
     let allowed_missing = (needed as f64 * MAX_MISSING_FRACTION).floor() as usize;
-    if grid.len() + allowed_missing < needed {
-        return Err(format!("only {} of {} corners found", grid.len(), needed));
-    }
     let (min_i, max_i) = min_max(grid.iter().map(|g| g.0.0));
     let (min_j, max_j) = min_max(grid.iter().map(|g| g.0.1));
+    if grid.len() + allowed_missing < needed {
+        // A whole grid one corner short each way: the board was given by
+        // its squares, not its inner corners.
+        let (span_i, span_j) = (max_i.saturating_sub(min_i) + 1, max_j.saturating_sub(min_j) + 1);
+        let whole = !grid.is_empty() && grid.len() as i64 == span_i.saturating_mul(span_j);
+        let one_short = |a: i64, b: i64| a == cols - 1 && b == rows - 1;
+        if whole && (one_short(span_i, span_j) || one_short(span_j, span_i)) {
+            return Err(format!(
+                "only {} of {} corners found: a whole {} x {} grid of inner corners; the board counts inner corners (squares - 1 each way), so a board of {} x {} squares is {} x {}",
+                grid.len(),
+                needed,
+                cols - 1,
+                rows - 1,
+                cols,
+                rows,
+                cols - 1,
+                rows - 1
+            ));
+        }
+        return Err(format!("only {} of {} corners found", grid.len(), needed));
+    }
     // Candidate windows (origin, width along i, height along j) of the board's size.
     let mut best: Option<(usize, i64, i64, i64, i64)> = None;
     let mut tie = false;
