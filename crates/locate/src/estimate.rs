@@ -379,8 +379,12 @@ pub(crate) enum Source {
     /// A frame's arc at the prior radius, on the camera's side of its plane
     /// or the far side.
     Arc { frame: usize, mirrored: bool },
-    /// The free fit, the prior radius's fit or the outline's fit.
-    Fit(&'static str),
+    /// The free sphere fit over the frames' fruit points.
+    FreeFit,
+    /// The sphere of the prior radius through the frames' fruit points.
+    PriorRadiusFit,
+    /// The sphere of the fruit's outline and the laser points.
+    Outline,
     /// The rough position.
     Rough,
 }
@@ -393,7 +397,9 @@ impl Source {
             Source::Arc { frame, mirrored: true } => {
                 format!("frame {frame}'s arc mirrored across its laser plane")
             }
-            Source::Fit(name) => name.into(),
+            Source::FreeFit => "the free sphere fit".into(),
+            Source::PriorRadiusFit => "the sphere of the prior radius".into(),
+            Source::Outline => "the fruit's outline".into(),
             Source::Rough => "the rough position".into(),
         }
     }

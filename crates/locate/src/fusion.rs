@@ -7,7 +7,7 @@
 
 use alacs_model::ransac::{RansacOptions, ransac_refit};
 use image::RgbImage;
-use nalgebra::{Point2, Point3, Vector3};
+use nalgebra::{Matrix3, Point2, Point3, Vector3};
 
 use crate::fit::{
     Ellipsoid, Rays, Sphere, SphereEstimator, fit_circle, fit_ellipsoid_robust,
@@ -23,28 +23,36 @@ use crate::outline::{
 };
 use crate::{Candidate, FrameResult, FusedFit, Localization, LocateOptions, Status};
 
+/// What the one estimator accepted: the fit, how it was found, and its
+/// position covariance (mm^2, camera frame; `None` where the points do not
+/// fix it), computed once for the acceptance test and the answer.
+pub(crate) struct Accepted {
+    pub(crate) fit: FusedFit,
+    pub(crate) note: String,
+    pub(crate) covariance: Option<Matrix3<f64>>,
+}
+
 /// The fused fit by the one estimator ([`crate::estimate`]): every fit
 /// below proposes a sphere (whatever its own checks say), as do robust
 /// spheres through all frames' points, each frame's arc at the prior
 /// radius on both sides of its laser plane, and the rough position; all
 /// are refined and scored by one objective, and the best is the answer
 /// where it beats every other explanation by the stated margin and its
-/// position is known within the harvester's tolerance. Returns the fit and
-/// the answer's note, or why the fruit was not found.
+/// position is known within the harvester's tolerance. Returns what was
+/// accepted, or why the fruit was not found.
 pub(crate) fn estimate_fruit(
     results: &[FrameResult],
     context: &FrameContext,
     candidates: &[Candidate],
     views: &[&RgbImage],
-) -> (Option<FusedFit>, std::result::Result<String, String>) {
+) -> std::result::Result<Accepted, String> {
     use crate::estimate::{self, Decision, Evidence, Source};
     let scene_outline =
         if context.options.use_outline { find_scene_outline(context, views).ok() } else { None };
     let rays = scene_outline.as_ref().map(|o| outline_rays(context.camera, o)).unwrap_or_default();
     let evidence = Evidence::new(results, context, rays);
     let (prior, options) = (context.prior, context.options);
-    let (lo, hi) = options.radius_factors;
-    let radius_range_mm = (lo * prior.fruit_radius_mm, hi * prior.fruit_radius_mm);
+    let radius_range_mm = context.radius_range_mm();
     let mut starts = estimate::point_starts(&evidence, radius_range_mm, options.seed);
     for c in candidates {
         starts.extend(estimate::arc_starts(
@@ -57,15 +65,15 @@ pub(crate) fn estimate_fruit(
     let positions: Vec<Point3<f64>> = candidates.iter().map(|c| c.position_mm).collect();
     let mut outline = None;
     if let Ok(fit) = fuse(results, context) {
-        starts.push((fit.sphere, Source::Fit("the free sphere fit")));
+        starts.push((fit.sphere, Source::FreeFit));
     }
     if let Ok(fit) = fit_prior_radius(results, context, &positions) {
-        starts.push((fit.sphere, Source::Fit("the sphere of the prior radius")));
+        starts.push((fit.sphere, Source::PriorRadiusFit));
     }
     if let Some(found) = scene_outline.clone()
         && let Ok(fit) = fit_with_this_outline(results, context, views, found)
     {
-        starts.push((fit.sphere, Source::Fit("the fruit's outline")));
+        starts.push((fit.sphere, Source::Outline));
         outline = fit.outline;
     }
     starts.push((
@@ -83,11 +91,11 @@ pub(crate) fn estimate_fruit(
         })
         .collect();
     if ranked.iter().all(|h| h.score.explained == 0) {
-        return (None, Err(no_candidate_reason(results)));
+        return Err(no_candidate_reason(results));
     }
     let (best, margin) = match estimate::accept(&ranked, prior) {
         Decision::Accept { best, margin } => (best, margin),
-        Decision::Refuse(reason) => return (None, Err(reason)),
+        Decision::Refuse(reason) => return Err(reason),
     };
     let rms = best.score.rms_mm;
     let mut fit = FusedFit {
@@ -98,11 +106,7 @@ pub(crate) fn estimate_fruit(
         rms_mm: rms,
         // One cut fixes a circle: the radius then rests on the prior.
         radius_from_prior: best.score.frames < 2,
-        outline: if matches!(best.source, Source::Fit("the fruit's outline")) {
-            outline
-        } else {
-            None
-        },
+        outline: if best.source == Source::Outline { outline } else { None },
         outline_refined: false,
     };
     // The accepted sphere refined by the fruit's outline where the two
@@ -114,17 +118,15 @@ pub(crate) fn estimate_fruit(
     if options.use_outline && fit.outline.is_none() && best.score.frames >= 2 {
         fit = refine_with_outline(fit, results, context, views);
     }
-    if let Some(cov) = crate::uncertainty::position_covariance(&fit, results, options) {
+    let covariance = crate::uncertainty::position_covariance(&fit, results, options);
+    if let Some(cov) = &covariance {
         let worst = cov.symmetric_eigenvalues().max().max(0.0).sqrt();
         if worst > estimate::MAX_POSITION_STD_MM {
-            return (
-                None,
-                Err(format!(
-                    "the best sphere ({}) is uncertain by {worst:.1} mm along its worst direction, more than {:.0} mm",
-                    best.source.describe(),
-                    estimate::MAX_POSITION_STD_MM
-                )),
-            );
+            return Err(format!(
+                "the best sphere ({}) is uncertain by {worst:.1} mm along its worst direction, more than {:.0} mm",
+                best.source.describe(),
+                estimate::MAX_POSITION_STD_MM
+            ));
         }
     }
     let note = format!(
@@ -137,60 +139,27 @@ pub(crate) fn estimate_fruit(
         best.score.missing,
         best.score.predicted
     );
-    (Some(fit), Ok(note))
+    Ok(Accepted { fit, note, covariance })
 }
 
-/// The fused method's answer: the fused fit's centre (the ellipsoid's,
-/// where it replaced the sphere) and how it was found, or why not.
-pub(crate) fn answer_fused(answer: &mut Localization) {
-    match (&answer.fused, &answer.fused_rejected) {
-        (Some(fit), _) => {
-            answer.status = Status::Ok;
-            let (centre, radius) = match &fit.ellipsoid {
-                Some(e) => (e.centre, e.equal_volume_radius_mm()),
-                None => (fit.sphere.centre, fit.sphere.radius_mm),
-            };
-            answer.position_mm = Some(centre);
-            answer.radius_mm = Some(radius);
-            let shape = if fit.ellipsoid.is_some() { "ellipsoid" } else { "sphere" };
-            answer.reason = if let Some(outline) =
-                fit.outline.as_ref().filter(|_| fit.outline_refined)
-            {
-                format!(
-                    "{shape} fit over {} points from {} frames, RMS {:.2} mm, and the fruit's outline ({:.0} % of it visible)",
-                    fit.n_points,
-                    fit.n_frames,
-                    fit.rms_mm,
-                    100.0 * outline.support
-                )
-            } else if let Some(outline) = &fit.outline {
-                format!(
-                    "sphere fitted to the fruit's outline ({:.0} % of it visible) and {} laser points from {} frames, RMS {:.2} mm (the laser alone did not fix the fruit: {})",
-                    100.0 * outline.support,
-                    fit.n_points,
-                    fit.n_frames,
-                    fit.rms_mm,
-                    answer.fused_rejected.as_deref().unwrap_or_default()
-                )
-            } else if fit.radius_from_prior {
-                format!(
-                    "sphere of the prior radius fitted to {} points from {} frames, RMS {:.2} mm (the free fit failed: {})",
-                    fit.n_points,
-                    fit.n_frames,
-                    fit.rms_mm,
-                    answer.fused_rejected.as_deref().unwrap_or_default()
-                )
-            } else {
-                format!(
-                    "{shape} fit over {} points from {} frames, RMS {:.2} mm",
-                    fit.n_points, fit.n_frames, fit.rms_mm
-                )
-            };
-        }
-        (None, reason) => {
-            answer.reason = reason.clone().unwrap_or_default();
-        }
-    }
+/// The fused method's answer from the accepted fit in `answer.fused`: its
+/// centre (the ellipsoid's, where the outline refined the sphere to one),
+/// how it was found (`note`) and its `covariance`.
+pub(crate) fn answer_fused(
+    answer: &mut Localization,
+    note: String,
+    covariance: Option<Matrix3<f64>>,
+) {
+    let Some(fit) = &answer.fused else { return };
+    let (centre, radius) = match &fit.ellipsoid {
+        Some(e) => (e.centre, e.equal_volume_radius_mm()),
+        None => (fit.sphere.centre, fit.sphere.radius_mm),
+    };
+    answer.status = Status::Ok;
+    answer.position_mm = Some(centre);
+    answer.radius_mm = Some(radius);
+    answer.reason = note;
+    answer.position_cov_mm2 = covariance;
 }
 
 /// The free fit: one robust sphere over every frame's fruit points. Its

@@ -48,7 +48,6 @@ use image::RgbImage;
 use rayon::prelude::*;
 
 use crate::frame::{self, FrameContext, SearchBall};
-use crate::uncertainty;
 use crate::{
     Error, FrameImages, FrameResult, Localization, LocateOptions, Method, Prior, Result, Status,
     fusion, selection,
@@ -88,11 +87,13 @@ pub(crate) fn conclude(
 ) -> Localization {
     frame::drop_unlit_points(&mut results, context, views);
     let (candidates, holistic) = selection::select(&mut results, context);
-    let (fused, outcome) = fusion::estimate_fruit(&results, context, &candidates, views);
-    let (note, fused_rejected) = match outcome {
-        Ok(note) => (Some(note), None),
-        Err(reason) => (None, Some(reason)),
-    };
+    let (fused, accepted, fused_rejected) =
+        match fusion::estimate_fruit(&results, context, &candidates, views) {
+            Ok(fusion::Accepted { fit, note, covariance }) => {
+                (Some(fit), Some((note, covariance)), None)
+            }
+            Err(reason) => (None, None, Some(reason)),
+        };
     let mut answer = Localization {
         status: Status::NotFound,
         position_mm: None,
@@ -109,17 +110,10 @@ pub(crate) fn conclude(
         position_cov_mm2: None,
     };
     match context.options.method {
-        Method::Fused => {
-            fusion::answer_fused(&mut answer);
-            if let Some(note) = note {
-                answer.reason = note;
-            }
-            if answer.status == Status::Ok {
-                answer.position_cov_mm2 = answer.fused.as_ref().and_then(|fit| {
-                    uncertainty::position_covariance(fit, &answer.frames, context.options)
-                });
-            }
-        }
+        Method::Fused => match accepted {
+            Some((note, covariance)) => fusion::answer_fused(&mut answer, note, covariance),
+            None => answer.reason = answer.fused_rejected.clone().unwrap_or_default(),
+        },
         Method::Holistic => selection::answer_holistic(&mut answer, context.prior),
     }
     answer

@@ -358,11 +358,23 @@ impl GrblController {
 
     /// Sends `line` and waits for its `ok` at most `timeout`.
     fn command(&mut self, line: &str, timeout: Duration) -> Result<(), Fault> {
+        self.command_with(line, timeout, |_| {})
+    }
+
+    /// [`GrblController::command`], handing each message line before the
+    /// `ok` (`$$`'s settings, `[...]` feedback) to `on_message`.
+    fn command_with(
+        &mut self,
+        line: &str,
+        timeout: Duration,
+        mut on_message: impl FnMut(&str),
+    ) -> Result<(), Fault> {
         self.send_line(line)?;
         let deadline = Instant::now() + timeout;
         loop {
             match self.next_reply(deadline)? {
                 Some(Reply::Ok) => return Ok(()),
+                Some(Reply::Message(message)) => on_message(&message),
                 Some(Reply::Error(code)) => {
                     return Err(self.failed(format!(
                         "`{line}` refused: error:{code} ({})",
@@ -387,40 +399,18 @@ impl GrblController {
     /// The controller's settings (`$$`): number and value, as GRBL prints
     /// them (`$32=0`), within `timeout`.
     fn settings(&mut self, timeout: Duration) -> Result<BTreeMap<u32, String>, Fault> {
-        self.send_line("$$")?;
-        let deadline = Instant::now() + timeout;
         let mut settings = BTreeMap::new();
-        loop {
-            match self.next_reply(deadline)? {
-                Some(Reply::Ok) => return Ok(settings),
-                Some(Reply::Message(line)) => {
-                    if let Some((number, value)) =
-                        line.strip_prefix('$').and_then(|rest| rest.split_once('='))
-                        && let Ok(number) = number.trim().parse()
-                    {
-                        // A comment may follow the value: `$32=0 (laser mode)`.
-                        let value = value.split_whitespace().next().unwrap_or_default();
-                        settings.insert(number, value.to_string());
-                    }
-                }
-                Some(Reply::Error(code)) => {
-                    return Err(self
-                        .failed(format!("`$$` refused: error:{code} ({})", error_meaning(code))));
-                }
-                Some(Reply::Alarm(code)) => {
-                    return Err(
-                        self.failed(format!("ALARM:{code} ({}) after `$$`", alarm_meaning(code)))
-                    );
-                }
-                Some(_) => {}
-                None => {
-                    return Err(Fault::Timeout {
-                        timeout,
-                        detail: format!("no `ok` from GRBL on {} for `$$`", self.name),
-                    });
-                }
+        self.command_with("$$", timeout, |line| {
+            if let Some((number, value)) =
+                line.strip_prefix('$').and_then(|rest| rest.split_once('='))
+                && let Ok(number) = number.trim().parse()
+            {
+                // A comment may follow the value: `$32=0 (laser mode)`.
+                let value = value.split_whitespace().next().unwrap_or_default();
+                settings.insert(number, value.to_string());
             }
-        }
+        })?;
+        Ok(settings)
     }
 
     /// Refuses settings that break a scan with the laser on the spindle
