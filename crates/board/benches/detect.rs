@@ -41,7 +41,7 @@ fn detection(c: &mut Criterion) {
     // before the integer, parallel pass.
     group.bench_function("stripe_5mp_full_frame_score_image", |b| {
         b.iter(|| {
-            let score = laser_score(&view, None).unwrap();
+            let score = laser_score(&view, None, &StripeOptions::default()).unwrap();
             extract_stripe(&score, &region, &StripeOptions::default())
         })
     });

@@ -171,7 +171,32 @@ fn main() {
                 }
                 if per_scan {
                     let line = match error {
-                        Some(e) => format!("ok {e:6.2} mm: {}", answer.reason),
+                        Some(e) => {
+                            // The answer's worst standard deviation, to set against its error.
+                            let sigma = answer.position_cov_mm2.map_or(f64::NAN, |c| {
+                                c.symmetric_eigenvalues().max().max(0.0).sqrt()
+                            });
+                            // Of the answer's points, those on the true fruit.
+                            let on_truth = answer.fused.as_ref().map_or((0, 0), |f| {
+                                let points = answer.frames.iter().flat_map(|r| &r.points_in_camera);
+                                let on = |p: &nalgebra::Point3<f64>,
+                                          c: nalgebra::Point3<f64>,
+                                          r: f64| {
+                                    ((p - c).norm() - r).abs() < 2.5
+                                };
+                                points.fold((0, 0), |(t, n), (_, p)| {
+                                    if on(p, f.sphere.centre, f.sphere.radius_mm) {
+                                        (t + usize::from(on(p, truth, truth_radius)), n + 1)
+                                    } else {
+                                        (t, n)
+                                    }
+                                })
+                            });
+                            format!(
+                                "ok {e:6.2} mm (sigma {sigma:.1} mm, {} of its {} points on the fruit): {}",
+                                on_truth.0, on_truth.1, answer.reason
+                            )
+                        }
                         None => format!("NOT FOUND: {}", answer.reason),
                     };
                     if let Some(v) = &scan.variation {

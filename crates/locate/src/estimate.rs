@@ -13,7 +13,9 @@
 //!
 //! **Score** ([`score`], lower is better, in rows of stripe): every laser
 //! point the sphere explains (within [`SURFACE_BAND_MM`]) earns up to one;
-//! a point inside the fruit, where the laser cannot reach, costs one; every
+//! a point the fruit would have hidden costs one: a point inside it, or
+//! one the camera sees through it or the laser lit through it (a sphere
+//! occupies space, and a ray that reached a point crossed none); every
 //! stripe row the sphere predicts (the part of its cut that faces both the
 //! camera and the laser) where the image shows no line on it and nothing in
 //! front costs [`MISSING_ROW_COST`]; the radius prior and the rough
@@ -47,9 +49,10 @@ use crate::{FrameResult, Prior};
 /// per cent of its radius.
 pub(crate) const SURFACE_BAND_MM: f64 = 2.5;
 
-/// How far inside a sphere a laser point must lie to contradict it, mm:
-/// beyond the surface band, so the stripe's scatter and the fruit's
-/// departure from a sphere never count against the right one.
+/// How far inside a sphere a laser point, or the camera's or the laser's
+/// ray to it, must pass to contradict it, mm: beyond the surface band, so
+/// the stripe's scatter, the fruit's departure from a sphere and rays that
+/// graze its limb never count against the right one.
 const INSIDE_MM: f64 = 4.0;
 
 /// Cost of a stripe row the sphere predicts where the image shows no line
@@ -191,8 +194,8 @@ pub(crate) struct Score {
     pub(crate) explained: usize,
     /// Frames with points on the sphere.
     pub(crate) frames: usize,
-    /// Laser points inside it.
-    pub(crate) inside: usize,
+    /// Laser points it would hide: inside it, or seen or lit through it.
+    pub(crate) hidden: usize,
     /// Predicted rows with no line on the sphere and nothing in front.
     pub(crate) missing: usize,
     /// Rows the sphere predicts in all frames.
@@ -203,7 +206,8 @@ pub(crate) struct Score {
 
 /// The objective of a sphere (see the module docs).
 pub(crate) fn score(sphere: &Sphere, evidence: &Evidence) -> Score {
-    let (mut reward, mut explained, mut inside, mut sum_sq) = (0.0, 0, 0, 0.0);
+    let (mut reward, mut explained, mut hidden, mut sum_sq) = (0.0, 0, 0, 0.0);
+    let origin = Point3::origin();
     let mut frames_with = vec![0usize; evidence.frames.len()];
     for (k, p) in &evidence.points {
         let d = sphere.distance_mm(p);
@@ -214,8 +218,11 @@ pub(crate) fn score(sphere: &Sphere, evidence: &Evidence) -> Score {
             if let Some(n) = frames_with.get_mut(*k) {
                 *n += 1;
             }
-        } else if d < -INSIDE_MM {
-            inside += 1;
+        } else if d < -INSIDE_MM
+            || crosses(sphere, &origin, p)
+            || evidence.frames.get(*k).is_some_and(|f| crosses(sphere, &f.laser_origin, p))
+        {
+            hidden += 1;
         }
     }
     for ray in &evidence.outline_rays {
@@ -235,12 +242,12 @@ pub(crate) fn score(sphere: &Sphere, evidence: &Evidence) -> Score {
     let offset = sphere.centre - evidence.prior.rough_position_mm;
     let rough_cost = 0.5 * offset.dot(&(evidence.rough_information * offset));
     let total =
-        -reward + inside as f64 + MISSING_ROW_COST * missing as f64 + radius_cost + rough_cost;
+        -reward + hidden as f64 + MISSING_ROW_COST * missing as f64 + radius_cost + rough_cost;
     Score {
         total,
         explained,
         frames: frames_with.iter().filter(|&&n| n >= crate::frame::MIN_POINTS).count(),
-        inside,
+        hidden,
         missing,
         predicted,
         rms_mm: if explained > 0 { (sum_sq / explained as f64).sqrt() } else { f64::NAN },
@@ -296,6 +303,20 @@ fn missing_rows(sphere: &Sphere, frame: &FrameEvidence, camera: &Camera) -> (usi
         }
     }
     (missing, predicted.len())
+}
+
+/// Whether the segment from `from` to `point` passes more than
+/// [`INSIDE_MM`] deep into the sphere: a ray that reached `point` from
+/// there (the camera's, the laser's) would have met the fruit first.
+fn crosses(sphere: &Sphere, from: &Point3<f64>, point: &Point3<f64>) -> bool {
+    let along = point - from;
+    let length2 = along.norm_squared();
+    if length2 <= 0.0 {
+        return false;
+    }
+    let t = ((sphere.centre - from).dot(&along) / length2).clamp(0.0, 1.0);
+    let closest = from + along * t;
+    (sphere.centre - closest).norm() < sphere.radius_mm - INSIDE_MM
 }
 
 /// The distance of `centre` from the line through the camera along `ray`
@@ -543,7 +564,7 @@ mod tests {
                 total,
                 explained: predicted,
                 frames: 2,
-                inside: 0,
+                hidden: 0,
                 missing: 0,
                 predicted,
                 rms_mm: 0.5,

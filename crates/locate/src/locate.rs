@@ -30,7 +30,7 @@
 //!   through all frames' points, each frame's arc at the prior radius on
 //!   both sides of its plane, the free fit, the prior radius's fit, the
 //!   outline's sphere, the rough position), refined and scored by one
-//!   objective: the laser points each explains, the points inside it, the
+//!   objective: the laser points each explains, the points it would hide (inside it, or seen or lit through it), the
 //!   stripe rows it predicts and the image does not show, the outline's
 //!   tangency, the radius prior and the rough position's prior. The best
 //!   is the answer where it beats every other explanation (and the empty

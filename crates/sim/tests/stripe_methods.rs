@@ -301,7 +301,10 @@ fn board_stripe_centre_methods_against_the_truth() {
             scene.intersect(&Ray::through_normalized(normalized.x, normalized.y))
         };
         let region = Region::full(on.width(), on.height());
-        for score in [laser_score(&on, None).unwrap(), laser_score(&on, Some(&off)).unwrap()] {
+        let board = StripeOptions::default();
+        for score in
+            [laser_score(&on, None, &board).unwrap(), laser_score(&on, Some(&off), &board).unwrap()]
+        {
             let mut truth = Truths::default();
             for (m, &method) in METHODS.iter().enumerate() {
                 let stripe = StripeOptions { method, ..StripeOptions::default() };

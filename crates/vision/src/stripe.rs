@@ -9,7 +9,12 @@
 //! - with a laser-off image of the same pose: `R_on - R_off`, clamped at 0;
 //!   the scene cancels, only the laser's added light remains;
 //! - without: `R - max(G, B)`, clamped at 0: zero on grey and white surfaces
-//!   (a checkerboard), positive where red light dominates.
+//!   (a checkerboard), positive where red light dominates;
+//! - without, under a line detector ([`StripeOptions::local_background`]):
+//!   `R - max(G, B)` signed. The detector measures the laser's red against
+//!   the surface beside it, and on a green or yellow-green surface (a green
+//!   apple's skin, a leaf) that surface scores below zero: clamped, a line
+//!   whose red stays below the skin's green would vanish.
 
 use image::{ImageBuffer, Luma, RgbImage};
 use nalgebra::Point2;
@@ -128,6 +133,12 @@ impl Default for StripeOptions {
 }
 
 impl StripeOptions {
+    /// Whether the colour score is signed: under a line detector with
+    /// windows (see the module docs).
+    fn signed_score(&self) -> bool {
+        self.local_background.is_some_and(|b| b.window_px > 0)
+    }
+
     /// Settings for orchard frames: a red line on a red, sunlit, textured
     /// fruit among leaves. The local background removes the fruit's own
     /// colour contrast (the stripe's Gaussian cross-section, sigma about
@@ -265,14 +276,22 @@ impl Region {
     }
 }
 
-/// The laser score of a frame (see the module docs), optionally against a
-/// laser-off image of the same pose.
-pub fn laser_score(on: &RgbImage, off: Option<&RgbImage>) -> Result<ScoreImage> {
+/// The laser score of a frame (see the module docs) as `options` search
+/// it (signed under a line detector), optionally against a laser-off image
+/// of the same pose.
+pub fn laser_score(
+    on: &RgbImage,
+    off: Option<&RgbImage>,
+    options: &StripeOptions,
+) -> Result<ScoreImage> {
     let (width, height) = on.dimensions();
     let data: Vec<f32> = match off {
         Some(off) => {
             check_same_size(on, off)?;
             on.pixels().zip(off.pixels()).map(|(a, b)| difference_score(a[0], b[0])).collect()
+        }
+        None if options.signed_score() => {
+            on.pixels().map(|p| f32::from(signed_colour_score(p[0], p[1], p[2]))).collect()
         }
         None => on.pixels().map(|p| colour_score(p[0], p[1], p[2])).collect(),
     };
@@ -345,6 +364,12 @@ fn difference_score_u8(red_on: u8, red_off: u8) -> u8 {
 #[inline]
 fn colour_score_u8(red: u8, green: u8, blue: u8) -> u8 {
     red.saturating_sub(green.max(blue))
+}
+
+/// `R - max(G, B)`, signed: the score under a line detector.
+#[inline]
+fn signed_colour_score(red: u8, green: u8, blue: u8) -> i16 {
+    i16::from(red) - i16::from(green.max(blue))
 }
 
 /// [`difference_score_u8`] as the score image holds it.
@@ -445,6 +470,12 @@ pub fn extract_stripe_rgb(
             }
             let first = (u0 as usize).saturating_sub(reach);
             let last = (u1 as usize + reach).min(width - 1);
+            if off.is_none() && options.signed_score() {
+                let mut points =
+                    signed_span_peaks(row_pixels, (v, u0, u1), (first, last), options, scratch);
+                points.retain(keep);
+                return points;
+            }
             scratch.scores.resize(width, 0);
             let pixels = &row_pixels[3 * first..3 * (last + 1)];
             let off_pixels =
@@ -508,6 +539,38 @@ pub fn extract_stripe_rgb(
     Ok(rows.concat())
 }
 
+/// The peaks of one span under the line detector on the signed colour
+/// score ([`signed_colour_score`]) of the row's pixels `first..=last` (the
+/// span and the detector's reach). A row whose scores nowhere rise
+/// `min_strength` above the lower of 0 and their least has no peak: no
+/// detector value exceeds its pixel's score less the lower of the window
+/// means (or 0 where neither window fits).
+fn signed_span_peaks(
+    row_pixels: &[u8],
+    (v, u0, u1): (u32, u32, u32),
+    (first, last): (usize, usize),
+    options: &StripeOptions,
+    scratch: &mut RowScratch,
+) -> Vec<StripePoint> {
+    let width = row_pixels.len() / 3;
+    scratch.signed.resize(width, 0);
+    for (score, pixel) in scratch.signed[first..=last]
+        .iter_mut()
+        .zip(row_pixels[3 * first..3 * (last + 1)].chunks_exact(3))
+    {
+        *score = signed_colour_score(pixel[0], pixel[1], pixel[2]);
+    }
+    let scores = &scratch.signed[first..=last];
+    let (least, most) =
+        scores.iter().fold((0_i16, i16::MIN), |(lo, hi), &s| (lo.min(s), hi.max(s)));
+    let mut points = Vec::new();
+    if f32::from(most) - f32::from(least) < options.min_strength {
+        return points;
+    }
+    span_peaks(&scratch.signed, (v, u0, u1), options, &mut scratch.buffer, &mut points);
+    points
+}
+
 /// Rows of a region one parallel task takes at least: a row of a 5 MP
 /// frame is a few microseconds of work.
 const ROWS_PER_TASK: usize = 16;
@@ -519,6 +582,8 @@ const ROWS_PER_TASK: usize = 16;
 #[derive(Default)]
 struct RowScratch {
     scores: Vec<u8>,
+    /// A row's signed colour scores ([`signed_span_peaks`]).
+    signed: Vec<i16>,
     /// The span's line-detector profile (integer path): the detector's
     /// values in the windows it ran in, 0 elsewhere.
     profile: Vec<i16>,
@@ -730,7 +795,7 @@ fn span_peaks<T: Summable>(
     match options.local_background {
         None => {
             buffer.clear();
-            // Scores are f32 or u8: either converts exactly.
+            // Scores are f32, u8 or i16: each converts exactly.
             buffer.extend(span.iter().map(|&s| s.into() as f32));
         }
         Some(background) => local_contrast(row, first, last, background, buffer),
@@ -807,6 +872,19 @@ impl Summable for u8 {
     fn sum_to_f32(sum: u32) -> f32 {
         // Through i32: one vector conversion (SSE2 has none from u32).
         sum as i32 as f32
+    }
+}
+
+impl Summable for i16 {
+    type Sum = i32;
+    fn widen(self) -> i32 {
+        i32::from(self)
+    }
+    fn count(pixels: usize) -> i32 {
+        pixels as i32
+    }
+    fn sum_to_f32(sum: i32) -> f32 {
+        sum as f32
     }
 }
 
@@ -1438,7 +1516,7 @@ mod tests {
         assert!(points.iter().all(|p| (p.u_px - 30.0).abs() < 0.1), "{points:?}");
         // Without the checks, the score-image path finds the same peaks in
         // the unclipped rows.
-        let score = laser_score(&image, None).unwrap();
+        let score = laser_score(&image, None, &options).unwrap();
         let again = extract_stripe(&score, &Region::full(60, 3), &options);
         assert_eq!(points[..3], again[..]);
     }
@@ -1485,7 +1563,7 @@ mod tests {
                 let options = StripeOptions { method, ..options.clone() };
                 for region in regions {
                     for off in [None, Some(off)] {
-                        let score = laser_score(on, off).unwrap();
+                        let score = laser_score(on, off, &options).unwrap();
                         let expected = extract_stripe(&score, region, &options);
                         let found = extract_stripe_rgb(on, off, region, &options).unwrap();
                         assert!(expected.len() > min_points, "{} points", expected.len());
@@ -1645,7 +1723,7 @@ mod tests {
         let expected = extract_stripe_rgb(&on, None, &region, &plain).unwrap();
         assert!(expected.len() > 20, "{} points", expected.len());
         assert_eq!(extract_stripe_rgb(&on, None, &region, &empty).unwrap(), expected);
-        let score = laser_score(&on, None).unwrap();
+        let score = laser_score(&on, None, &empty).unwrap();
         assert_eq!(extract_stripe(&score, &region, &empty), expected);
     }
 
@@ -1685,5 +1763,32 @@ mod tests {
         assert_eq!(shrunk.pixel_count(), 49);
         assert!(region.contains(10.0, 20.0) && !shrunk.contains(11.0, 15.0));
         assert_eq!(Region::convex_polygon(&square, 0.0, 15, 15).pixel_count(), 25);
+    }
+
+    /// A red line on a green apple's skin, whose red stays below the skin's
+    /// green, is found under the orchard's line detector (the signed
+    /// score); a white line (a highlight, the same light in every channel)
+    /// on the same skin is not: it leaves `R - max(G, B)` where it was.
+    #[test]
+    fn a_red_line_on_green_skin_is_found_a_white_one_is_not() {
+        let row = gaussian_row(30.0, 60);
+        let frame = |red_line: bool| {
+            RgbImage::from_fn(60, 4, |u, _| {
+                let t = f64::from(row[u as usize]) * 0.6;
+                let (r, g, b) = (70.0, 150.0, 40.0);
+                let (dr, dg) = if red_line { (t, 0.05 * t) } else { (t, t) };
+                image::Rgb([(r + dr) as u8, (g + dg).min(255.0) as u8, (b + dg) as u8])
+            })
+        };
+        let region = Region::full(60, 4);
+        let options = StripeOptions::orchard();
+        let red = extract_stripe_rgb(&frame(true), None, &region, &options).unwrap();
+        assert_eq!(red.len(), 4, "{red:?}");
+        assert!(red.iter().all(|p| (p.u_px - 30.0).abs() < 0.2), "{red:?}");
+        // Clamped at 0, the same skin showed nothing: R < G at every pixel.
+        let board = StripeOptions { local_background: None, ..options.clone() };
+        assert!(extract_stripe_rgb(&frame(true), None, &region, &board).unwrap().is_empty());
+        let white = extract_stripe_rgb(&frame(false), None, &region, &options).unwrap();
+        assert!(white.is_empty(), "{white:?}");
     }
 }
