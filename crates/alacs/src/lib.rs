@@ -25,6 +25,7 @@
 
 pub use alacs_board as board;
 pub use alacs_calib as calib;
+pub use alacs_detect as detect;
 pub use alacs_eval as eval;
 pub use alacs_locate as locate;
 pub use alacs_model as model;

@@ -27,6 +27,9 @@ pub enum Command {
     Stripe(StripeArgs),
     /// Locate the target fruit from a scan folder (scan.yaml and its frames).
     Localize(LocalizeArgs),
+    /// Find fruit in an RGB-D camera's colour image, and with its aligned
+    /// depth and camera their rough 3-D positions.
+    Detect(DetectArgs),
     /// Reproduce the seed paper's experiments as reports: Table 1 with
     /// residual plots, the accuracy box plots per slide position.
     #[command(subcommand)]
@@ -115,6 +118,7 @@ impl Command {
             Command::Triangulate(a) => a.json,
             Command::Stripe(a) => a.json,
             Command::Localize(a) => a.json,
+            Command::Detect(a) => a.json,
             Command::Evaluate(EvaluateCommand::Calibration(a)) => a.json,
             Command::Evaluate(EvaluateCommand::Accuracy(a)) => a.json,
             Command::Report(ReportCommand::Calibration(a)) => a.json,
@@ -122,6 +126,7 @@ impl Command {
             Command::Simulate(SimulateCommand::Samples(a)) => a.json,
             Command::Simulate(SimulateCommand::Session(a)) => a.json,
             Command::Simulate(SimulateCommand::Scan(a)) => a.json,
+            Command::Simulate(SimulateCommand::Rgbd(a)) => a.json,
             Command::Demo(a) => a.json,
             Command::Scan(a) => a.json,
             Command::Rig(RigCommand::Check(a)) => a.json,
@@ -574,6 +579,9 @@ pub enum SimulateCommand {
     /// An orchard scan: five frames of an apple with the laser stepping across it
     /// (scan.yaml, camera.yaml, laser.yaml, frames, truth.json).
     Scan(SimulateScanArgs),
+    /// What the RGB-D camera sees of the scene `scan --sim --seed N` scans:
+    /// color.png, depth.png (16-bit mm, aligned), camera.yaml, truth.json.
+    Rgbd(SimulateRgbdArgs),
 }
 
 /// `alacs simulate samples`
@@ -801,6 +809,52 @@ pub struct SimulateScanArgs {
     #[command(flatten)]
     pub truth: TruthArgs,
     /// Print a JSON summary on standard output.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `alacs simulate rgbd`
+#[derive(Debug, Args)]
+pub struct SimulateRgbdArgs {
+    /// Output folder (created).
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+    /// Write into --out even if it holds files this command did not write.
+    #[arg(long)]
+    pub force: bool,
+    /// The orchard scene (the same seed and options as `scan --sim` give the same scene).
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    /// Pose of the RGB-D camera in the ALACS camera frame, as `scan
+    /// --alacs-from-rgbd`: X,Y,Z mm, then roll, pitch, yaw deg.
+    #[arg(
+        long,
+        value_name = "X,Y,Z,ROLL,PITCH,YAW",
+        default_value = "0,0,0,0,0,0",
+        allow_hyphen_values = true
+    )]
+    pub alacs_from_rgbd: String,
+    /// Print a JSON summary on standard output.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `alacs detect`
+#[derive(Debug, Args)]
+pub struct DetectArgs {
+    /// The colour image (PNG or JPEG).
+    #[arg(long, value_name = "FILE")]
+    pub image: PathBuf,
+    /// The depth image aligned to it: a 16-bit greyscale PNG of millimetres, 0 no data.
+    #[arg(long, value_name = "FILE", requires = "camera")]
+    pub depth: Option<PathBuf>,
+    /// The colour camera (camera.yaml or an OpenCV/ROS camera file alacs reads).
+    #[arg(long, value_name = "FILE", requires = "depth")]
+    pub camera: Option<PathBuf>,
+    /// Smallest fruit radius in the image, px.
+    #[arg(long, value_name = "PX", default_value_t = 6.0, value_parser = positive_up_to(10_000.0))]
+    pub min_radius_px: f64,
+    /// Print one JSON object (docs/FORMATS.md, "alacs detect") instead of text.
     #[arg(long)]
     pub json: bool,
 }

@@ -79,6 +79,7 @@ classified!(
     alacs::model::Error,
     alacs::vision::Error,
     alacs::board::Error,
+    alacs::detect::Error,
     alacs::calib::Error,
     alacs::sim::Error,
     alacs::locate::Error,

@@ -44,6 +44,7 @@ mod error;
 mod orchard;
 mod progress;
 mod render;
+mod rgbd;
 mod samples;
 mod scan;
 mod session;
@@ -62,6 +63,7 @@ pub use render::{
     MAX_GAIN_DB, MAX_SUPERSAMPLING, REFERENCE_EXPOSURE_US, RayMap, RenderOptions, Scene, Sensor,
     SubpixelPattern, SurfaceHit, mix_seed,
 };
+pub use rgbd::{DepthMillimetres, RgbdApple, RgbdErrors, RgbdView};
 pub use samples::{SampleOptions, SimulatedSamples, simulate_samples};
 pub use scan::{
     RenderedScan, ScanFrame, ScanOptions, SimulatedScan, simulate_rendered_scan, simulate_scan,

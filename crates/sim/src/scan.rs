@@ -213,7 +213,7 @@ pub struct SimulatedScan {
     /// The light without the laser, shared by the frames' renders.
     cache: Mutex<AmbientCache>,
     jpeg_quality: Option<u8>,
-    seed: u64,
+    pub(crate) seed: u64,
 }
 
 /// An orchard scene with its [`CameraRayGrid`]: what the renderer draws.
@@ -222,7 +222,7 @@ struct GriddedScene<'a> {
     grid: &'a CameraRayGrid,
 }
 
-fn surface_hit(hit: Hit) -> SurfaceHit {
+pub(crate) fn surface_hit(hit: Hit) -> SurfaceHit {
     SurfaceHit {
         point: hit.point,
         normal: hit.normal,

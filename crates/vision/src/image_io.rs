@@ -69,6 +69,22 @@ pub fn read_colour_image(path: &Path, differencing: bool) -> Result<RgbImage> {
     Ok(rgb)
 }
 
+/// A depth image: a 16-bit greyscale PNG of millimetres, 0 where there is
+/// no data (REP 118's 16UC1, as RealSense and most RGB-D drivers save
+/// their aligned depth).
+pub fn read_depth_png(path: &Path) -> Result<image::ImageBuffer<image::Luma<u16>, Vec<u16>>> {
+    match read_image(path)? {
+        DynamicImage::ImageLuma16(depth) => Ok(depth),
+        other => Err(Error::Image {
+            path: path.to_path_buf(),
+            message: format!(
+                "a {:?} image; a depth image is a 16-bit greyscale PNG of millimetres (0: no data)",
+                other.color()
+            ),
+        }),
+    }
+}
+
 /// The laser-off image of a frame whose laser image `on` was read from
 /// `on_path`: the same size, and in colour when `on` is (the difference of
 /// the red channels means nothing between a colour and a grey image).

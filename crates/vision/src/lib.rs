@@ -9,7 +9,9 @@ mod image_io;
 mod stripe;
 
 pub use error::{Error, Result};
-pub use image_io::{MAX_IMAGE_FILE_BYTES, read_colour_image, read_image, read_laser_off_image};
+pub use image_io::{
+    MAX_IMAGE_FILE_BYTES, read_colour_image, read_depth_png, read_image, read_laser_off_image,
+};
 pub use stripe::{
     LocalBackground, PeakMethod, Region, ScoreImage, StripeOptions, StripePoint, extract_stripe,
     extract_stripe_rgb, laser_score,

@@ -4,6 +4,7 @@ pub mod bag;
 pub mod calibrate;
 pub mod convert;
 pub mod demo;
+pub mod detect;
 pub mod evaluate;
 pub mod localize;
 pub mod report;

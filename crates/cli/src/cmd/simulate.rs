@@ -12,7 +12,8 @@ use serde_json::json;
 use alacs::model::io::OutputDir;
 
 use crate::args::{
-    RenderArgs, SceneArgs, SimulateSamplesArgs, SimulateScanArgs, SimulateSessionArgs, TruthArgs,
+    RenderArgs, SceneArgs, SimulateRgbdArgs, SimulateSamplesArgs, SimulateScanArgs,
+    SimulateSessionArgs, TruthArgs,
 };
 use crate::failure::{CmdResult, Failure};
 use crate::output;
@@ -276,6 +277,39 @@ pub fn scan(args: &SimulateScanArgs) -> CmdResult {
             c.y,
             c.z,
             scan.scene.occlusion * 100.0,
+            args.out.display()
+        );
+    }
+    Ok(())
+}
+
+/// Runs `alacs simulate rgbd`.
+pub fn rgbd(args: &SimulateRgbdArgs) -> CmdResult {
+    let options = args.scene.options()?;
+    let alacs_from_rgbd = crate::cmd::scan::parse_pose(&args.alacs_from_rgbd)?;
+    let bar = output::progress_bar(args.json, "building the scene");
+    // The scene of `scan --sim --seed N`: the rig's camera and laser.
+    let scan = simulate_scan(&Camera::blackfly_s_5mp(), &LaserModel::seed_paper(), &options)?;
+    bar.set_message("rendering the RGB-D camera's view");
+    let camera = RgbdOptions::colour_camera_720p();
+    let view = scan.render_rgbd(&camera, &alacs_from_rgbd, &alacs::sim::RgbdErrors::default())?;
+    OutputDir::fill(&args.out, "simulate rgbd", args.force, |out| view.write_into(out))?;
+    bar.finish_and_clear();
+    if args.json {
+        output::print_json(
+            &json!({"out": args.out.display().to_string(), "truth": view.truth_json()}),
+        )?;
+    } else {
+        let target = view.apples.iter().find(|a| a.target);
+        outln!(
+            "wrote the RGB-D view ({} x {} px) of {} apple(s){} to {} (color.png, depth.png, camera.yaml, truth.json)",
+            camera.width_px,
+            camera.height_px,
+            view.apples.len(),
+            target.map_or(String::new(), |t| format!(
+                ", the target at ({:.1}, {:.1}, {:.1}) mm",
+                t.centre_mm.x, t.centre_mm.y, t.centre_mm.z
+            )),
             args.out.display()
         );
     }
