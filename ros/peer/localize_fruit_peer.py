@@ -216,6 +216,39 @@ class PointCloud2(IdlStruct, typename="sensor_msgs::msg::dds_::PointCloud2_"):
     is_dense: bool
 
 
+@dataclass
+class Vector3(IdlStruct, typename="geometry_msgs::msg::dds_::Vector3_"):
+    x: float64 = 0.0
+    y: float64 = 0.0
+    z: float64 = 0.0
+
+
+@dataclass
+class Quaternion(IdlStruct, typename="geometry_msgs::msg::dds_::Quaternion_"):
+    x: float64 = 0.0
+    y: float64 = 0.0
+    z: float64 = 0.0
+    w: float64 = 1.0
+
+
+@dataclass
+class Transform(IdlStruct, typename="geometry_msgs::msg::dds_::Transform_"):
+    translation: Vector3
+    rotation: Quaternion
+
+
+@dataclass
+class TransformStamped(IdlStruct, typename="geometry_msgs::msg::dds_::TransformStamped_"):
+    header: Header
+    child_frame_id: str
+    transform: Transform
+
+
+@dataclass
+class TFMessage(IdlStruct, typename="tf2_msgs::msg::dds_::TFMessage_"):
+    transforms: sequence[TransformStamped]
+
+
 # --------------------------------------------------------------------------
 # QoS profiles (ROS 2 defaults), all forced to XCDR1 (plain CDR), which is
 # what rmw_cyclonedds and RustDDS use. RustDDS rejects XCDR2 payloads.
@@ -402,6 +435,9 @@ def main(argv=None) -> int:
     cloud_name = ros_name(args.namespace, args.cloud_topic)
     cloud_reader = DataReader(dp, Topic(dp, f"rt{cloud_name}", PointCloud2, qos=SENSOR_QOS),
                               qos=SENSOR_QOS)
+    # /tf_static as tf2's static listener reads it: reliable, transient local.
+    tf_reader = DataReader(dp, Topic(dp, "rt/tf_static", TFMessage, qos=STATUS_QOS),
+                           qos=STATUS_QOS)
     log = lambda *a: print("[peer]", *a, file=sys.stderr, flush=True)
     log(f"domain={domain} action={action} cloud=rt{cloud_name} "
         f"CYCLONEDDS_URI={os.environ.get('CYCLONEDDS_URI', '<unset>')}")
@@ -409,7 +445,7 @@ def main(argv=None) -> int:
         log("participant and entities created; --check-only: exiting")
         return 0
 
-    summary = {"action": action, "feedback": [], "statuses": [], "clouds": []}
+    summary = {"action": action, "feedback": [], "statuses": [], "clouds": [], "tf_static": []}
 
     def drain():
         for m in take_valid(fb_reader, 64):
@@ -424,6 +460,12 @@ def main(argv=None) -> int:
                     name = GOAL_STATUS.get(s.status, str(s.status))
                     if not summary["statuses"] or summary["statuses"][-1] != name:
                         summary["statuses"].append(name)
+        for m in take_valid(tf_reader, 4):
+            for t in m.transforms:
+                tr, q = t.transform.translation, t.transform.rotation
+                summary["tf_static"].append({"parent": t.header.frame_id, "child": t.child_frame_id,
+                                             "translation": [tr.x, tr.y, tr.z],
+                                             "rotation": [q.x, q.y, q.z, q.w]})
         for c in take_valid(cloud_reader, 8):
             summary["clouds"].append({"frame_id": c.header.frame_id, "width": c.width,
                                       "height": c.height, "point_step": c.point_step,

@@ -1143,6 +1143,28 @@ pub struct RosArgs {
     /// The RGB-D camera's optical frame (rough positions may come in it).
     #[arg(long, value_name = "FRAME", default_value = "rgbd_camera_optical_frame")]
     pub rgbd_frame: String,
+    /// The frame the ALACS camera is mounted on: /tf_static carries
+    /// MOUNT -> the camera's optical frame at --mount-from-camera. (The
+    /// RGB-D camera's frame is its driver's, never given a parent here.)
+    #[arg(long, value_name = "FRAME", default_value = "alacs_link")]
+    pub mount_frame: String,
+    /// Pose of the ALACS camera's optical frame in the mount frame: X,Y,Z
+    /// mm, then roll, pitch, yaw deg (as --alacs-from-rgbd). Default: the
+    /// optical rotation of a camera's body frame (REP 103), no offset.
+    #[arg(
+        long,
+        value_name = "X,Y,Z,ROLL,PITCH,YAW",
+        default_value = "0,0,0,-90,0,-90",
+        allow_hyphen_values = true
+    )]
+    pub mount_from_camera: String,
+    /// Publish no static transform (the robot's URDF mounts the camera).
+    #[arg(long)]
+    pub no_static_tf: bool,
+    /// A topic or the action under another name, FROM:=TO (as `--ros-args
+    /// -r FROM:=TO`); repeatable.
+    #[arg(long, value_name = "FROM:=TO")]
+    pub remap: Vec<String>,
     /// Do not publish the captured frames on <ns>/image.
     #[arg(long)]
     pub no_images: bool,

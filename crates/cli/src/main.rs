@@ -9,6 +9,7 @@ mod args;
 mod output;
 mod cmd;
 mod failure;
+mod ros_args;
 
 use std::process::ExitCode;
 
@@ -60,7 +61,20 @@ fn parse() -> Result<args::Cli, clap::Error> {
             })
             .mut_subcommands(with_contract)
     }
-    let matches = with_contract(args::Cli::command()).try_get_matches()?;
+    let command = with_contract(args::Cli::command());
+    // `alacs ros ... --ros-args ...` as a ROS 2 launch gives it: turned into
+    // the node's own options first.
+    let ros_options: Vec<String> = command
+        .find_subcommand("ros")
+        .map(|ros| {
+            ros.get_arguments().filter_map(|a| a.get_long()).map(|l| format!("--{l}")).collect()
+        })
+        .unwrap_or_default();
+    let argv =
+        ros_args::expand(std::env::args_os().collect(), &ros_options).map_err(|message| {
+            clap::Error::raw(clap::error::ErrorKind::ValueValidation, message + "\n")
+        })?;
+    let matches = command.try_get_matches_from(argv)?;
     args::Cli::from_arg_matches(&matches)
 }
 

@@ -193,6 +193,18 @@ fn a_cyclone_dds_client_gets_the_fruit_from_alacs_ros_sim() {
             .iter()
             .all(|f| f["n_frames"] == 5 && f["slide_position_m"].as_f64().unwrap() > 0.0)
     );
+    // One static transform: the camera mounted on alacs_link, rotated as a
+    // camera's optical frame (REP 103); the RGB-D camera's frame has no
+    // parent from this node.
+    let tf = r.peer["tf_static"].as_array().unwrap();
+    assert_eq!(tf.len(), 1, "{context}");
+    assert_eq!(tf[0]["parent"], "alacs_link", "{context}");
+    assert_eq!(tf[0]["child"], "alacs_camera_optical_frame", "{context}");
+    let q: Vec<f64> =
+        tf[0]["rotation"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    for (got, want) in q.iter().zip([-0.5, 0.5, -0.5, 0.5]) {
+        assert!((got - want).abs() < 1e-9, "{q:?}\n{context}");
+    }
     let cloud = &r.peer["clouds"][0];
     assert_eq!(cloud["fields"], serde_json::json!(["x", "y", "z", "frame", "fruit"]));
     assert!(cloud["width"].as_u64().unwrap() > 50, "{context}");
@@ -224,10 +236,13 @@ fn a_goal_in_continuous_sweep_mode_reports_each_frame_where_the_slide_was() {
     }
     let dir = tempfile::tempdir().unwrap();
     let truth = scene_truth(dir.path());
-    let node_args = "--max-goals 1 --scan-mode continuous";
+    // The scan mode and the mount as a ROS launch gives them: --ros-args.
+    let node_args =
+        "--max-goals 1 --ros-args -p scan_mode:=continuous -p mount_frame:=left_arm_tool0";
     let r = run(dir.path(), &truth, node_args, "--expect-status SUCCEEDED", 0);
     let context = &r.context;
     assert_eq!(r.node_exit, 0, "the node did not stop cleanly\n{context}");
+    assert_eq!(r.peer["tf_static"][0]["parent"], "left_arm_tool0", "{context}");
     let result = &r.peer["result"];
     assert_eq!(result["status"], "ok", "{context}");
     let error_mm = error_mm(result, &truth);

@@ -238,23 +238,37 @@ pub fn camera_info(camera: &Camera, header: Header) -> CameraInfo {
     }
 }
 
-/// The static transform camera_from_rgbd (`alacs_from_rgbd`, mm) as
-/// /tf_static publishes it: the RGB-D frame's pose in the ALACS camera frame.
+/// The static transform that mounts the ALACS camera on the robot:
+/// `mount_from_camera` (mm) as /tf_static publishes it, the camera's
+/// optical frame a child of `mount_frame`. The RGB-D camera's frame belongs
+/// to its own driver's tree and never gets a parent here.
 pub fn static_transform(
-    alacs_from_rgbd: &Isometry3<f64>,
+    mount_from_camera: &Isometry3<f64>,
+    mount_frame: &str,
     frames: &Frames,
     stamp: Time,
 ) -> TfMessage {
-    let t = alacs_from_rgbd.translation.vector / MM_PER_M;
-    let q = alacs_from_rgbd.rotation;
+    let t = mount_from_camera.translation.vector / MM_PER_M;
+    let q = mount_from_camera.rotation;
     TfMessage {
         transforms: vec![TransformStamped {
-            header: Header::new(stamp, &frames.camera),
-            child_frame_id: frames.rgbd.clone(),
+            header: Header::new(stamp, mount_frame),
+            child_frame_id: frames.camera.clone(),
             transform: Transform {
                 translation: Point { x: t.x, y: t.y, z: t.z },
                 rotation: Quaternion { x: q.i, y: q.j, z: q.k, w: q.w },
             },
         }],
     }
+}
+
+/// The rotation from a camera's body frame (REP 103: x forward, y left, z
+/// up) to its optical frame (x right, y down, z forward), as camera drivers
+/// publish `*_link -> *_optical_frame`: roll -90 deg, yaw -90 deg.
+pub fn body_from_optical() -> Isometry3<f64> {
+    use std::f64::consts::FRAC_PI_2;
+    Isometry3::from_parts(
+        nalgebra::Translation3::identity(),
+        nalgebra::UnitQuaternion::from_euler_angles(-FRAC_PI_2, 0.0, -FRAC_PI_2),
+    )
 }

@@ -19,7 +19,9 @@ mod job;
 pub mod msgs;
 mod node;
 
-pub use convert::{CLOUD_POINT_STEP, Frames, job_request, laser_cloud, localization_result};
+pub use convert::{
+    CLOUD_POINT_STEP, Frames, body_from_optical, job_request, laser_cloud, localization_result,
+};
 pub use env::{DEFAULT_RMW, MAX_DOMAIN_ID, RosEnvironment};
 pub use error::{Error, Result};
 pub use job::{CANCELLED, JobContext, JobRequest, Outcome, Progress, ScanRig, run_job};

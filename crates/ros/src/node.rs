@@ -65,6 +65,14 @@ pub struct NodeConfig {
     /// Record every localized goal's scan in this bag (MCAP), whole when
     /// the node stops.
     pub record: Option<std::path::PathBuf>,
+    /// Where the ALACS camera is mounted: its optical frame is published on
+    /// /tf_static as a child of this frame at this pose (mm); `None`: no
+    /// static transform (the robot's URDF publishes it).
+    pub mount: Option<(String, nalgebra::Isometry3<f64>)>,
+    /// The node's topics and action under other names, as `--ros-args -r
+    /// FROM:=TO` gives them: FROM the relative name (`fruit`) or the full
+    /// one (`/alacs/fruit`), TO relative to the namespace or absolute.
+    pub remaps: Vec<(String, String)>,
 }
 
 impl Default for NodeConfig {
@@ -76,6 +84,8 @@ impl Default for NodeConfig {
             publish_images: true,
             max_goals: None,
             record: None,
+            mount: Some(("alacs_link".into(), crate::convert::body_from_optical())),
+            remaps: Vec::new(),
         }
     }
 }
@@ -190,8 +200,26 @@ fn name(namespace: &str, base: &str) -> Result<Name> {
         .map_err(|e| Error::InvalidInput(format!("ROS name {namespace}/{base}: {e:?}")))
 }
 
+/// The name `base` in `namespace` after the remaps ([`NodeConfig::remaps`]).
+fn remapped(namespace: &str, base: &str, remaps: &[(String, String)]) -> Result<Name> {
+    let full = if namespace.ends_with('/') {
+        format!("{namespace}{base}")
+    } else {
+        format!("{namespace}/{base}")
+    };
+    let Some((_, to)) = remaps.iter().find(|(from, _)| from == base || *from == full) else {
+        return name(namespace, base);
+    };
+    let target = if to.starts_with('/') { to.clone() } else { format!("{namespace}/{to}") };
+    let target = target.replace("//", "/");
+    Name::parse(&target).map_err(|e| {
+        Error::InvalidInput(format!("remap {base}:={to}: `{target}` is no ROS name ({e:?})"))
+    })
+}
+
 impl Topics {
-    fn new(node: &mut Node, ns: &str) -> Result<Self> {
+    fn new(node: &mut Node, ns: &str, remaps: &[(String, String)]) -> Result<Self> {
+        let name = |namespace: &str, base: &str| remapped(namespace, base, remaps);
         let latched = QosProfile::publisher_default()
             .durability(Durability::TransientLocal)
             .history(History::KeepLast { depth: 1 });
@@ -331,21 +359,23 @@ pub fn run_node(
     let server: Arc<Server> = Arc::new(AsyncActionServer::new(
         node.create_action_server(
             mapping,
-            &name(ns, "localize_fruit")?,
+            &remapped(ns, "localize_fruit", &config.remaps)?,
             &ActionTypeName::new("alacs_msgs", "LocalizeFruit"),
             qos,
         )
         .map_err(|e| Error::dds("action server", e))?,
     ));
-    let topics = Topics::new(&mut node, ns)?;
+    let topics = Topics::new(&mut node, ns, &config.remaps)?;
     let rig_name = rig.describe();
     let rig = Arc::new(Mutex::new(rig));
     let job = Arc::new(job);
     let frames = config.frames.clone();
-    topics
-        .tf_static
-        .publish(static_transform(&job.config.alacs_from_rgbd, &frames, Time::now()))
-        .map_err(|e| Error::dds("/tf_static", e))?;
+    if let Some((mount_frame, mount_from_camera)) = &config.mount {
+        topics
+            .tf_static
+            .publish(static_transform(mount_from_camera, mount_frame, &frames, Time::now()))
+            .map_err(|e| Error::dds("/tf_static", e))?;
+    }
     log(&format!(
         "node {}/{} serving {ns}/localize_fruit on DDS domain {} ({}, {}) with the {rig_name}",
         if ns == "/" { "" } else { ns },

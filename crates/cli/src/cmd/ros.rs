@@ -33,6 +33,15 @@ pub fn run(args: &RosArgs) -> CmdResult {
         publish_images: !args.no_images,
         max_goals: args.max_goals,
         record: args.record.clone(),
+        mount: if args.no_static_tf {
+            None
+        } else {
+            Some((
+                args.mount_frame.clone(),
+                crate::cmd::scan::parse_pose_of(&args.mount_from_camera, "--mount-from-camera")?,
+            ))
+        },
+        remaps: args.remap.iter().map(|r| parse_remap(r)).collect::<CmdResult<_>>()?,
     };
     config.validate()?;
     let OpenRig { devices, sim, camera, laser, alacs_from_rgbd, controller } =
@@ -79,4 +88,16 @@ pub fn run(args: &RosArgs) -> CmdResult {
         );
     }
     Ok(())
+}
+
+/// `FROM:=TO`, both non-empty.
+fn parse_remap(text: &str) -> CmdResult<(String, String)> {
+    match text.split_once(":=") {
+        Some((from, to)) if !from.trim().is_empty() && !to.trim().is_empty() => {
+            Ok((from.trim().to_owned(), to.trim().to_owned()))
+        }
+        _ => Err(Failure::bad_input(anyhow!(
+            "--remap `{text}`: FROM:=TO, e.g. fruit:=/harvester/fruit"
+        ))),
+    }
 }

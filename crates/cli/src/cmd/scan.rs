@@ -33,19 +33,25 @@ use crate::output;
 /// Parses `X,Y,Z,ROLL,PITCH,YAW` (mm, degrees) into the pose of the RGB-D
 /// camera in the ALACS camera frame.
 pub fn parse_pose(text: &str) -> CmdResult<Isometry3<f64>> {
+    parse_pose_of(text, "--alacs-from-rgbd")
+}
+
+/// Parses the pose `text` of the option `option`: X,Y,Z,ROLL,PITCH,YAW
+/// (mm, degrees; R = Rz(yaw) Ry(pitch) Rx(roll)).
+pub fn parse_pose_of(text: &str, option: &str) -> CmdResult<Isometry3<f64>> {
     let limit_mm = alacs::model::MAX_ROUGH_DISTANCE_MM;
-    match *parse_list(text, "--alacs-from-rgbd")?.as_slice() {
+    match *parse_list(text, option)?.as_slice() {
         [x, y, z, ..] if [x, y, z].iter().any(|t| t.abs() > limit_mm) => Err(Failure::bad_input(
-            anyhow!("--alacs-from-rgbd `{text}`: the translation must lie within +-{limit_mm} mm"),
+            anyhow!("{option} `{text}`: the translation must lie within +-{limit_mm} mm"),
         )),
         [_, _, _, roll, pitch, yaw] if [roll, pitch, yaw].iter().any(|a| a.abs() > 360.0) => {
             Err(Failure::bad_input(anyhow!(
-                "--alacs-from-rgbd `{text}`: roll, pitch and yaw must lie within +-360 deg"
+                "{option} `{text}`: roll, pitch and yaw must lie within +-360 deg"
             )))
         }
         [x, y, z, roll, pitch, yaw] => Ok(rig::pose([x, y, z, roll, pitch, yaw])),
         _ => Err(Failure::bad_input(anyhow!(
-            "--alacs-from-rgbd takes X,Y,Z,ROLL,PITCH,YAW (mm, degrees), got `{text}`"
+            "{option} takes X,Y,Z,ROLL,PITCH,YAW (mm, degrees), got `{text}`"
         ))),
     }
 }
