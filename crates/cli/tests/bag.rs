@@ -142,6 +142,15 @@ fn a_bag_that_is_not_a_recording_exits_2_naming_it() {
     let bytes = std::fs::read(&bag).unwrap();
     let truncated = dir.path().join("truncated.mcap");
     std::fs::write(&truncated, &bytes[..bytes.len() / 2]).unwrap();
+    // 1,000 bytes overwritten in the middle, inside an image's chunk: the
+    // chunk's CRC no longer matches, and nothing of it is used.
+    let mut damaged = bytes.clone();
+    let middle = damaged.len() / 2;
+    for byte in &mut damaged[middle..middle + 1000] {
+        *byte ^= 0x5A;
+    }
+    let corrupted = dir.path().join("corrupted.mcap");
+    std::fs::write(&corrupted, &damaged).unwrap();
     let text = dir.path().join("text.mcap");
     std::fs::write(&text, "not a bag").unwrap();
     let camera = folder.join("camera.yaml");
@@ -149,6 +158,7 @@ fn a_bag_that_is_not_a_recording_exits_2_naming_it() {
     for (source, expected) in [
         (vec!["--bag", p(&truncated)], "truncated.mcap"),
         (vec!["--bag", p(&text)], "not a readable MCAP file"),
+        (vec!["--bag", p(&corrupted)], "corrupted.mcap"),
         (vec!["--bag", p(&bag), "--bag-scan", "3"], "holds 1 scans, numbered from 0"),
         (vec!["--bag", "no_such.mcap"], "no_such.mcap"),
     ] {
@@ -160,6 +170,11 @@ fn a_bag_that_is_not_a_recording_exits_2_naming_it() {
         assert_eq!(output.status.code(), Some(2), "{source:?}: {stderr}");
         assert!(stderr.contains(expected), "{source:?}: expected `{expected}` in {stderr}");
     }
+    // `bag export` of the corrupted bag writes no frame from it.
+    let export = dir.path().join("export");
+    let output = alacs(&["bag", "export", p(&corrupted), p(&export)]);
+    assert_eq!(output.status.code(), Some(2), "{}", String::from_utf8_lossy(&output.stderr));
+    assert!(!export.join("frame2.png").exists());
     // A recording goes to FILE.mcap, nothing else; nothing is left behind.
     let output = alacs(&["bag", "import", p(&folder), p(&dir.path().join("scan.bag"))]);
     assert_eq!(output.status.code(), Some(2));

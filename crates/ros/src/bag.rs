@@ -455,8 +455,13 @@ pub struct BagSummary {
 pub fn read_scan(path: &Path, index: usize) -> Result<(CapturedScan, BagSummary)> {
     let bad = |message: String| Error::Bag { path: path.to_path_buf(), message };
     let file = std::fs::File::open(path).map_err(|e| bad(format!("cannot be read: {e}")))?;
+    // A chunk whose CRC does not match is refused before any of its
+    // messages is used: a corrupted byte is an error, never an image.
     let options = mcap::sans_io::LinearReaderOptions::default()
-        .with_record_length_limit(usize::try_from(MAX_RECORD_BYTES).unwrap_or(usize::MAX));
+        .with_record_length_limit(usize::try_from(MAX_RECORD_BYTES).unwrap_or(usize::MAX))
+        .with_validate_chunk_crcs(true)
+        .with_prevalidate_chunk_crcs(true)
+        .with_validate_data_section_crc(true);
     let reader = mcap::io::MessageReader::new_with_options(BufReader::new(file), options);
     let mut summary = BagSummary { frames_per_scan: Vec::new(), messages: BTreeMap::new() };
     let mut scan: Option<CapturedScan> = None;
@@ -554,6 +559,9 @@ pub fn read_scan(path: &Path, index: usize) -> Result<(CapturedScan, BagSummary)
                         }
                     }
                 }
+                // Each image has its own slide and laser messages before it
+                // (as the writer puts them): none is carried to the next.
+                slide_mm = None;
                 laser_on = None;
             }
             _ => {}
