@@ -468,6 +468,8 @@ pub fn read_scan(path: &Path, index: usize) -> Result<(CapturedScan, BagSummary)
     // The slide and the laser of the next image.
     let mut slide_mm: Option<f64> = None;
     let mut laser_on: Option<bool> = None;
+    // mono8 images of the scan read: greyscale frames need laser-off images.
+    let mut grey_frames = 0usize;
     for message in reader {
         let message = message.map_err(|e| bad(format!("not a readable MCAP file: {e}")))?;
         let channel: &Arc<mcap::Channel<'_>> = &message.channel;
@@ -482,7 +484,7 @@ pub fn read_scan(path: &Path, index: usize) -> Result<(CapturedScan, BagSummary)
                 if summary.frames_per_scan.len() - 1 == index {
                     let goal: LocalizeFruitGoal =
                         from_cdr(&message.data).map_err(|e| bad(at(&e)))?;
-                    scan = Some(empty_scan(&goal));
+                    scan = Some(empty_scan(&goal).map_err(|e| bad(at(&e)))?);
                 }
                 slide_mm = None;
                 laser_on = None;
@@ -535,6 +537,9 @@ pub fn read_scan(path: &Path, index: usize) -> Result<(CapturedScan, BagSummary)
                 }
                 let Some(scan) = scan.as_mut() else { continue };
                 let image: Image = from_cdr(&message.data).map_err(|e| bad(at(&e)))?;
+                if image.encoding == "mono8" {
+                    grey_frames += 1;
+                }
                 let image = rgb_image(image).map_err(|e| bad(at(&e)))?;
                 if on {
                     scan.frames.push(CapturedFrame {
@@ -578,6 +583,13 @@ pub fn read_scan(path: &Path, index: usize) -> Result<(CapturedScan, BagSummary)
     if scan.frames.is_empty() {
         return Err(bad(format!("scan {index} holds no laser-on image")));
     }
+    // As a scan folder's frames: the red stripe is found by its colour, so
+    // a greyscale frame needs its laser-off image to be differenced with.
+    if grey_frames > 0 && scan.frames.iter().any(|f| f.image_laser_off.is_none()) {
+        return Err(bad(format!(
+            "scan {index} holds mono8 (greyscale) images without a laser-off image for every frame: the red laser stripe is found by its colour, so it needs rgb8 or bgr8 images (or laser-off images to difference with)"
+        )));
+    }
     scan.plan = ScanPlan {
         slides_mm: scan.frames.iter().map(|f| f.slide_mm).collect(),
         unclamped_start_mm: scan.frames[0].slide_mm,
@@ -590,19 +602,38 @@ fn mm(point: &crate::msgs::Point) -> Point3<f64> {
     Point3::new(point.x * MM_PER_M, point.y * MM_PER_M, point.z * MM_PER_M)
 }
 
-/// A scan of `goal` before its frames.
-fn empty_scan(goal: &LocalizeFruitGoal) -> CapturedScan {
+/// A scan of `goal` before its frames; the goal's values held to a scan
+/// folder's bounds (FORMATS.md, scan.yaml).
+fn empty_scan(goal: &LocalizeFruitGoal) -> std::result::Result<CapturedScan, String> {
     let rough = mm(&goal.rough_position.point);
-    CapturedScan {
+    let limit = alacs_model::MAX_ROUGH_DISTANCE_MM;
+    if !rough.iter().all(|c| c.is_finite() && c.abs() <= limit) {
+        return Err(format!(
+            "rough position ({}, {}, {}) mm is not within +-{limit} mm",
+            rough.x, rough.y, rough.z
+        ));
+    }
+    let radius_mm = goal.fruit_radius_m * MM_PER_M;
+    let (low, high) = alacs_model::FRUIT_RADIUS_RANGE_MM;
+    let fruit_radius_mm = if radius_mm == 0.0 {
+        alacs_model::DEFAULT_FRUIT_RADIUS_MM
+    } else if (low..=high).contains(&radius_mm) {
+        radius_mm
+    } else {
+        return Err(format!(
+            "fruit radius {radius_mm} mm is not within {low}-{high} mm (0: unknown)"
+        ));
+    };
+    Ok(CapturedScan {
         rough_position_in_rgbd_mm: rough,
         rough_position_mm: rough,
-        fruit_radius_mm: goal.fruit_radius_m * MM_PER_M,
+        fruit_radius_mm,
         more_targets: Vec::new(),
         plan: ScanPlan { slides_mm: Vec::new(), unclamped_start_mm: 0.0, shifted: false },
         frames: Vec::new(),
         exposure: None,
         sweep_speed_mm_per_s: None,
-    }
+    })
 }
 
 /// An Image message as an RGB image: rgb8, bgr8 or mono8.
@@ -644,4 +675,36 @@ fn stamp_of(time: Option<SystemTime>, default: Time) -> Time {
 /// A bag's log time as a capture time.
 fn system_time(log_time_ns: u64) -> SystemTime {
     UNIX_EPOCH + std::time::Duration::from_nanos(log_time_ns)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::msgs::{Header, Point, PointStamped};
+    use ros2_client::builtin_interfaces::Time;
+
+    fn goal(x: f64, radius_m: f64) -> LocalizeFruitGoal {
+        LocalizeFruitGoal {
+            rough_position: PointStamped {
+                header: Header::new(Time::now(), "alacs_camera_optical_frame"),
+                point: Point { x, y: 0.0, z: 0.8 },
+            },
+            fruit_radius_m: radius_m,
+        }
+    }
+
+    /// A recorded goal is held to a scan folder's bounds: the radius 0
+    /// (unknown) is the default prior; 5 m and a position of 1e303 m are
+    /// refused, naming the value.
+    #[test]
+    fn a_recorded_goal_is_held_to_a_scan_folders_bounds() {
+        let scan = empty_scan(&goal(0.03, 0.0)).unwrap();
+        assert_eq!(scan.fruit_radius_mm, alacs_model::DEFAULT_FRUIT_RADIUS_MM);
+        assert_eq!(empty_scan(&goal(0.03, 0.04)).unwrap().fruit_radius_mm, 40.0);
+        let e = empty_scan(&goal(0.03, 5.0)).unwrap_err();
+        assert!(e.contains("5000 mm"), "{e}");
+        let e = empty_scan(&goal(1e303, 0.04)).unwrap_err();
+        assert!(e.contains("rough position"), "{e}");
+        assert!(empty_scan(&goal(f64::NAN, 0.04)).is_err());
+    }
 }
