@@ -192,8 +192,12 @@ impl LaserModel {
                 self.alpha_rad, self.beta_rad, self.l0_mm
             ));
         }
-        if self.l0_mm <= 0.0 {
-            return invalid(format!("l0_mm must be positive, got {}", self.l0_mm));
+        if self.l0_mm <= 0.0 || self.l0_mm > crate::MAX_ABS_SLIDE_MM {
+            return invalid(format!(
+                "l0_mm must lie in (0, {}] mm (a laser beside its camera), got {}",
+                crate::MAX_ABS_SLIDE_MM,
+                self.l0_mm
+            ));
         }
         if !(self.alpha_rad > 0.0 && self.alpha_rad < std::f64::consts::PI) {
             return invalid(format!("alpha_deg must lie in (0, 180), got {}", self.alpha_deg()));

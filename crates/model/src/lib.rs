@@ -60,4 +60,6 @@ pub use scan::{
     MAX_ROUGH_DISTANCE_MM, MAX_SCAN_TARGETS, SCAN_FILE, Scan, ScanFrameSpec, ScanTarget,
 };
 pub use scan_plan::{SHARED_FRAME_MM, ScanPlan, ScanStrategy};
-pub use session::{ArucoDictionary, BoardSpec, CharucoMarkers, SESSION_FILE, Session, SessionView};
+pub use session::{
+    ArucoDictionary, BoardSpec, CharucoMarkers, MAX_SQUARE_MM, SESSION_FILE, Session, SessionView,
+};

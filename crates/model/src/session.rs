@@ -22,6 +22,10 @@ use serde::{Deserialize, Serialize};
 
 use crate::{Error, Result};
 
+/// The largest board square accepted, mm: a 1 m square is beyond any
+/// calibration board a camera at 0.5-2 m sees whole.
+pub const MAX_SQUARE_MM: f64 = 1000.0;
+
 /// The session file's name inside a session folder.
 pub const SESSION_FILE: &str = "session.yaml";
 
@@ -338,8 +342,8 @@ fn parse_board(file: BoardFile) -> std::result::Result<BoardSpec, String> {
         }
     };
     for s in [square_x_mm, square_y_mm] {
-        if !(s.is_finite() && s > 0.0) {
-            return Err(format!("`board.square_mm` must be positive and finite, got {s}"));
+        if !(s.is_finite() && s > 0.0 && s <= MAX_SQUARE_MM) {
+            return Err(format!("`board.square_mm` must lie in (0, {MAX_SQUARE_MM}] mm, got {s}"));
         }
     }
     let mut board = BoardSpec::checkerboard(cols, rows, square_x_mm, square_y_mm);

@@ -36,6 +36,13 @@ pub fn init(args: &SessionInitArgs) -> CmdResult {
             )));
         }
     };
+    let limit = alacs::model::MAX_SQUARE_MM;
+    if ![square_x_mm, square_y_mm].iter().all(|s| *s > 0.0 && *s <= limit) {
+        return Err(Failure::bad_input(anyhow!(
+            "--square-mm `{}`: a square must lie in (0, {limit}] mm",
+            args.square_mm
+        )));
+    }
     let mut board = BoardSpec::checkerboard(cols, rows, square_x_mm, square_y_mm);
     if let (Some(name), Some(marker_mm)) = (&args.charuco, args.marker_mm) {
         let dictionary = parse_dictionary(name)?;

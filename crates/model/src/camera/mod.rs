@@ -69,6 +69,11 @@ const UNDISTORT_MAX_ITERATIONS: usize = 100;
 /// 1e4 leaves room for any of them and refuses unit or typing errors (1e10).
 pub const MAX_ABS_DISTORTION: f64 = 1e4;
 
+/// The longest focal length accepted, in image sides: 100 sides is a field
+/// of view of 0.57 deg, narrower than any lens a fruit scanner uses (the
+/// seed's 8 mm lens on a 2/3" sensor: about 0.95 sides).
+pub const MAX_FOCAL_SIDES: f64 = 100.0;
+
 /// The largest image side accepted, px: beyond any machine-vision sensor
 /// (the seed's is 2448 px), and a bound on the memory a camera.yaml can ask
 /// a simulated render or a ray map for.
@@ -144,6 +149,26 @@ impl Camera {
         {
             return invalid(format!(
                 "distortion coefficient {k:e} is beyond +-{MAX_ABS_DISTORTION:e}: no lens has it (a unit or typing error)"
+            ));
+        }
+        let side = f64::from(self.width_px.max(self.height_px));
+        if self.fx_px.max(self.fy_px) > MAX_FOCAL_SIDES * side {
+            return invalid(format!(
+                "focal length fx {} px, fy {} px is more than {MAX_FOCAL_SIDES} image sides ({side} px): a field of view under 0.6 deg (a unit or typing error)",
+                self.fx_px, self.fy_px
+            ));
+        }
+        let (w, h) = (f64::from(self.width_px), f64::from(self.height_px));
+        if !((-w..=2.0 * w).contains(&self.cx_px) && (-h..=2.0 * h).contains(&self.cy_px)) {
+            return invalid(format!(
+                "principal point ({}, {}) px lies more than an image size outside the {} x {} px image",
+                self.cx_px, self.cy_px, self.width_px, self.height_px
+            ));
+        }
+        if self.skew_px.abs() > self.fx_px {
+            return invalid(format!(
+                "skew {} px exceeds fx {} px (pixels skewed by more than 45 deg)",
+                self.skew_px, self.fx_px
             ));
         }
         let max_size_px = MAX_IMAGE_SIDE_PX;

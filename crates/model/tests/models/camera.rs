@@ -1047,3 +1047,21 @@ fn opencv_and_ros_key_names_are_read() {
     );
     assert!(Camera::from_yaml_str(&both).is_err());
 }
+
+#[test]
+fn absurd_focal_lengths_principal_points_and_skews_are_refused() {
+    // Issue 43 item 9: fx 1e300 and cx -1e9 were accepted.
+    let base = Camera::blackfly_s_5mp();
+    for (camera, expected) in [
+        (Camera { fx_px: 1e300, ..base.clone() }, "focal length"),
+        (Camera { cx_px: -1e9, ..base.clone() }, "principal point"),
+        (Camera { cy_px: 5e4, ..base.clone() }, "principal point"),
+        (Camera { skew_px: 1e6, ..base.clone() }, "skew"),
+    ] {
+        let message = camera.validate().unwrap_err().to_string();
+        assert!(message.contains(expected), "{message}");
+    }
+    // A long lens and a principal point off a cropped sensor's centre are fine.
+    let long = Camera { fx_px: 40.0 * 2448.0, fy_px: 40.0 * 2448.0, cx_px: -100.0, ..base };
+    assert!(long.validate().is_ok());
+}

@@ -372,3 +372,12 @@ fn a_sweep_for_several_fruit_covers_each_with_its_own_five_frames() {
     // One fruit: its own plan.
     assert_eq!(strategy.plan_sweep(&laser, &[(right, 40.0)]), strategy.plan(&laser, &right, 40.0));
 }
+
+#[test]
+fn an_l0_no_laser_beside_its_camera_has_is_refused() {
+    // Issue 43 item 9: L0 1e300 was accepted.
+    let laser = LaserModel { l0_mm: 1e300, ..paper_laser() };
+    let message = laser.validate().unwrap_err().to_string();
+    assert!(message.contains("l0_mm"), "{message}");
+    assert!(LaserModel { l0_mm: 5000.0, ..paper_laser() }.validate().is_ok());
+}
