@@ -184,7 +184,7 @@ pub fn localization_summary(answer: &Localization) -> String {
         (Status::Ok, Some(p)) => {
             let _ = writeln!(
                 out,
-                "fruit at ({:.1}, {:.1}, {:.1}) mm, radius {:.1} mm ({}: {})",
+                "fruit at ({:.1}, {:.1}, {:.1}) mm in the ALACS camera frame, radius {:.1} mm ({}: {})",
                 p.x,
                 p.y,
                 p.z,
@@ -213,7 +213,8 @@ pub fn localization_summary(answer: &Localization) -> String {
         };
         let _ = writeln!(
             out,
-            "{k:>5} {:>9.1} {:>7} {:>6}  {:<28} {:>7}",
+            "{:>5} {:>9.1} {:>7} {:>6}  {:<28} {:>7}",
+            k + 1,
             frame.slide_mm,
             frame.stripe.len(),
             frame.fruit.len(),

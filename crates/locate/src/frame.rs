@@ -343,7 +343,7 @@ pub(crate) fn no_candidate_reason(results: &[FrameResult]) -> String {
     let reasons: Vec<String> = results
         .iter()
         .enumerate()
-        .filter_map(|(k, r)| r.rejected.as_ref().map(|why| format!("frame {k}: {why}")))
+        .filter_map(|(k, r)| r.rejected.as_ref().map(|why| format!("frame {}: {why}", k + 1)))
         .collect();
     if reasons.is_empty() {
         "no frame shows the fruit".into()

@@ -162,7 +162,8 @@ pub(crate) fn check_frame(camera: &Camera, i: usize, frame: &FrameImages) -> Res
     let invalid = |m: String| Err(Error::InvalidInput(m));
     if frame.image.dimensions() != (camera.width_px, camera.height_px) {
         return invalid(format!(
-            "frame {i} is {} x {} px, the camera {} x {} px",
+            "frame {} is {} x {} px, the camera {} x {} px",
+            i + 1,
             frame.image.width(),
             frame.image.height(),
             camera.width_px,
@@ -173,7 +174,8 @@ pub(crate) fn check_frame(camera: &Camera, i: usize, frame: &FrameImages) -> Res
         && off.dimensions() != frame.image.dimensions()
     {
         return invalid(format!(
-            "frame {i}: the laser-off image is {} x {} px, the frame {} x {} px",
+            "frame {}: the laser-off image is {} x {} px, the frame {} x {} px",
+            i + 1,
             off.width(),
             off.height(),
             frame.image.width(),
@@ -181,7 +183,7 @@ pub(crate) fn check_frame(camera: &Camera, i: usize, frame: &FrameImages) -> Res
         ));
     }
     if !frame.slide_mm.is_finite() {
-        return invalid(format!("frame {i}: slide_mm {} is not finite", frame.slide_mm));
+        return invalid(format!("frame {}: slide_mm {} is not finite", i + 1, frame.slide_mm));
     }
     Ok(())
 }

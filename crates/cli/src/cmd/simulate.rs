@@ -267,11 +267,11 @@ pub fn scan(args: &SimulateScanArgs) -> CmdResult {
         }))?;
     } else {
         outln!(
-            "wrote {} frames ({} x {} px, slides {:?} mm) of a {:.1} mm apple at ({:.1}, {:.1}, {:.1}) mm, {:.0} % hidden, to {} (scan.yaml, camera.yaml, laser.yaml, truth.json)",
+            "wrote {} frames ({} x {} px, slides {} mm) of a {:.1} mm apple at ({:.1}, {:.1}, {:.1}) mm, {:.0} % hidden, to {} (scan.yaml, camera.yaml, laser.yaml, truth.json)",
             scan.frames.len(),
             scan.camera.width_px,
             scan.camera.height_px,
-            scan.plan.slides_mm,
+            scan.plan.slides_mm.iter().map(|d| format!("{d:.1}")).collect::<Vec<_>>().join(", "),
             scan.scene.fruit_radius_mm,
             c.x,
             c.y,
