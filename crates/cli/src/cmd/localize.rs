@@ -48,6 +48,7 @@ pub fn run(args: &LocalizeArgs) -> CmdResult {
         // One fruit: the contract's localize object.
         if let Some(path) = &args.points {
             alacs::locate::write_points(path, answer)?;
+            errln!("wrote the laser points and the fitted centre to {}", path.display());
         }
         if args.json {
             output::print_json(&output::localization_json(answer))?;
@@ -58,7 +59,9 @@ pub fn run(args: &LocalizeArgs) -> CmdResult {
     }
     if let Some(path) = &args.points {
         for (k, answer) in answers.iter().enumerate() {
-            alacs::locate::write_points(&target_cloud_path(path, k), answer)?;
+            let file = target_cloud_path(path, k);
+            alacs::locate::write_points(&file, answer)?;
+            errln!("wrote fruit {}'s laser points and fitted centre to {}", k + 1, file.display());
         }
     }
     if args.json {

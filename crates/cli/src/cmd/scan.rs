@@ -144,7 +144,14 @@ pub fn run(args: &ScanArgs) -> CmdResult {
     if let Some(mut bag) = recording.take() {
         bar.set_message("recording");
         bag.write_scan(&scan, Some(&camera), answer.as_ref().ok().and_then(|a| a.first()))?;
-        bag.finish()?;
+        let path = bag.finish()?;
+        bar.suspend(|| {
+            errln!(
+                "recorded the scan ({} frames) as a ROS 2 bag: {}",
+                scan.frames.len(),
+                path.display()
+            )
+        });
     }
     if let (Some(out), Some(dir)) = (folder.as_mut(), &args.out) {
         bar.set_message("writing");
@@ -153,6 +160,14 @@ pub fn run(args: &ScanArgs) -> CmdResult {
     }
     if let Some(out) = folder.take() {
         out.finish()?;
+        if let Some(dir) = &args.out {
+            bar.suspend(|| {
+                errln!(
+                    "wrote the scan folder {} (scan.yaml, frames, camera.yaml, laser.yaml)",
+                    dir.display()
+                )
+            });
+        }
     }
     let mut answers = answer?;
     bar.finish_and_clear();
