@@ -160,14 +160,6 @@ pub fn run(args: &ScanArgs) -> CmdResult {
     }
     if let Some(out) = folder.take() {
         out.finish()?;
-        if let Some(dir) = &args.out {
-            bar.suspend(|| {
-                errln!(
-                    "wrote the scan folder {} (scan.yaml, frames, camera.yaml, laser.yaml)",
-                    dir.display()
-                )
-            });
-        }
     }
     let mut answers = answer?;
     bar.finish_and_clear();
