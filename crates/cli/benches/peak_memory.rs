@@ -116,6 +116,18 @@ fn main() {
     std::fs::rename(&big, big_scan.join("scan.yaml")).unwrap();
     let big_scan = arg(&big_scan);
     let out = |name: &str| arg(&d.join(name));
+    // A 240 MB pixels.csv (12 million pixels over the 5 MP image).
+    let pixels = d.join("pixels.csv");
+    {
+        use std::io::Write as _;
+        let mut w = std::io::BufWriter::new(std::fs::File::create(&pixels).unwrap());
+        writeln!(w, "u_px,v_px").unwrap();
+        for i in 0..12_000_000_u64 {
+            let (u, v) = ((i * 7919) % 2448, (i * 104_729) % 2048);
+            writeln!(w, "{u}.{:03},{v}.{:03}", i % 1000, (i / 7) % 1000).unwrap();
+        }
+    }
+    let pixels = arg(&pixels);
 
     let (report64, eval2m, session_x2) = (out("report64"), out("eval2m"), out("session_x2"));
     let scan_x2 = out("scan_x2");
@@ -144,6 +156,21 @@ fn main() {
         (
             "evaluate calibration, 2,000,000 samples (plots decimated)",
             vec!["evaluate", "calibration", "--samples", &csv, "--out", &eval2m],
+        ),
+        (
+            "triangulate --json, 12,000,000 pixels (a 240 MB pixels.csv)",
+            vec![
+                "triangulate",
+                "--camera",
+                &camera,
+                "--laser",
+                &laser,
+                "--slide-mm",
+                "100",
+                "--pixels",
+                &pixels,
+                "--json",
+            ],
         ),
         (
             "calibrate laser --samples /dev/zero (refused at the size limit)",

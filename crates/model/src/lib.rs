@@ -50,7 +50,7 @@ pub use geometry::{Plane, Ray};
 pub use laser::{
     Fidelity, LaserFile, LaserModel, PreparedLaser, SLIDE_SCALE_RANGE, SLIDE_STROKE_MM, SlideTarget,
 };
-pub use pixels::{TriangulateOutput, read_pixels_csv};
+pub use pixels::{TriangulateJsonWriter, TriangulateOutput, for_each_pixel, read_pixels_csv};
 pub use samples::{
     LaserSample, parse_samples_csv, read_samples_csv, samples_csv_string, validate_samples,
     write_samples, write_samples_csv,
