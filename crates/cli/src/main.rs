@@ -32,7 +32,18 @@ fn main() -> ExitCode {
         // what it wanted (as ripgrep does).
         Err(failure) if failure.is_broken_pipe() => ExitCode::SUCCESS,
         Err(failure) => {
-            errln!("error: {:#}", failure.error);
+            // One line, whatever the message holds (a newline in a path).
+            let message = format!("{:#}", failure.error);
+            let one_line: String = message
+                .trim_end()
+                .chars()
+                .flat_map(|c| {
+                    let escaped: Vec<char> =
+                        if c.is_control() { c.escape_default().collect() } else { vec![c] };
+                    escaped
+                })
+                .collect();
+            errln!("error: {one_line}");
             if json {
                 // Standard output may itself be what failed; nothing more to do then.
                 let _ = output::print_json(&failure.to_json());

@@ -2,7 +2,7 @@
 
 use std::fmt::Write as _;
 
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle, TermLike};
 
 use alacs::LaserCalibration;
 use alacs::locate::{Localization, LocalizeOutput, Prior, Status, TargetsOutput};
@@ -131,9 +131,93 @@ pub fn summary(c: &LaserCalibration) -> String {
 /// A progress bar on standard error (hidden under `--json`, so standard
 /// output holds only the JSON), spinning with `message` until its length is known.
 pub fn progress_bar(json: bool, message: &'static str) -> ProgressBar {
-    let bar = if json { ProgressBar::hidden() } else { ProgressBar::new_spinner() };
+    use std::io::IsTerminal as _;
+    let bar = if json {
+        ProgressBar::hidden()
+    } else if std::io::stderr().is_terminal() {
+        ProgressBar::new_spinner()
+    } else {
+        // Standard error into a file or a pipe (a robot's log): one line
+        // per change instead of nothing, so long work is seen to go on.
+        let target = ProgressDrawTarget::term_like_with_hz(Box::new(LineLog::default()), 2);
+        let bar = ProgressBar::with_draw_target(None, target)
+            .with_style(ProgressStyle::default_spinner());
+        // Drawn now and then, so a stage that began in the quiet seconds is
+        // logged once they are over.
+        bar.enable_steady_tick(std::time::Duration::from_millis(500));
+        bar
+    };
     bar.set_message(message);
     bar
+}
+
+/// A progress bar's drawing as log lines on standard error: each state
+/// once (the spinner's frame ignored), no cursor movement, and nothing in
+/// a job's first [`QUIET_SECONDS`]: short commands log nothing.
+#[derive(Debug)]
+struct LineLog {
+    last: std::sync::Mutex<String>,
+    started: std::time::Instant,
+}
+
+impl Default for LineLog {
+    fn default() -> Self {
+        LineLog { last: std::sync::Mutex::new(String::new()), started: std::time::Instant::now() }
+    }
+}
+
+/// Seconds of work before a progress bar logs to a standard error that is
+/// no terminal.
+const QUIET_SECONDS: f64 = 2.0;
+
+impl LineLog {
+    fn log(&self, text: &str) -> std::io::Result<()> {
+        if self.started.elapsed().as_secs_f64() < QUIET_SECONDS {
+            return Ok(());
+        }
+        // The spinner's frame is the first character of a drawn line.
+        let text = text.trim();
+        let state = text.chars().skip(1).collect::<String>().trim().to_owned();
+        if state.is_empty() {
+            return Ok(());
+        }
+        let Ok(mut last) = self.last.lock() else { return Ok(()) };
+        if *last != state {
+            print_err(&format!("{state}\n"));
+            *last = state;
+        }
+        Ok(())
+    }
+}
+
+impl TermLike for LineLog {
+    fn width(&self) -> u16 {
+        200
+    }
+    fn move_cursor_up(&self, _: usize) -> std::io::Result<()> {
+        Ok(())
+    }
+    fn move_cursor_down(&self, _: usize) -> std::io::Result<()> {
+        Ok(())
+    }
+    fn move_cursor_right(&self, _: usize) -> std::io::Result<()> {
+        Ok(())
+    }
+    fn move_cursor_left(&self, _: usize) -> std::io::Result<()> {
+        Ok(())
+    }
+    fn write_line(&self, s: &str) -> std::io::Result<()> {
+        self.log(s)
+    }
+    fn write_str(&self, s: &str) -> std::io::Result<()> {
+        self.log(s)
+    }
+    fn clear_line(&self) -> std::io::Result<()> {
+        Ok(())
+    }
+    fn flush(&self) -> std::io::Result<()> {
+        Ok(())
+    }
 }
 
 /// Turns a spinner into a bar of `len` steps, showing `message`.

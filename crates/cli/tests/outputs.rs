@@ -268,3 +268,25 @@ fn a_file_size_limit_fails_the_write_and_leaves_no_temporary_file() {
     assert_eq!(std::fs::read_to_string(&target).unwrap(), "old");
     assert!(names(&dir).iter().all(|n| !n.starts_with(".alacs-")), "{:?}", names(&dir));
 }
+
+/// Issue 43 item 10: an error is one line on standard error whatever its
+/// text holds: a newline in a path is escaped, a rig.toml syntax error
+/// names its line and column instead of quoting the file over five lines.
+#[test]
+fn an_error_is_one_line_even_with_a_newline_in_a_path() {
+    let dir = scratch("one_line_errors");
+    let odd = dir.join("a\nb");
+    std::fs::create_dir_all(&odd).unwrap();
+    let o = alacs(&["localize", "--scan", &arg(&odd), "--camera", "c.yaml", "--laser", "l.yaml"]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{}", context(&o));
+    assert_eq!(stderr.trim_end().lines().count(), 1, "{}", context(&o));
+    assert!(stderr.contains("a\\nb"), "{}", context(&o));
+    let rig = dir.join("rig.toml");
+    std::fs::write(&rig, "[slide]\ndriver = \"grbl\"\nport = \n").unwrap();
+    let o = alacs(&["rig", "check", "--rig", &arg(&rig)]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{}", context(&o));
+    assert_eq!(stderr.trim_end().lines().count(), 1, "{}", context(&o));
+    assert!(stderr.contains("line 3, column"), "{}", context(&o));
+}

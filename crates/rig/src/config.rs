@@ -328,9 +328,23 @@ impl RigConfig {
 
     /// Parses and checks rig.toml's text; `path` names it in errors.
     pub fn from_toml(text: &str, path: &Path) -> Result<Self> {
-        let config: RigConfig = toml::from_str(text).map_err(|e| Error::Config {
-            path: path.to_path_buf(),
-            message: e.to_string().trim_end().replace('\n', "\n  "),
+        // One line: where, then what (the parser's own text quotes the line
+        // over several).
+        let config: RigConfig = toml::from_str(text).map_err(|e| {
+            let at = e.span().map(|span| {
+                let before = text.get(..span.start).unwrap_or(text);
+                let line = before.matches('\n').count() + 1;
+                let column = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
+                format!("line {line}, column {column}: ")
+            });
+            Error::Config {
+                path: path.to_path_buf(),
+                message: format!(
+                    "{}{}",
+                    at.unwrap_or_default(),
+                    e.message().trim().replace('\n', " ")
+                ),
+            }
         })?;
         config.validate(path)?;
         Ok(config)
