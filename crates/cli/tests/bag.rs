@@ -66,6 +66,22 @@ fn a_recorded_scan_localizes_from_the_bag_as_from_its_folder() {
     assert_eq!(export["frames"], 5);
     assert_eq!(export["scans"], 1);
     assert_eq!(position(&["--scan", p(&exported)], &folder), from_folder);
+    // The recorded CameraInfo is the scan's camera.yaml again; the folder
+    // localizes with it as with the original.
+    assert_eq!(export["camera"], true);
+    let recorded_camera = exported.join("camera.yaml");
+    let laser = folder.join("laser.yaml");
+    let again_located = json(&alacs(&[
+        "localize",
+        "--scan",
+        p(&exported),
+        "--camera",
+        p(&recorded_camera),
+        "--laser",
+        p(&laser),
+        "--json",
+    ]));
+    assert_eq!(again_located["position_mm"], from_folder);
     let again = dir.path().join("again.mcap");
     let import = json(&alacs(&["bag", "import", p(&exported), p(&again), "--json"]));
     assert_eq!(import["images"], 10);

@@ -448,6 +448,8 @@ pub struct BagSummary {
     pub frames_per_scan: Vec<usize>,
     /// Messages per topic.
     pub messages: BTreeMap<String, u64>,
+    /// The camera of the scan read, from its first CameraInfo, if it has one.
+    pub camera: Option<Camera>,
 }
 
 /// Reads scan `index` (from 0) of the bag at `path`, and what the whole bag
@@ -463,7 +465,8 @@ pub fn read_scan(path: &Path, index: usize) -> Result<(CapturedScan, BagSummary)
         .with_prevalidate_chunk_crcs(true)
         .with_validate_data_section_crc(true);
     let reader = mcap::io::MessageReader::new_with_options(BufReader::new(file), options);
-    let mut summary = BagSummary { frames_per_scan: Vec::new(), messages: BTreeMap::new() };
+    let mut summary =
+        BagSummary { frames_per_scan: Vec::new(), messages: BTreeMap::new(), camera: None };
     let mut scan: Option<CapturedScan> = None;
     // The slide and the laser of the next image.
     let mut slide_mm: Option<f64> = None;
@@ -510,6 +513,15 @@ pub fn read_scan(path: &Path, index: usize) -> Result<(CapturedScan, BagSummary)
                     ))));
                 }
                 slide_mm = Some(position * MM_PER_M);
+            }
+            "sensor_msgs/msg/CameraInfo" => {
+                if current == Some(index) && summary.camera.is_none() {
+                    let info: crate::msgs::CameraInfo =
+                        from_cdr(&message.data).map_err(|e| bad(at(&e)))?;
+                    let camera = crate::convert::camera_from_info(&info, "recorded")
+                        .map_err(|e| bad(at(&e)))?;
+                    summary.camera = Some(camera);
+                }
             }
             "std_msgs/msg/Bool" if topic.ends_with("/laser_on") => {
                 let state: Bool = from_cdr(&message.data).map_err(|e| bad(at(&e)))?;

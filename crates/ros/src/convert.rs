@@ -238,6 +238,39 @@ pub fn camera_info(camera: &Camera, header: Header) -> CameraInfo {
     }
 }
 
+/// The camera a CameraInfo describes ([`camera_info`]'s inverse), checked
+/// as a camera.yaml is; `name` names it.
+pub fn camera_from_info(info: &CameraInfo, name: &str) -> Result<Camera, String> {
+    use alacs_model::Distortion;
+    let d = info.d.as_slice();
+    let distortion = match (info.distortion_model.as_str(), d.len()) {
+        (_, _) if d.iter().all(|k| *k == 0.0) => Distortion::None,
+        ("plumb_bob", 5) => Distortion::PlumbBob([d[0], d[1], d[2], d[3], d[4]]),
+        ("rational_polynomial", 8) => {
+            Distortion::RationalPolynomial([d[0], d[1], d[2], d[3], d[4], d[5], d[6], d[7]])
+        }
+        (model, n) => {
+            return Err(format!(
+                "distortion model `{model}` with {n} coefficients: plumb_bob (5) or rational_polynomial (8) are read"
+            ));
+        }
+    };
+    let k = info.k;
+    let camera = Camera {
+        name: name.to_owned(),
+        width_px: info.width,
+        height_px: info.height,
+        fx_px: k[0],
+        fy_px: k[4],
+        cx_px: k[2],
+        cy_px: k[5],
+        skew_px: k[1],
+        distortion,
+    };
+    camera.validate().map_err(|e| e.to_string())?;
+    Ok(camera)
+}
+
 /// The static transform that mounts the ALACS camera on the robot:
 /// `mount_from_camera` (mm) as /tf_static publishes it, the camera's
 /// optical frame a child of `mount_frame`. The RGB-D camera's frame belongs
@@ -271,4 +304,28 @@ pub fn body_from_optical() -> Isometry3<f64> {
         nalgebra::Translation3::identity(),
         nalgebra::UnitQuaternion::from_euler_angles(-FRAC_PI_2, 0.0, -FRAC_PI_2),
     )
+}
+
+#[cfg(test)]
+mod camera_info_tests {
+    use super::*;
+
+    /// A camera goes into CameraInfo and comes back the same.
+    #[test]
+    fn a_camera_round_trips_through_camera_info() {
+        let mut camera = Camera::blackfly_s_5mp();
+        camera.skew_px = 0.25;
+        let header = Header::new(Time::now(), "alacs_camera_optical_frame");
+        let back = camera_from_info(&camera_info(&camera, header.clone()), &camera.name).unwrap();
+        assert_eq!(back, camera);
+        let plain = Camera { distortion: alacs_model::Distortion::None, ..camera.clone() };
+        assert_eq!(
+            camera_from_info(&camera_info(&plain, header.clone()), &plain.name).unwrap(),
+            plain
+        );
+        let mut info = camera_info(&camera, header);
+        info.distortion_model = "equidistant".into();
+        info.d = vec![0.1, 0.0, 0.0, 0.0];
+        assert!(camera_from_info(&info, "x").unwrap_err().contains("equidistant"));
+    }
 }

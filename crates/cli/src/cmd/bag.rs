@@ -19,6 +19,10 @@ pub fn export(args: &BagExportArgs) -> CmdResult {
     let (scan, summary) = read_scan(&args.bag, args.scan_index)?;
     let mut out = OutputDir::create(&args.out, "bag export", args.force)?;
     scan.write_into(&mut out)?;
+    // The recorded CameraInfo: the camera the scan was localized with.
+    if let Some(camera) = &summary.camera {
+        out.write("camera.yaml", camera.to_yaml_string())?;
+    }
     out.finish()?;
     if args.json {
         output::print_json(&json!({
@@ -27,14 +31,16 @@ pub fn export(args: &BagExportArgs) -> CmdResult {
             "scans": summary.frames_per_scan.len(),
             "frames": scan.frames.len(),
             "out": args.out.display().to_string(),
+            "camera": summary.camera.is_some(),
             "messages": summary.messages,
         }))?;
     } else {
         outln!(
-            "wrote scan {} of {} ({} frames) to {}",
+            "wrote scan {} of {} ({} frames{}) to {}",
             args.scan_index,
             args.bag.display(),
             scan.frames.len(),
+            if summary.camera.is_some() { ", camera.yaml from its CameraInfo" } else { "" },
             args.out.display()
         );
     }
