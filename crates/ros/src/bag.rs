@@ -514,14 +514,12 @@ pub fn read_scan(path: &Path, index: usize) -> Result<(CapturedScan, BagSummary)
                 }
                 slide_mm = Some(position * MM_PER_M);
             }
-            "sensor_msgs/msg/CameraInfo" => {
-                if current == Some(index) && summary.camera.is_none() {
-                    let info: crate::msgs::CameraInfo =
-                        from_cdr(&message.data).map_err(|e| bad(at(&e)))?;
-                    let camera = crate::convert::camera_from_info(&info, "recorded")
-                        .map_err(|e| bad(at(&e)))?;
-                    summary.camera = Some(camera);
-                }
+            "sensor_msgs/msg/CameraInfo" if current == Some(index) && summary.camera.is_none() => {
+                let info: crate::msgs::CameraInfo =
+                    from_cdr(&message.data).map_err(|e| bad(at(&e)))?;
+                let camera =
+                    crate::convert::camera_from_info(&info, "recorded").map_err(|e| bad(at(&e)))?;
+                summary.camera = Some(camera);
             }
             "std_msgs/msg/Bool" if topic.ends_with("/laser_on") => {
                 let state: Bool = from_cdr(&message.data).map_err(|e| bad(at(&e)))?;
