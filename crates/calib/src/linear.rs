@@ -27,6 +27,14 @@ use crate::refine::Layout;
 /// L0 undetermined by the linear form.
 const MIN_SLIDE_SPREAD_MM: f64 = 10.0;
 
+/// Samples away from the main slide position make the slide a parameter
+/// (the k/L0 column) only when there are at least this many: a stray
+/// sample or two at another position (a mistyped `slide_mm`) cannot fix k
+/// and L0 apart, and minimal samples drawn from the main position alone
+/// would all be degenerate. With fewer, the samples share the main
+/// position's model (k = 1) and the strays are judged by it.
+const MIN_SAMPLES_AT_OTHER_SLIDES: usize = 8;
+
 /// Singular-value ratio (of the column-scaled design) below which the
 /// samples do not determine the parameters.
 const RANK_TOLERANCE: f64 = 1e-9;
@@ -49,12 +57,23 @@ impl LinearForm {
         samples: impl IntoIterator<Item = &'a LaserSample>,
         fit_slide_scale: bool,
     ) -> Self {
-        let (min, max, sum, n) = samples
-            .into_iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY, 0.0, 0usize), |(lo, hi, sum, n), s| {
-                (lo.min(s.slide_mm), hi.max(s.slide_mm), sum + s.slide_mm, n + 1)
-            });
-        let common_slide_mm = (max - min < MIN_SLIDE_SPREAD_MM).then(|| sum / n.max(1) as f64);
+        let mut slides: Vec<f64> = samples.into_iter().map(|s| s.slide_mm).collect();
+        slides.sort_by(f64::total_cmp);
+        // The most samples within one slide position's spread, and their mean.
+        let (mut best, mut best_sum, mut sum, mut start) = (0usize, 0.0, 0.0, 0usize);
+        for (end, &d) in slides.iter().enumerate() {
+            sum += d;
+            while d - slides[start] >= MIN_SLIDE_SPREAD_MM {
+                sum -= slides[start];
+                start += 1;
+            }
+            if end + 1 - start > best {
+                (best, best_sum) = (end + 1 - start, sum);
+            }
+        }
+        let others = slides.len() - best;
+        let common_slide_mm =
+            (others < MIN_SAMPLES_AT_OTHER_SLIDES).then(|| best_sum / best.max(1) as f64);
         Self { fidelity, common_slide_mm, fit_slide_scale }
     }
 

@@ -458,3 +458,20 @@ fn compare_keeps_going_when_a_low_fidelity_method_cannot_fit() {
     }
     eprintln!("{failures} method runs could not fit, each a row with its reason");
 }
+
+/// Issue 43 item 9: one sample at another slide position (a mistyped
+/// `slide_mm`) among 29 at one position made every minimal sample
+/// degenerate ("explains 0 of 30"). A handful of strays cannot free the
+/// slide scale: they are judged by the main position's model and rejected.
+#[test]
+fn one_stray_sample_at_another_slide_position_does_not_defeat_ransac() {
+    let sim = paper_like(0.0, 3);
+    let mut samples: Vec<LaserSample> = sim.samples.clone();
+    let last = samples.len() - 1;
+    samples[last].slide_mm += 100.0;
+    let fit = calibrate(&samples, Method::HighFidelityRansac, &CalibrationOptions::default())
+        .expect("the stray is an outlier, not the end of the fit");
+    assert_eq!(fit.inliers.len(), samples.len() - 1, "the stray alone is rejected");
+    assert!(!fit.inliers.contains(&last));
+    assert_close_to_truth(&fit.laser, &paper_laser(), 0.1, 1.0, "with one stray sample");
+}
