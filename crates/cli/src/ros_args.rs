@@ -37,7 +37,7 @@ pub fn expand(args: Vec<OsString>, options: &[String]) -> Result<Vec<OsString>, 
     };
     let mut out: Vec<OsString> = args[..start].to_vec();
     let mut params: Vec<(String, Value)> = Vec::new();
-    let mut from_file: Vec<(String, Value)> = Vec::new();
+    let mut files: Vec<String> = Vec::new();
     let mut remaps: Vec<(String, String)> = Vec::new();
     let mut i = start + 1;
     while i < args.len() {
@@ -61,8 +61,7 @@ pub fn expand(args: Vec<OsString>, options: &[String]) -> Result<Vec<OsString>, 
                 i += 1;
             }
             "--params-file" => {
-                let file = value(i + 1)?;
-                from_file.push(("".into(), Value::String(file)));
+                files.push(value(i + 1)?);
                 i += 1;
             }
             "-r" | "--remap" => {
@@ -97,8 +96,7 @@ pub fn expand(args: Vec<OsString>, options: &[String]) -> Result<Vec<OsString>, 
     let node = remapped(&["__node", "__name"]).unwrap_or_else(|| given("--node-name", "alacs"));
     let namespace = remapped(&["__ns"]).unwrap_or_else(|| given("--namespace", "/alacs"));
     let mut all: Vec<(String, Value)> = Vec::new();
-    for (_, file) in &from_file {
-        let file = file.as_str().unwrap_or_default();
+    for file in &files {
         all.extend(read_params_file(Path::new(file), &node, &namespace)?);
     }
     all.extend(params);

@@ -29,18 +29,17 @@ pub const MIN_BRIGHTNESS_DN: u8 = 30;
 /// Whether a pixel may be apple skin (see the module docs).
 #[inline]
 pub fn is_fruit_coloured(rgb: [u8; 3]) -> bool {
-    let [r, g, b] = rgb;
-    let max = r.max(g).max(b);
-    max >= MIN_BRIGHTNESS_DN
-        && f32::from(r) >= MIN_RED_OVER_GREEN * f32::from(g)
-        && saturated(r, g, b, max)
+    skin_coloured(rgb, MIN_RED_OVER_GREEN)
 }
 
-/// Whether (max - min) / max is at least [`MIN_SATURATION`].
+/// Bright enough, saturated at least [`MIN_SATURATION`], and red at least
+/// `min_red_over_green` of green.
 #[inline]
-fn saturated(r: u8, g: u8, b: u8, max: u8) -> bool {
-    let min = r.min(g).min(b);
-    f32::from(max - min) >= MIN_SATURATION * f32::from(max)
+fn skin_coloured([r, g, b]: [u8; 3], min_red_over_green: f32) -> bool {
+    let (max, min) = (r.max(g).max(b), r.min(g).min(b));
+    max >= MIN_BRIGHTNESS_DN
+        && f32::from(r) >= min_red_over_green * f32::from(g)
+        && f32::from(max - min) >= MIN_SATURATION * f32::from(max)
 }
 
 /// Least red over green of an apple's ground colour, the yellow-green skin
@@ -52,11 +51,7 @@ pub const MIN_GROUND_RED_OVER_GREEN: f32 = 0.75;
 /// with red down to [`MIN_GROUND_RED_OVER_GREEN`] of green.
 #[inline]
 pub fn is_ground_coloured(rgb: [u8; 3]) -> bool {
-    let [r, g, b] = rgb;
-    let max = r.max(g).max(b);
-    max >= MIN_BRIGHTNESS_DN
-        && f32::from(r) >= MIN_GROUND_RED_OVER_GREEN * f32::from(g)
-        && saturated(r, g, b, max)
+    skin_coloured(rgb, MIN_GROUND_RED_OVER_GREEN)
 }
 
 /// The fruit-coloured pixels of `image`: 255 where [`is_fruit_coloured`], 0

@@ -102,12 +102,16 @@ struct PosedScene<'a> {
 }
 
 impl PosedScene<'_> {
-    fn hit(&self, ray: &Ray) -> Option<Hit> {
-        let moved = Ray {
+    /// A ray of the RGB-D camera's frame in the scene's (the ALACS camera's).
+    fn in_scene(&self, ray: &Ray) -> Ray {
+        Ray {
             origin: self.alacs_from_rgbd * ray.origin,
             direction: self.alacs_from_rgbd * ray.direction,
-        };
-        self.scene.first_hit(&moved, 0.0)
+        }
+    }
+
+    fn hit(&self, ray: &Ray) -> Option<Hit> {
+        self.scene.first_hit(&self.in_scene(ray), 0.0)
     }
 }
 
@@ -157,22 +161,25 @@ impl SimulatedScan {
             mix_seed(self.seed, RGBD_COLOUR_STREAM),
         );
         let (width, height) = (camera.width_px, camera.height_px);
-        // Each pixel centre's first hit: its depth and object.
-        let centre_ray = |u: u32, v: u32| -> Option<Ray> {
-            let n =
-                camera.undistort_pixel(&nalgebra::Point2::new(f64::from(u), f64::from(v))).ok()?;
-            Some(Ray::through_normalized(n.x, n.y))
-        };
-        let hits: Vec<Option<(f64, usize)>> = (0..width * height)
+        // Each pixel centre's ray in the scene's frame, once, and its first
+        // hit: its depth and object.
+        let rays: Vec<Option<Ray>> = (0..width * height)
             .into_par_iter()
             .map(|i| {
-                let ray = centre_ray(i % width, i / width)?;
-                let hit = scene.hit(&ray)?;
-                let z = (alacs_from_rgbd.inverse() * hit.point).z;
-                Some((z, hit.object))
+                let pixel = nalgebra::Point2::new(f64::from(i % width), f64::from(i / width));
+                let n = camera.undistort_pixel(&pixel).ok()?;
+                Some(scene.in_scene(&Ray::through_normalized(n.x, n.y)))
             })
             .collect();
-        let apples = self.rgbd_apples(&scene, &hits, (width, height), &centre_ray);
+        let rgbd_from_alacs = alacs_from_rgbd.inverse();
+        let hits: Vec<Option<(f64, usize)>> = rays
+            .par_iter()
+            .map(|ray| {
+                let hit = self.scene.first_hit(ray.as_ref()?, 0.0)?;
+                Some(((rgbd_from_alacs * hit.point).z, hit.object))
+            })
+            .collect();
+        let apples = self.rgbd_apples(&rgbd_from_alacs, &rays, &hits);
         let mut rng = ChaCha8Rng::seed_from_u64(mix_seed(self.seed, RGBD_DEPTH_STREAM));
         let scale_error = rng.random_range(-errors.scale_error..=errors.scale_error);
         let depth_mm = depth_image(&hits, (width, height), scale_error, errors, &mut rng);
@@ -190,12 +197,10 @@ impl SimulatedScan {
     /// silhouette the first hits show to be another object.
     fn rgbd_apples(
         &self,
-        scene: &PosedScene,
+        rgbd_from_alacs: &Isometry3<f64>,
+        rays: &[Option<Ray>],
         hits: &[Option<(f64, usize)>],
-        (width, height): (u32, u32),
-        centre_ray: &(dyn Fn(u32, u32) -> Option<Ray> + Sync),
     ) -> Vec<RgbdApple> {
-        let rgbd_from_alacs = scene.alacs_from_rgbd.inverse();
         let fruit: Vec<usize> = (0..self.scene.objects.len())
             .filter(|&i| self.scene.objects[i].kind == Kind::Fruit)
             .collect();
@@ -203,17 +208,12 @@ impl SimulatedScan {
             .iter()
             .zip(self.scene.apples())
             .map(|(&object, (centre, radius_mm))| {
-                let (silhouette, seen) = (0..width * height)
-                    .into_par_iter()
-                    .filter_map(|i| {
-                        let ray = centre_ray(i % width, i / width)?;
-                        let moved = Ray {
-                            origin: scene.alacs_from_rgbd * ray.origin,
-                            direction: scene.alacs_from_rgbd * ray.direction,
-                        };
-                        self.scene.first_hit_among(&moved, 0.0, object..object + 1)?;
-                        let visible = hits[i as usize].is_some_and(|(_, o)| o == object);
-                        Some((1usize, usize::from(visible)))
+                let (silhouette, seen) = rays
+                    .par_iter()
+                    .zip(hits)
+                    .filter_map(|(ray, hit)| {
+                        self.scene.first_hit_among(ray.as_ref()?, 0.0, object..object + 1)?;
+                        Some((1usize, usize::from(hit.is_some_and(|(_, o)| o == object))))
                     })
                     .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
                 RgbdApple {
