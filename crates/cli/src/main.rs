@@ -95,8 +95,13 @@ fn parse() -> Result<args::Cli, clap::Error> {
 fn usage_error(error: &clap::Error) -> ExitCode {
     use clap::error::ErrorKind;
     if matches!(error.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) {
+        // A full standard output is exit 2 with its error, as for every
+        // command's output (`alacs --help > /dev/full`).
         return match output::print_text(&error.render().to_string()) {
-            Err(failure) if !failure.is_broken_pipe() => ExitCode::from(failure.code),
+            Err(failure) if !failure.is_broken_pipe() => {
+                errln!("error: {:#}", failure.error);
+                ExitCode::from(failure.code)
+            }
             _ => ExitCode::SUCCESS,
         };
     }

@@ -206,3 +206,34 @@ impl Error {
         self.class() == ErrorClass::BadInput
     }
 }
+
+/// A number as a message shows it: as written for everyday magnitudes,
+/// in scientific notation beyond them, so that a value like 1e300 in a
+/// file reads `1e300` in its error and not as 301 digits.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Num(pub f64);
+
+impl std::fmt::Display for Num {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let x = self.0;
+        if !x.is_finite() || x == 0.0 || (1e-4..1e7).contains(&x.abs()) {
+            write!(f, "{x}")
+        } else {
+            write!(f, "{x:e}")
+        }
+    }
+}
+
+#[cfg(test)]
+mod num_tests {
+    use super::Num;
+
+    #[test]
+    fn a_huge_or_tiny_number_prints_in_scientific_notation() {
+        assert_eq!(Num(1e300).to_string(), "1e300");
+        assert_eq!(Num(-2.5e-9).to_string(), "-2.5e-9");
+        assert_eq!(Num(412.5).to_string(), "412.5");
+        assert_eq!(Num(0.0).to_string(), "0");
+        assert_eq!(Num(f64::NAN).to_string(), "NaN");
+    }
+}

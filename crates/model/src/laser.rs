@@ -183,27 +183,37 @@ impl LaserModel {
         {
             return invalid(format!(
                 "slide_scale must lie in [{}, {}] (the laser's travel per mm of slide travel), got {}",
-                SLIDE_SCALE_RANGE.0, SLIDE_SCALE_RANGE.1, self.slide_scale
+                SLIDE_SCALE_RANGE.0,
+                SLIDE_SCALE_RANGE.1,
+                crate::Num(self.slide_scale)
             ));
         }
         if !(self.alpha_rad.is_finite() && self.beta_rad.is_finite() && self.l0_mm.is_finite()) {
             return invalid(format!(
                 "parameters must be finite (alpha {} rad, beta {} rad, L0 {} mm)",
-                self.alpha_rad, self.beta_rad, self.l0_mm
+                crate::Num(self.alpha_rad),
+                crate::Num(self.beta_rad),
+                crate::Num(self.l0_mm)
             ));
         }
         if self.l0_mm <= 0.0 || self.l0_mm > crate::MAX_ABS_SLIDE_MM {
             return invalid(format!(
                 "l0_mm must lie in (0, {}] mm (a laser beside its camera), got {}",
                 crate::MAX_ABS_SLIDE_MM,
-                self.l0_mm
+                crate::Num(self.l0_mm)
             ));
         }
         if !(self.alpha_rad > 0.0 && self.alpha_rad < std::f64::consts::PI) {
-            return invalid(format!("alpha_deg must lie in (0, 180), got {}", self.alpha_deg()));
+            return invalid(format!(
+                "alpha_deg must lie in (0, 180), got {}",
+                crate::Num(self.alpha_deg())
+            ));
         }
         if self.effective_beta_rad().abs() >= std::f64::consts::FRAC_PI_2 {
-            return invalid(format!("beta_deg must lie in (-90, 90), got {}", self.beta_deg()));
+            return invalid(format!(
+                "beta_deg must lie in (-90, 90), got {}",
+                crate::Num(self.beta_deg())
+            ));
         }
         Ok(())
     }

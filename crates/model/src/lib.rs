@@ -45,7 +45,7 @@ mod scan_plan;
 mod session;
 
 pub use camera::*;
-pub use error::{Error, ErrorClass, Result};
+pub use error::{Error, ErrorClass, Num, Result};
 pub use geometry::{Plane, Ray};
 pub use laser::{
     Fidelity, LaserFile, LaserModel, PreparedLaser, SLIDE_SCALE_RANGE, SLIDE_STROKE_MM, SlideTarget,
@@ -61,5 +61,6 @@ pub use scan::{
 };
 pub use scan_plan::{SHARED_FRAME_MM, ScanPlan, ScanStrategy};
 pub use session::{
-    ArucoDictionary, BoardSpec, CharucoMarkers, MAX_SQUARE_MM, SESSION_FILE, Session, SessionView,
+    ArucoDictionary, BoardSpec, CharucoMarkers, INNER_CORNERS_RANGE, MAX_SQUARE_MM, SESSION_FILE,
+    Session, SessionView,
 };

@@ -52,7 +52,7 @@ impl LaserSample {
             [("u_n", self.u_n), ("v_n", self.v_n), ("z_mm", self.z_mm), ("slide_mm", self.slide_mm)]
         {
             if !value.is_finite() {
-                return Some(format!("{name} is {value}, not a finite number"));
+                return Some(format!("{name} is {}, not a finite number", crate::Num(value)));
             }
         }
         if self.z_mm <= 0.0 {

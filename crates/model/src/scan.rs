@@ -365,8 +365,9 @@ impl Scan {
                 if let Some(value) = value.filter(|v| !v.is_finite() || v.abs() > MAX_ABS_SLIDE_MM)
                 {
                     return Err(parse_error(format!(
-                        "frames[{i}] ({}): `{key}` is {value}; it must be finite and within +-{MAX_ABS_SLIDE_MM} mm",
-                        frame.image
+                        "frames[{i}] ({}): `{key}` is {}; it must be finite and within +-{MAX_ABS_SLIDE_MM} mm",
+                        frame.image,
+                        crate::Num(value)
                     )));
                 }
             }

@@ -26,6 +26,11 @@ use crate::{Error, Result};
 /// calibration board a camera at 0.5-2 m sees whole.
 pub const MAX_SQUARE_MM: f64 = 1000.0;
 
+/// The fewest and most inner corners a board has along either side: two
+/// make the smallest grid with a square between corners; a thousand is far
+/// beyond any printed board (a bound, so a typing error is caught).
+pub const INNER_CORNERS_RANGE: std::ops::RangeInclusive<usize> = 2..=1000;
+
 /// The session file's name inside a session folder.
 pub const SESSION_FILE: &str = "session.yaml";
 
@@ -172,7 +177,9 @@ impl BoardSpec {
         let square_mm = self.square_x_mm.min(self.square_y_mm);
         if !(marker_mm.is_finite() && marker_mm > 0.0 && marker_mm < square_mm) {
             return Err(format!(
-                "`marker_mm` must be positive and smaller than a square ({square_mm} mm), got {marker_mm}"
+                "`marker_mm` must be positive and smaller than a square ({} mm), got {}",
+                crate::Num(square_mm),
+                crate::Num(marker_mm)
             ));
         }
         let (needed, (across, down)) = (self.marker_count(), self.squares());
@@ -303,7 +310,10 @@ struct ViewFile {
 /// The board of session.yaml, checked (errors name the key).
 fn parse_board(file: BoardFile) -> std::result::Result<BoardSpec, String> {
     let (cols, rows) = match (file.inner_corners.as_deref(), file.squares.as_deref()) {
-        (Some(&[cols, rows]), None) if (2..=1000).contains(&cols) && (2..=1000).contains(&rows) => {
+        (Some(&[cols, rows]), None)
+            if INNER_CORNERS_RANGE.contains(&(cols as usize))
+                && INNER_CORNERS_RANGE.contains(&(rows as usize)) =>
+        {
             (cols as usize, rows as usize)
         }
         (None, Some(&[across, down]))
@@ -343,7 +353,10 @@ fn parse_board(file: BoardFile) -> std::result::Result<BoardSpec, String> {
     };
     for s in [square_x_mm, square_y_mm] {
         if !(s.is_finite() && s > 0.0 && s <= MAX_SQUARE_MM) {
-            return Err(format!("`board.square_mm` must lie in (0, {MAX_SQUARE_MM}] mm, got {s}"));
+            return Err(format!(
+                "`board.square_mm` must lie in (0, {MAX_SQUARE_MM}] mm, got {}",
+                crate::Num(s)
+            ));
         }
     }
     let mut board = BoardSpec::checkerboard(cols, rows, square_x_mm, square_y_mm);

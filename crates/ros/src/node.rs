@@ -93,6 +93,7 @@ impl Default for NodeConfig {
 impl NodeConfig {
     /// Checks the namespace and node name as ROS 2 names.
     pub fn validate(&self) -> Result<()> {
+        validate_namespace(&self.namespace)?;
         NodeName::new(&self.namespace, &self.node_name).map_err(|e| {
             Error::InvalidInput(format!(
                 "namespace `{}` / node name `{}`: {e:?} (a namespace starts with `/`, e.g. /alacs_left)",
@@ -102,6 +103,37 @@ impl NodeConfig {
         Ok(())
     }
 }
+
+/// Checks `namespace` by ROS 2's rules for a node's namespace
+/// (rmw_validate_namespace): absolute, tokens of letters, digits and `_`
+/// that do not start with a digit, no empty token, at most 255 characters.
+/// The node and `bag import --namespace` both take only such names.
+pub fn validate_namespace(namespace: &str) -> Result<()> {
+    let problem = if !namespace.starts_with('/') {
+        Some("it must start with `/`")
+    } else if namespace.len() > MAX_NAMESPACE_CHARS {
+        Some("it is longer than 255 characters")
+    } else if namespace == "/" {
+        None
+    } else if namespace.ends_with('/') || namespace.contains("//") {
+        Some("it has an empty token (`//` or a trailing `/`)")
+    } else if !namespace.chars().all(|c| c == '/' || c == '_' || c.is_ascii_alphanumeric()) {
+        Some("it may hold only letters, digits, `_` and `/`")
+    } else if namespace.split('/').any(|token| token.starts_with(|c: char| c.is_ascii_digit())) {
+        Some("a token starts with a digit")
+    } else {
+        None
+    };
+    match problem {
+        Some(problem) => Err(Error::InvalidInput(format!(
+            "namespace `{namespace}`: {problem} (e.g. /alacs_left)"
+        ))),
+        None => Ok(()),
+    }
+}
+
+/// The longest namespace ROS 2 takes (rmw's RMW_NAMESPACE_MAX_LENGTH).
+const MAX_NAMESPACE_CHARS: usize = 255;
 
 /// What a node did, when it stops.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]

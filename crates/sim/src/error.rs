@@ -52,8 +52,16 @@ pub const MAX_SCALE: f64 = 2.0;
 pub const MAX_SESSION_VIEWS: usize = 1000;
 
 /// The most calibration samples a simulation may make (views x points per
-/// view): ten million, about 320 MB in memory and 800 MB as samples.csv.
-pub const MAX_SAMPLES: usize = 10_000_000;
+/// view): as many as fit in a samples.csv that `calibrate laser` reads,
+/// [`alacs_model::io::MAX_TEXT_INPUT_BYTES`] at [`MAX_SAMPLE_ROW_BYTES`] a
+/// row (2.68 million; a session of 1000 views gives about a million).
+pub const MAX_SAMPLES: usize =
+    (alacs_model::io::MAX_TEXT_INPUT_BYTES / MAX_SAMPLE_ROW_BYTES as u64) as usize;
+
+/// The longest row of a simulated samples.csv, bytes: four shortest
+/// round-trip floats (about 20 characters each at the simulator's
+/// magnitudes) and a view number, with room to spare.
+pub const MAX_SAMPLE_ROW_BYTES: usize = 100;
 
 /// The most slide positions a simulation may use.
 pub const MAX_SLIDE_POSITIONS: usize = 1000;

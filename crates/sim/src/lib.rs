@@ -53,7 +53,10 @@ mod truth;
 mod variation;
 
 pub use board::{BoardScene, CHARUCO_MARKER_PER_SQUARE, Checkerboard};
-pub use error::{Error, MAX_SAMPLES, MAX_SCALE, MAX_SESSION_VIEWS, MAX_SLIDE_POSITIONS, Result};
+pub use error::{
+    Error, MAX_SAMPLE_ROW_BYTES, MAX_SAMPLES, MAX_SCALE, MAX_SESSION_VIEWS, MAX_SLIDE_POSITIONS,
+    Result,
+};
 pub use orchard::{
     Appearance, CameraRayGrid, Hit, Kind, MAX_CLUSTER, Material, Object, OrchardOptions,
     OrchardScene, Shape, orchard_scene, value_noise,

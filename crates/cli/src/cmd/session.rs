@@ -16,11 +16,18 @@ fn parse_board(text: &str) -> CmdResult<(usize, usize)> {
     let parsed = text.split_once(['x', 'X']).and_then(|(c, r)| {
         Some((c.trim().parse::<usize>().ok()?, r.trim().parse::<usize>().ok()?))
     });
-    parsed.ok_or_else(|| {
-        Failure::bad_input(anyhow!(
+    let range = alacs::model::INNER_CORNERS_RANGE;
+    match parsed {
+        Some((cols, rows)) if range.contains(&cols) && range.contains(&rows) => Ok((cols, rows)),
+        Some(_) => Err(Failure::bad_input(anyhow!(
+            "--board `{text}`: a board has {}-{} inner corners along each side",
+            range.start(),
+            range.end()
+        ))),
+        None => Err(Failure::bad_input(anyhow!(
             "--board takes COLSxROWS inner corners (e.g. 9x6), got `{text}`"
-        ))
-    })
+        ))),
+    }
 }
 
 /// Runs `alacs session init`.

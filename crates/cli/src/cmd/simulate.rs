@@ -194,7 +194,7 @@ pub fn session(args: &SimulateSessionArgs) -> CmdResult {
             .map(|pose| -> CmdResult<RgbdOptions> {
                 Ok(RgbdOptions {
                     camera: RgbdOptions::colour_camera_720p(),
-                    alacs_from_rgbd: crate::cmd::scan::parse_pose(pose)?,
+                    alacs_from_rgbd: crate::cmd::scan::parse_pose_of(pose, "--rgbd-pose")?,
                 })
             })
             .transpose()?,

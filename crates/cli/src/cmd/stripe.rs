@@ -12,15 +12,18 @@ use crate::output;
 
 /// Parses `u0,v0,u1,v1`.
 fn parse_roi(text: &str) -> CmdResult<[u32; 4]> {
-    let values: Vec<u32> = text
-        .split(',')
-        .map(|v| v.trim().parse::<u32>())
-        .collect::<Result<_, _>>()
-        .map_err(|e| Failure::bad_input(anyhow!("--roi {text:?}: {e}")))?;
+    let values: Vec<u32> =
+        text.split(',').map(|v| v.trim().parse::<u32>()).collect::<Result<_, _>>().map_err(
+            |_| {
+                Failure::bad_input(anyhow!(
+                    "--roi `{text}`: takes u0,v0,u1,v1, whole pixels from 0 (the top-left pixel)"
+                ))
+            },
+        )?;
     match values.as_slice() {
         &[u0, v0, u1, v1] if u0 <= u1 && v0 <= v1 => Ok([u0, v0, u1, v1]),
         _ => Err(Failure::bad_input(anyhow!(
-            "--roi must be u0,v0,u1,v1 with u0 <= u1 and v0 <= v1, got {text:?}"
+            "--roi `{text}`: takes u0,v0,u1,v1 with u0 <= u1 and v0 <= v1"
         ))),
     }
 }

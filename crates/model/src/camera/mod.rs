@@ -130,7 +130,7 @@ impl Camera {
             ("skew_px", self.skew_px),
         ];
         if let Some((name, value)) = intrinsics.iter().find(|(_, value)| !value.is_finite()) {
-            return invalid(format!("{name} must be finite, got {value}"));
+            return invalid(format!("{name} must be finite, got {}", crate::Num(*value)));
         }
         if !(self.fx_px > 0.0 && self.fy_px > 0.0) {
             return invalid(format!(

@@ -128,7 +128,10 @@ impl MatrixFile {
             ));
         }
         if let Some((i, value)) = data.iter().enumerate().find(|(_, v)| !v.is_finite()) {
-            return Err(format!("`{key}`: data[{i}] is {value}; values must be finite"));
+            return Err(format!(
+                "`{key}`: data[{i}] is {}; values must be finite",
+                crate::Num(*value)
+            ));
         }
         Ok(data)
     }
@@ -259,7 +262,10 @@ impl CameraFile {
             self.distortion_coefficients.as_ref().ok_or("missing key `distortion_coefficients`")?;
         let data = matrix.values(KEY)?;
         if let Some((i, value)) = data.iter().enumerate().find(|(_, v)| !v.is_finite()) {
-            return Err(format!("`{KEY}`: data[{i}] is {value}; coefficients must be finite"));
+            return Err(format!(
+                "`{KEY}`: data[{i}] is {}; coefficients must be finite",
+                crate::Num(*value)
+            ));
         }
         if let Some((i, value)) =
             data.iter().enumerate().find(|(_, v)| v.abs() > super::MAX_ABS_DISTORTION)
