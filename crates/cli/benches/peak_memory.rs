@@ -102,6 +102,10 @@ fn main() {
         "0.3",
     ]);
     let scan64 = long_scan(&scan, alacs::locate::MAX_SCAN_FRAMES, &d.join("scan64"));
+    // The same 64 frames as a recording (`localize --bag` reads it as it goes).
+    let bag64 = d.join("scan64.mcap");
+    setup(&["bag", "import", &arg(&scan64), &arg(&bag64)]);
+    let bag64 = arg(&bag64);
     let scan5 = arg(&scan);
     let scan64 = arg(&scan64);
     let camera = arg(&scan.join("camera.yaml"));
@@ -143,6 +147,11 @@ fn main() {
             "localize, 64 frames at 5 MP with laser-off images (MAX_SCAN_FRAMES)",
             localize_args(&scan64, &camera, &laser),
         ),
+        ("localize --bag, the same 64 frames recorded in MCAP", {
+            let mut a = vec!["localize", "--bag", &bag64];
+            a.extend_from_slice(&localize_args(&scan64, &camera, &laser)[3..]);
+            a
+        }),
         ("report scan, 64 frames at 5 MP (holds every frame)", {
             let mut a = vec!["report", "scan"];
             a.extend_from_slice(&localize_args(&scan64, &camera, &laser)[1..]);

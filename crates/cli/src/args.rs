@@ -330,6 +330,8 @@ pub struct ReportScanArgs {
     /// How the final position is chosen.
     #[arg(long, value_enum, default_value_t = LocalizeMethodArg::Fused)]
     pub method: LocalizeMethodArg,
+    #[command(flatten)]
+    pub rough_error: RoughErrorArgs,
     /// Which fruit of a scan naming several (scan.yaml's `targets`, from 0)
     /// the report is about.
     #[arg(long, value_name = "K", default_value_t = 0)]
@@ -880,6 +882,33 @@ impl LocalizeMethodArg {
     }
 }
 
+/// How far the RGB-D camera's rough position may be off: the fruit is
+/// searched within it, and an answer beyond it (with its own uncertainty)
+/// is `not_found` as contradicting the RGB-D camera.
+#[derive(Debug, Args, Clone, Copy)]
+pub struct RoughErrorArgs {
+    /// The rough position's largest depth error, as a fraction of the
+    /// distance (0.03: 3 %; a detector on a RealSense-class camera at
+    /// 0.5-1.5 m gives 1-3 %).
+    #[arg(long, value_name = "F", default_value_t = 0.03, value_parser = number_in(0.001, 0.5))]
+    pub rough_depth_error: f64,
+    /// The rough position's largest error across the line of sight, mm.
+    #[arg(long, value_name = "MM", default_value_t = 10.0, value_parser = number_in(0.1, 1000.0))]
+    pub rough_lateral_error_mm: f64,
+}
+
+impl RoughErrorArgs {
+    /// The localizer's options with these errors and `method`.
+    pub fn locate_options(&self, method: alacs::locate::Method) -> alacs::locate::LocateOptions {
+        alacs::locate::LocateOptions {
+            method,
+            rough_depth_error: self.rough_depth_error,
+            rough_lateral_error_mm: self.rough_lateral_error_mm,
+            ..alacs::locate::LocateOptions::default()
+        }
+    }
+}
+
 /// `alacs localize`
 #[derive(Debug, Args)]
 pub struct LocalizeArgs {
@@ -901,6 +930,8 @@ pub struct LocalizeArgs {
     /// How the final position is chosen.
     #[arg(long, value_enum, default_value_t = LocalizeMethodArg::Fused)]
     pub method: LocalizeMethodArg,
+    #[command(flatten)]
+    pub rough_error: RoughErrorArgs,
     /// Also write every triangulated laser point (frame, on the fruit or
     /// not) and the fitted centre as a point cloud: .ply (binary PLY) or
     /// .pcd (binary PCD), millimetres, ALACS camera frame.
@@ -975,6 +1006,8 @@ pub struct RigArgs {
         allow_hyphen_values = true
     )]
     pub alacs_from_rgbd: Option<String>,
+    #[command(flatten)]
+    pub rough_error: RoughErrorArgs,
     /// Localize with this calibrated camera.yaml instead of the simulation's true camera.
     #[arg(long, value_name = "FILE")]
     pub camera: Option<PathBuf>,

@@ -195,6 +195,15 @@ fn a_bag_that_is_not_a_recording_exits_2_naming_it() {
     let output = alacs(&["bag", "import", p(&folder), p(&dir.path().join("scan.bag"))]);
     assert_eq!(output.status.code(), Some(2));
     assert!(!dir.path().join("scan.bag").exists());
+    // A namespace `alacs ros --namespace` refuses is refused here too.
+    let bag = dir.path().join("named.mcap");
+    for namespace in ["alacs", "/9lives", "/a b", "/a//b"] {
+        let output = alacs(&["bag", "import", p(&folder), p(&bag), "--namespace", namespace]);
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(2), "{namespace}: {stderr}");
+        assert!(stderr.contains("namespace"), "{namespace}: {stderr}");
+        assert!(!bag.exists());
+    }
 }
 
 #[test]

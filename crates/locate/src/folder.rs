@@ -35,7 +35,7 @@ pub const MAX_FRAMES_IN_FLIGHT: usize = 4;
 pub type ScanImages = Vec<FrameImagePair>;
 
 /// A frame's laser-on image and its laser-off image, if any.
-type FrameImagePair = (RgbImage, Option<RgbImage>);
+pub type FrameImagePair = (RgbImage, Option<RgbImage>);
 
 /// Refuses a scan of more than [`MAX_SCAN_FRAMES`] frames, naming its file.
 fn check_frame_count(scan: &Scan) -> Result<()> {
@@ -89,12 +89,10 @@ pub fn priors_of(scan: &Scan) -> Vec<Prior> {
     scan.targets().iter().map(Prior::from).collect()
 }
 
-/// Names `path` (a frame's image) in an input error.
-fn in_file(path: &std::path::Path, error: Error) -> Error {
+/// Names a frame (its image's file) in an input error.
+fn in_named(name: &str, error: Error) -> Error {
     match error {
-        Error::InvalidInput(message) => {
-            Error::InvalidInput(format!("{}: {message}", path.display()))
-        }
+        Error::InvalidInput(message) => Error::InvalidInput(format!("{name}: {message}")),
         other => other,
     }
 }
@@ -170,43 +168,88 @@ fn locate_priors(
     progress: impl Fn(usize, usize) + Sync,
 ) -> Result<Vec<Localization>> {
     check_frame_count(scan)?;
+    for prior in priors {
+        check_prior(prior).map_err(|e| in_folder(scan, e))?;
+    }
+    check_options(options).map_err(|e| in_folder(scan, e))?;
+    let frames = scan.frames.iter().map(|spec| {
+        Ok(PendingFrame {
+            slide_mm: spec.slide_mm,
+            name: scan.path_of(&spec.image).display().to_string(),
+            decode: Box::new(move || read_frame(scan, spec)),
+        })
+    });
+    locate_frames(frames, Some(scan.frames.len()), priors, camera, laser, options, progress)
+}
+
+/// A frame of a scan before its images are decoded: where the laser was,
+/// what names it in an error (its file, or its place in a recording), and
+/// how to get its images (laser-on, laser-off if any).
+pub struct PendingFrame<'a> {
+    /// The slide travel of the frame, mm.
+    pub slide_mm: f64,
+    /// Names the frame in an error.
+    pub name: String,
+    /// Decodes the frame's images.
+    pub decode: Box<dyn FnOnce() -> Result<FrameImagePair> + Send + 'a>,
+}
+
+/// [`locate`] for each fruit of `priors` over frames that come one after
+/// another (a scan folder's files, a recording's messages): at most
+/// [`MAX_FRAMES_IN_FLIGHT`] are decoded at once and of each only what the
+/// answer needs is kept, so memory does not grow with the images. More
+/// than [`MAX_SCAN_FRAMES`] frames are refused, as none at all.
+/// `progress(done, total)` after each frame read (`total` 0 where not
+/// known).
+pub fn locate_frames<'a>(
+    frames: impl Iterator<Item = Result<PendingFrame<'a>>>,
+    total: Option<usize>,
+    priors: &[Prior],
+    camera: &Camera,
+    laser: &LaserModel,
+    options: &LocateOptions,
+    progress: impl Fn(usize, usize) + Sync,
+) -> Result<Vec<Localization>> {
     camera.validate()?;
     laser.validate()?;
     for prior in priors {
-        check_prior(scan.frames.len(), prior).map_err(|e| in_folder(scan, e))?;
+        check_prior(prior)?;
     }
-    check_options(options).map_err(|e| in_folder(scan, e))?;
+    check_options(options)?;
     let searches: Vec<SearchBall> = priors.iter().map(|p| SearchBall::new(p, options)).collect();
     let contexts: Vec<FrameContext> = priors
         .iter()
         .zip(&searches)
         .map(|(prior, search)| FrameContext { camera, laser, prior, search, options })
         .collect();
-    let total = scan.frames.len();
+    let total = total.unwrap_or(0);
     let done = AtomicUsize::new(0);
     let chunk = rayon::current_num_threads().clamp(1, MAX_FRAMES_IN_FLIGHT);
     // Per fruit, per frame.
-    let mut results: Vec<Vec<FrameResult>> =
-        priors.iter().map(|_| Vec::with_capacity(total)).collect();
+    let mut results: Vec<Vec<FrameResult>> = priors.iter().map(|_| Vec::new()).collect();
     // The per-pixel minimum of the frames' views: the scene without the
     // laser, all the outline and `drop_unlit_points` need.
     let mut least: Option<RgbImage> = None;
-    for (first, specs) in scan.frames.chunks(chunk).enumerate().map(|(k, c)| (k * chunk, c)) {
+    let mut frames = frames.enumerate().peekable();
+    while frames.peek().is_some() {
+        let mut batch = Vec::with_capacity(chunk);
+        for (index, frame) in frames.by_ref().take(chunk) {
+            if index >= MAX_SCAN_FRAMES {
+                return Err(Error::InvalidInput(format!(
+                    "more than the {MAX_SCAN_FRAMES} frames a scan may have"
+                )));
+            }
+            batch.push((index, frame?));
+        }
         // Per frame: each fruit's result, and the frame's images.
-        let processed: Vec<(Vec<FrameResult>, FrameImagePair)> = specs
-            .par_iter()
-            .enumerate()
-            .map(|(j, spec)| {
-                let (on, off) = read_frame(scan, spec)?;
+        let processed: Vec<(Vec<FrameResult>, FrameImagePair)> = batch
+            .into_par_iter()
+            .map(|(index, pending)| {
+                let PendingFrame { slide_mm, name, decode } = pending;
+                let (on, off) = decode()?;
                 progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
-                let index = first + j;
-                let frame = FrameImages {
-                    image: &on,
-                    image_laser_off: off.as_ref(),
-                    slide_mm: spec.slide_mm,
-                };
-                check_frame(camera, index, &frame)
-                    .map_err(|e| in_file(&scan.path_of(&spec.image), e))?;
+                let frame = FrameImages { image: &on, image_laser_off: off.as_ref(), slide_mm };
+                check_frame(camera, index, &frame).map_err(|e| in_named(&name, e))?;
                 let per_fruit = contexts
                     .iter()
                     .map(|context| context.frame(index, &frame))
@@ -220,6 +263,9 @@ fn locate_priors(
             }
             darken(&mut least, off.unwrap_or(on));
         }
+    }
+    if least.is_none() {
+        return Err(Error::InvalidInput("the scan has no frames".into()));
     }
     let views: Vec<&RgbImage> = least.iter().collect();
     Ok(results

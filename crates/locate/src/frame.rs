@@ -2,6 +2,8 @@
 //! stripe, the triangulated points, the circle fit and the frame's
 //! candidate.
 
+use std::collections::BTreeMap;
+
 use alacs_model::ransac::{RansacOptions, ransac_refit};
 use alacs_model::{Camera, LaserModel};
 use alacs_vision::{Region, StripePoint, extract_stripe_rgb};
@@ -23,7 +25,24 @@ pub(crate) struct SearchBall {
     pub(crate) along_mm: f64,
     /// ... and across it (its lateral error plus half the radius prior), mm.
     pub(crate) across_mm: f64,
+    /// The rough position's stated largest errors along and across the
+    /// line of sight, mm (`rough_depth_error` of the depth, and
+    /// `rough_lateral_error_mm`), plus the fruit's shape
+    /// ([`SHAPE_MARGIN`]).
+    pub(crate) stated_mm: (f64, f64),
 }
+
+/// How far a fruit's centre may lie from where a sphere of the prior
+/// radius puts it, as a fraction of the radius: apples' semi-axes differ
+/// by up to about a tenth (length/diameter 0.9-1.1 in common cultivars),
+/// and the RGB-D camera's centre is its front's depth plus the radius.
+const SHAPE_MARGIN: f64 = 0.1;
+
+/// An answer whose centre lies more than this many of its own standard
+/// deviations beyond the rough position's stated error contradicts the
+/// RGB-D camera (three: one in 370 right answers refused where the
+/// answer's error is Gaussian).
+const CONTRADICTION_SIGMAS: f64 = 3.0;
 
 /// The margin of the centre's region beyond the rough position's error, as
 /// a fraction of the radius prior: a fitted centre errs by a few mm, a
@@ -41,7 +60,51 @@ impl SearchBall {
                 + options.rough_lateral_error_mm,
             along_mm: options.rough_depth_error * depth + margin_mm,
             across_mm: options.rough_lateral_error_mm + margin_mm,
+            stated_mm: (
+                options.rough_depth_error * depth + SHAPE_MARGIN * prior.fruit_radius_mm,
+                options.rough_lateral_error_mm + SHAPE_MARGIN * prior.fruit_radius_mm,
+            ),
         }
+    }
+
+    /// Why an answer at `centre` (its covariance `cov_mm2`, where known)
+    /// contradicts the rough position, if it does: it lies farther from
+    /// it, along or across the line of sight, than the rough position's
+    /// stated error and [`CONTRADICTION_SIGMAS`] of its own uncertainty
+    /// allow. Only an independent depth shows a calibration that scales
+    /// the scene (every slide shifted by one amount, L0 or alpha off):
+    /// the stripes stay consistent with each other under it.
+    pub(crate) fn contradiction(
+        &self,
+        centre: &Point3<f64>,
+        cov_mm2: Option<&nalgebra::Matrix3<f64>>,
+    ) -> Option<String> {
+        let sight = self.centre.coords.try_normalize(1e-9)?;
+        let offset = centre - self.centre;
+        let along = offset.dot(&sight);
+        let across_vector = offset - sight * along;
+        let across = across_vector.norm();
+        let sigma = |direction: &Vector3<f64>| {
+            cov_mm2.map_or(0.0, |c| direction.dot(&(c * direction)).max(0.0).sqrt())
+        };
+        let sigma_along = sigma(&sight);
+        let sigma_across = across_vector.try_normalize(1e-9).map_or(0.0, |d| sigma(&d));
+        let (stated_along, stated_across) = self.stated_mm;
+        let allowed_along = stated_along + CONTRADICTION_SIGMAS * sigma_along;
+        let allowed_across = stated_across + CONTRADICTION_SIGMAS * sigma_across;
+        if along.abs() > allowed_along {
+            return Some(format!(
+                "the answer lies {:.0} mm {} the rough position along the line of sight, more than the RGB-D camera's stated error and the answer's own allow ({allowed_along:.0} mm): the slide positions, the laser or the camera's calibration contradict the RGB-D camera",
+                along.abs(),
+                if along > 0.0 { "behind" } else { "in front of" }
+            ));
+        }
+        if across > allowed_across {
+            return Some(format!(
+                "the answer lies {across:.0} mm across the line of sight from the rough position, more than the RGB-D camera's stated error and the answer's own allow ({allowed_across:.0} mm): the slide positions, the laser or the camera's calibration contradict the RGB-D camera"
+            ));
+        }
+        None
     }
 
     /// Why a fitted centre cannot be the target's, if it cannot: it lies
@@ -64,6 +127,80 @@ impl SearchBall {
             )
         })
     }
+}
+
+/// Frames whose slide positions differ by less than this claim one
+/// position, mm: a tenth of a millimetre, the slide's stated repeatability
+/// (a GRBL stepper slide repeats to a few hundredths).
+const SAME_SLIDE_MM: f64 = 0.1;
+
+/// Two frames at one slide position light the same pixels of a still
+/// scene: their stripes may differ by the stripe's noise and a speckle's
+/// shift (well under a pixel), not by this many pixels. A 10 mm step moves
+/// the stripe tens of pixels at 1 m.
+const MAX_SAME_SLIDE_SHIFT_PX: f64 = 3.0;
+
+/// Rows two stripes must share to be compared.
+const MIN_SHARED_ROWS: usize = 10;
+
+/// Why the frames' slide positions contradict their images, if they do:
+/// frames that claim one slide position but whose stripes moved between
+/// them (a slide that did not report, or reported one position for every
+/// frame). Whatever the method, such a scan has no answer.
+pub(crate) fn slide_contradiction(results: &[FrameResult]) -> Option<String> {
+    // A row may hold several peaks (the fruit, a leaf behind it).
+    let rows = |r: &FrameResult| -> BTreeMap<i64, Vec<f64>> {
+        let mut rows: BTreeMap<i64, Vec<f64>> = BTreeMap::new();
+        for s in &r.stripe {
+            rows.entry(s.v_px.round() as i64).or_default().push(s.u_px);
+        }
+        rows
+    };
+    for (i, a) in results.iter().enumerate() {
+        let rows_a = rows(a);
+        for (j, b) in results.iter().enumerate().skip(i + 1) {
+            if (a.slide_mm - b.slide_mm).abs() >= SAME_SLIDE_MM {
+                continue;
+            }
+            let rows_b = rows(b);
+            let mut shifts: Vec<f64> = rows_a
+                .iter()
+                .filter_map(|(v, us)| {
+                    let ws = rows_b.get(v)?;
+                    // Each peak of A's row against the nearest of B's.
+                    us.iter()
+                        .map(|u| ws.iter().map(|w| (u - w).abs()).fold(f64::INFINITY, f64::min))
+                        .reduce(f64::max)
+                })
+                .collect();
+            let fewer = rows_a.len().min(rows_b.len());
+            if fewer < MIN_SHARED_ROWS {
+                continue;
+            }
+            let moved = if shifts.len() * 2 < fewer {
+                // Most rows of one stripe are not in the other: it moved away.
+                None
+            } else {
+                shifts.sort_by(f64::total_cmp);
+                let median = shifts[shifts.len() / 2];
+                if median <= MAX_SAME_SLIDE_SHIFT_PX {
+                    continue;
+                }
+                Some(median)
+            };
+            return Some(format!(
+                "frames {} and {} claim one slide position ({:.1} mm) but the stripe moved between them ({}): the slide positions contradict the images",
+                i + 1,
+                j + 1,
+                a.slide_mm,
+                match moved {
+                    Some(px) => format!("{px:.0} px along its rows"),
+                    None => format!("{} of {fewer} rows lit in both", shifts.len()),
+                }
+            ));
+        }
+    }
+    None
 }
 
 /// What every frame shares.
@@ -407,5 +544,32 @@ pub(crate) fn drop_unlit_points(
         {
             context.find_candidate(index, &plane, result);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The rough position at 1 m with the default stated errors (3 %, 10 mm)
+    /// and a 40 mm radius prior: 34 mm along the line of sight, 14 mm across.
+    fn ball() -> SearchBall {
+        let prior =
+            Prior { rough_position_mm: Point3::new(0.0, 0.0, 1000.0), fruit_radius_mm: 40.0 };
+        SearchBall::new(&prior, &LocateOptions::default())
+    }
+
+    #[test]
+    fn an_answer_beyond_the_rough_positions_stated_error_contradicts_it() {
+        let ball = ball();
+        assert!(ball.contradiction(&Point3::new(0.0, 0.0, 1030.0), None).is_none());
+        let reason = ball.contradiction(&Point3::new(0.0, 0.0, 1040.0), None).unwrap();
+        assert!(reason.contains("40 mm behind") && reason.contains("contradict"), "{reason}");
+        assert!(ball.contradiction(&Point3::new(0.0, 0.0, 960.0), None).is_some());
+        assert!(ball.contradiction(&Point3::new(16.0, 0.0, 1000.0), None).is_some());
+        // The answer's own uncertainty widens what is allowed: 3 sigma of 3 mm.
+        let cov = nalgebra::Matrix3::from_diagonal_element(9.0);
+        assert!(ball.contradiction(&Point3::new(0.0, 0.0, 1040.0), Some(&cov)).is_none());
+        assert!(ball.contradiction(&Point3::new(0.0, 0.0, 1045.0), Some(&cov)).is_some());
     }
 }

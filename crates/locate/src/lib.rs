@@ -37,8 +37,9 @@ pub mod uncertainty;
 
 pub use error::{Error, Result};
 pub use folder::{
-    MAX_FRAMES_IN_FLIGHT, MAX_SCAN_FRAMES, ScanImages, check_camera_fits, locate_scan,
-    locate_scan_images, locate_scan_targets, priors_of, read_scan_images,
+    FrameImagePair, MAX_FRAMES_IN_FLIGHT, MAX_SCAN_FRAMES, PendingFrame, ScanImages,
+    check_camera_fits, locate_frames, locate_scan, locate_scan_images, locate_scan_targets,
+    priors_of, read_scan_images,
 };
 pub use locate::locate;
 pub use output::{

@@ -85,6 +85,7 @@ pub(crate) fn conclude(
     context: &FrameContext,
     views: &[&RgbImage],
 ) -> Localization {
+    let contradiction = frame::slide_contradiction(&results);
     frame::drop_unlit_points(&mut results, context, views);
     let (candidates, holistic) = selection::select(&mut results, context);
     let (fused, accepted, fused_rejected) =
@@ -116,6 +117,13 @@ pub(crate) fn conclude(
         },
         Method::Holistic => selection::answer_holistic(&mut answer, context.prior),
     }
+    if let Some(reason) = contradiction {
+        answer.status = Status::NotFound;
+        answer.position_mm = None;
+        answer.radius_mm = None;
+        answer.position_cov_mm2 = None;
+        answer.reason = reason;
+    }
     answer
 }
 
@@ -127,7 +135,10 @@ fn check_inputs(
     frames: &[FrameImages],
     options: &LocateOptions,
 ) -> Result<()> {
-    check_prior(frames.len(), prior)?;
+    if frames.is_empty() {
+        return Err(Error::InvalidInput("the scan has no frames".into()));
+    }
+    check_prior(prior)?;
     for (i, frame) in frames.iter().enumerate() {
         check_frame(camera, i, frame)?;
     }
@@ -136,11 +147,8 @@ fn check_inputs(
 
 /// Frames present, a rough position in front of the camera and a positive
 /// radius prior.
-pub(crate) fn check_prior(n_frames: usize, prior: &Prior) -> Result<()> {
+pub(crate) fn check_prior(prior: &Prior) -> Result<()> {
     let invalid = |m: String| Err(Error::InvalidInput(m));
-    if n_frames == 0 {
-        return invalid("the scan has no frames".into());
-    }
     let r = &prior.rough_position_mm;
     if !(r.coords.iter().all(|c| c.is_finite()) && r.z > 0.0) {
         return invalid(format!(

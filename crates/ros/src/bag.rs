@@ -253,6 +253,7 @@ impl BagWriter {
         {
             return Err(bad("a recording is an MCAP file: name it FILE.mcap".into()));
         }
+        crate::node::validate_namespace(namespace)?;
         if !overwrite && path.exists() {
             return Err(bad("exists; a recording is not replaced unless asked (--force)".into()));
         }
@@ -453,159 +454,315 @@ pub struct BagSummary {
 }
 
 /// Reads scan `index` (from 0) of the bag at `path`, and what the whole bag
-/// holds. Only that scan's images are decoded.
+/// holds. Only that scan's images are decoded; all of them are held (`bag
+/// export` writes them); [`localize_scan`] holds a few at a time.
 pub fn read_scan(path: &Path, index: usize) -> Result<(CapturedScan, BagSummary)> {
-    let bad = |message: String| Error::Bag { path: path.to_path_buf(), message };
-    let file = std::fs::File::open(path).map_err(|e| bad(format!("cannot be read: {e}")))?;
-    // A chunk whose CRC does not match is refused before any of its
-    // messages is used: a corrupted byte is an error, never an image.
-    let options = mcap::sans_io::LinearReaderOptions::default()
-        .with_record_length_limit(usize::try_from(MAX_RECORD_BYTES).unwrap_or(usize::MAX))
-        .with_validate_chunk_crcs(true)
-        .with_prevalidate_chunk_crcs(true)
-        .with_validate_data_section_crc(true);
-    let reader = mcap::io::MessageReader::new_with_options(BufReader::new(file), options);
-    let mut summary =
-        BagSummary { frames_per_scan: Vec::new(), messages: BTreeMap::new(), camera: None };
-    let mut scan: Option<CapturedScan> = None;
-    // The slide and the laser of the next image.
-    let mut slide_mm: Option<f64> = None;
-    let mut laser_on: Option<bool> = None;
-    // mono8 images of the scan read: greyscale frames need laser-off images.
-    let mut grey_frames = 0usize;
-    for message in reader {
-        let message = message.map_err(|e| bad(format!("not a readable MCAP file: {e}")))?;
+    let (mut reader, mut scan) = ScanReader::open(path, index, true)?;
+    while let Some(frame) = reader.next_frame()? {
+        scan.frames.push(frame);
+    }
+    let summary = reader.summary;
+    scan.plan = ScanPlan {
+        slides_mm: scan.frames.iter().map(|f| f.slide_mm).collect(),
+        unclamped_start_mm: scan.frames.first().map_or(0.0, |f| f.slide_mm),
+        shifted: false,
+    };
+    Ok((scan, summary))
+}
+
+/// Localizes the fruit of scan `index` (from 0) of the bag at `path` with
+/// the same checks and limits as a scan folder (`alacs_locate`'s
+/// [`locate_frames`](alacs_locate::locate_frames)), reading the bag once and
+/// holding a few frames at a time. Returns the answer and the scan's prior.
+/// `progress(done)` after each frame read.
+pub fn localize_scan(
+    path: &Path,
+    index: usize,
+    camera: &Camera,
+    laser: &alacs_model::LaserModel,
+    options: &alacs_locate::LocateOptions,
+    progress: impl Fn(usize) + Sync,
+) -> Result<(Localization, alacs_locate::Prior)> {
+    let (mut reader, scan) = ScanReader::open(path, index, false)?;
+    let prior = scan.prior();
+    let shown = path.display().to_string();
+    let frames = std::iter::from_fn(|| match reader.next_frame() {
+        Ok(Some(frame)) => Some(Ok(alacs_locate::PendingFrame {
+            slide_mm: frame.slide_mm,
+            name: format!("{} (scan {index})", path.display()),
+            decode: Box::new(move || {
+                let off = frame.image_laser_off.map(Arc::unwrap_or_clone);
+                Ok((frame.image, off))
+            }),
+        })),
+        Ok(None) => None,
+        // Named in the bag's error; carried through as bad input.
+        Err(e) => Some(Err(alacs_locate::Error::InvalidInput(e.to_string()))),
+    });
+    let mut answers = alacs_locate::locate_frames(
+        frames,
+        None,
+        std::slice::from_ref(&prior),
+        camera,
+        laser,
+        options,
+        |done, _| progress(done),
+    )
+    .map_err(|e| match e {
+        alacs_locate::Error::InvalidInput(message) if message.starts_with(&shown) => {
+            Error::InvalidInput(message)
+        }
+        alacs_locate::Error::InvalidInput(message) => {
+            Error::Bag { path: path.to_path_buf(), message }
+        }
+        other => Error::Scanner(other.into()),
+    })?;
+    let answer = answers.pop().ok_or_else(|| Error::InvalidInput("no fruit to locate".into()))?;
+    Ok((answer, prior))
+}
+
+/// Reads one scan of a bag frame by frame, in one pass over the file: the
+/// goal first ([`ScanReader::open`]), then each laser-on image with its
+/// laser-off image, if one follows ([`ScanReader::next_frame`]).
+struct ScanReader {
+    path: PathBuf,
+    reader: mcap::io::MessageReader<BufReader<std::fs::File>>,
+    /// The scan read (from 0).
+    index: usize,
+    /// Read past the scan to the bag's end, for the summary.
+    whole_bag: bool,
+    summary: BagSummary,
+    /// The scan's goal and rough position, until [`ScanReader::open`] hands it out.
+    scan: Option<CapturedScan>,
+    /// The slide and the laser of the next image.
+    slide_mm: Option<f64>,
+    laser_on: Option<bool>,
+    /// A laser-on frame waiting for its laser-off image, and whether it was mono8.
+    pending: Option<(CapturedFrame, bool)>,
+    done: bool,
+}
+
+impl ScanReader {
+    /// Reads the bag up to scan `index`'s goal and rough position.
+    fn open(path: &Path, index: usize, whole_bag: bool) -> Result<(Self, CapturedScan)> {
+        let bad = |message: String| Error::Bag { path: path.to_path_buf(), message };
+        let file = std::fs::File::open(path).map_err(|e| bad(format!("cannot be read: {e}")))?;
+        // A chunk whose CRC does not match is refused before any of its
+        // messages is used: a corrupted byte is an error, never an image.
+        let options = mcap::sans_io::LinearReaderOptions::default()
+            .with_record_length_limit(usize::try_from(MAX_RECORD_BYTES).unwrap_or(usize::MAX))
+            .with_validate_chunk_crcs(true)
+            .with_prevalidate_chunk_crcs(true)
+            .with_validate_data_section_crc(true);
+        let reader = mcap::io::MessageReader::new_with_options(BufReader::new(file), options);
+        let mut this = ScanReader {
+            path: path.to_path_buf(),
+            reader,
+            index,
+            whole_bag,
+            summary: BagSummary {
+                frames_per_scan: Vec::new(),
+                messages: BTreeMap::new(),
+                camera: None,
+            },
+            scan: None,
+            slide_mm: None,
+            laser_on: None,
+            pending: None,
+            done: false,
+        };
+        let mut found = false;
+        // Up to the scan's first image: its goal and rough position are known then.
+        while !found || this.pending.is_none() {
+            match this.step()? {
+                Step::End => break,
+                Step::Goal(goal) if this.summary.frames_per_scan.len() - 1 == index => {
+                    this.scan = Some(empty_scan(&goal).map_err(|e| this.bad(e))?);
+                    found = true;
+                }
+                _ => {}
+            }
+        }
+        if !found {
+            let scans = this.summary.frames_per_scan.len();
+            return Err(this.bad(if scans == 0 {
+                "holds no scan (no alacs_msgs/action/LocalizeFruit_Goal message)".to_string()
+            } else {
+                format!("holds {scans} scans, numbered from 0; there is no scan {index}")
+            }));
+        }
+        let (Some(scan), Some(_)) = (this.scan.take(), this.pending.as_ref()) else {
+            return Err(this.bad(format!("scan {index} holds no laser-on image")));
+        };
+        Ok((this, scan))
+    }
+
+    fn bad(&self, message: String) -> Error {
+        Error::Bag { path: self.path.clone(), message }
+    }
+
+    /// The scan's next frame, once its laser-off image (if any) is read;
+    /// `None` after its last.
+    fn next_frame(&mut self) -> Result<Option<CapturedFrame>> {
+        while !self.done {
+            match self.step()? {
+                Step::Frame(frame) => return self.finished(frame).map(Some),
+                Step::End => {
+                    self.done = true;
+                }
+                Step::Goal(_) if !self.whole_bag && self.current() > Some(self.index) => {
+                    self.done = true;
+                }
+                _ => {}
+            }
+        }
+        match self.pending.take() {
+            Some(frame) => self.finished(frame).map(Some),
+            None => Ok(None),
+        }
+    }
+
+    /// A frame of the scan, complete: a greyscale frame needs its
+    /// laser-off image, as a scan folder's (the red stripe is found by its
+    /// colour, or by the difference).
+    fn finished(&self, (frame, grey): (CapturedFrame, bool)) -> Result<CapturedFrame> {
+        if grey && frame.image_laser_off.is_none() {
+            return Err(self.bad(format!(
+                "scan {}: a mono8 (greyscale) image without a laser-off image: the red laser stripe is found by its colour, so it needs rgb8 or bgr8 images (or laser-off images to difference with)",
+                self.index
+            )));
+        }
+        Ok(frame)
+    }
+
+    /// The scan the last goal began (from 0).
+    fn current(&self) -> Option<usize> {
+        self.summary.frames_per_scan.len().checked_sub(1)
+    }
+
+    /// Reads one message: a goal, a laser-on image of the scan that
+    /// completes the previous frame, the end, or anything else.
+    fn step(&mut self) -> Result<Step> {
+        let Some(message) = self.reader.next() else { return Ok(Step::End) };
+        let message = message.map_err(|e| self.bad(format!("not a readable MCAP file: {e}")))?;
         let channel: &Arc<mcap::Channel<'_>> = &message.channel;
-        *summary.messages.entry(channel.topic.clone()).or_default() += 1;
+        *self.summary.messages.entry(channel.topic.clone()).or_default() += 1;
         let schema = channel.schema.as_ref().map(|s| s.name.as_str()).unwrap_or_default();
         let topic = channel.topic.as_str();
-        let current = summary.frames_per_scan.len().checked_sub(1);
-        let at = |what: &str| format!("{topic} (message {} of the bag): {what}", message.sequence);
+        let current = self.current();
+        let ours = current == Some(self.index);
+        let at = |what: &str| Error::Bag {
+            path: self.path.clone(),
+            message: format!("{topic} (message {} of the bag): {what}", message.sequence),
+        };
         match schema {
             "alacs_msgs/action/LocalizeFruit_Goal" => {
-                summary.frames_per_scan.push(0);
-                if summary.frames_per_scan.len() - 1 == index {
-                    let goal: LocalizeFruitGoal =
-                        from_cdr(&message.data).map_err(|e| bad(at(&e)))?;
-                    scan = Some(empty_scan(&goal).map_err(|e| bad(at(&e)))?);
-                }
-                slide_mm = None;
-                laser_on = None;
+                let goal: LocalizeFruitGoal = from_cdr(&message.data).map_err(|e| at(&e))?;
+                self.summary.frames_per_scan.push(0);
+                self.slide_mm = None;
+                self.laser_on = None;
+                return Ok(Step::Goal(goal));
             }
             "geometry_msgs/msg/PointStamped" if topic.ends_with("/rough_position") => {
-                if let (Some(scan), Some(i)) = (scan.as_mut(), current)
-                    && i == index
-                    && scan.frames.is_empty()
-                {
-                    let rough: PointStamped = from_cdr(&message.data).map_err(|e| bad(at(&e)))?;
+                if let Some(scan) = self.scan.as_mut().filter(|_| ours && self.pending.is_none()) {
+                    let rough: PointStamped = from_cdr(&message.data).map_err(|e| at(&e))?;
                     scan.rough_position_in_rgbd_mm = mm(&rough.point);
                 }
             }
             "sensor_msgs/msg/JointState" => {
-                let state: JointState = from_cdr(&message.data).map_err(|e| bad(at(&e)))?;
-                let Some(k) = state.name.iter().position(|n| n == "slide") else { continue };
+                let state: JointState = from_cdr(&message.data).map_err(|e| at(&e))?;
+                let Some(k) = state.name.iter().position(|n| n == "slide") else {
+                    return Ok(Step::Other);
+                };
                 let position = state.position.get(k).copied().unwrap_or(f64::NAN);
                 if !(position.is_finite()
                     && position.abs() * MM_PER_M <= alacs_model::MAX_ABS_SLIDE_MM)
                 {
-                    return Err(bad(at(&format!(
-                        "slide position {position} m is not a slide travel"
-                    ))));
+                    return Err(at(&format!(
+                        "slide position {} m is not a slide travel",
+                        alacs_model::Num(position)
+                    )));
                 }
-                slide_mm = Some(position * MM_PER_M);
+                self.slide_mm = Some(position * MM_PER_M);
             }
-            "sensor_msgs/msg/CameraInfo" if current == Some(index) && summary.camera.is_none() => {
-                let info: crate::msgs::CameraInfo =
-                    from_cdr(&message.data).map_err(|e| bad(at(&e)))?;
+            "sensor_msgs/msg/CameraInfo" if ours && self.summary.camera.is_none() => {
+                let info: crate::msgs::CameraInfo = from_cdr(&message.data).map_err(|e| at(&e))?;
                 let camera =
-                    crate::convert::camera_from_info(&info, "recorded").map_err(|e| bad(at(&e)))?;
-                summary.camera = Some(camera);
+                    crate::convert::camera_from_info(&info, "recorded").map_err(|e| at(&e))?;
+                self.summary.camera = Some(camera);
             }
             "std_msgs/msg/Bool" if topic.ends_with("/laser_on") => {
-                let state: Bool = from_cdr(&message.data).map_err(|e| bad(at(&e)))?;
-                laser_on = Some(state.data);
+                let state: Bool = from_cdr(&message.data).map_err(|e| at(&e))?;
+                self.laser_on = Some(state.data);
             }
             "sensor_msgs/msg/Image" => {
                 let Some(i) = current else {
-                    return Err(bad(at(
-                        "an image before any goal: not a recording of alacs scans",
-                    )));
+                    return Err(at("an image before any goal: not a recording of alacs scans"));
                 };
-                let (Some(slide), Some(on)) = (slide_mm, laser_on) else {
-                    return Err(bad(at(
+                let (Some(slide), Some(on)) = (self.slide_mm, self.laser_on) else {
+                    return Err(at(
                         "an image without the slide position and laser state before it",
-                    )));
+                    ));
                 };
+                // Each image has its own slide and laser messages before it
+                // (as the writer puts them): none is carried to the next.
+                self.slide_mm = None;
+                self.laser_on = None;
                 if on {
-                    summary.frames_per_scan[i] += 1;
-                    if summary.frames_per_scan[i] > MAX_FRAMES {
-                        return Err(bad(at(&format!("more than {MAX_FRAMES} frames in one scan"))));
+                    self.summary.frames_per_scan[i] += 1;
+                    if self.summary.frames_per_scan[i] > MAX_FRAMES {
+                        return Err(at(&format!("more than {MAX_FRAMES} frames in one scan")));
                     }
                 }
-                if i != index {
-                    continue;
+                if !ours {
+                    return Ok(Step::Other);
                 }
-                let Some(scan) = scan.as_mut() else { continue };
-                let image: Image = from_cdr(&message.data).map_err(|e| bad(at(&e)))?;
-                if image.encoding == "mono8" {
-                    grey_frames += 1;
-                }
-                let image = rgb_image(image).map_err(|e| bad(at(&e)))?;
+                let image: Image = from_cdr(&message.data).map_err(|e| at(&e))?;
+                let grey = image.encoding == "mono8";
+                let image = rgb_image(image).map_err(|e| at(&e))?;
+                let captured_at = system_time(message.log_time);
                 if on {
-                    scan.frames.push(CapturedFrame {
+                    let frame = CapturedFrame {
                         planned_slide_mm: slide,
                         slide_mm: slide,
                         image,
                         image_laser_off: None,
-                        captured_at: [Some(system_time(message.log_time)), None],
-                    });
+                        captured_at: [Some(captured_at), None],
+                    };
+                    if let Some(previous) = self.pending.replace((frame, grey)) {
+                        return Ok(Step::Frame(previous));
+                    }
                 } else {
-                    match scan.frames.last_mut() {
-                        Some(frame)
+                    match self.pending.as_mut() {
+                        Some((frame, _))
                             if frame.slide_mm == slide && frame.image_laser_off.is_none() =>
                         {
-                            frame.image_laser_off = Some(std::sync::Arc::new(image));
-                            frame.captured_at[1] = Some(system_time(message.log_time));
+                            frame.image_laser_off = Some(Arc::new(image));
+                            frame.captured_at[1] = Some(captured_at);
                         }
                         _ => {
-                            return Err(bad(at(
+                            return Err(at(
                                 "a laser-off image that follows no laser-on image at its slide position",
-                            )));
+                            ));
                         }
                     }
                 }
-                // Each image has its own slide and laser messages before it
-                // (as the writer puts them): none is carried to the next.
-                slide_mm = None;
-                laser_on = None;
             }
             _ => {}
         }
+        Ok(Step::Other)
     }
-    let scans = summary.frames_per_scan.len();
-    let Some(mut scan) = scan else {
-        return Err(bad(if scans == 0 {
-            "holds no scan (no alacs_msgs/action/LocalizeFruit_Goal message)".to_string()
-        } else {
-            format!("holds {scans} scans, numbered from 0; there is no scan {index}")
-        }));
-    };
-    if scan.frames.is_empty() {
-        return Err(bad(format!("scan {index} holds no laser-on image")));
-    }
-    // As a scan folder's frames: the red stripe is found by its colour, so
-    // a greyscale frame needs its laser-off image to be differenced with.
-    if grey_frames > 0 && scan.frames.iter().any(|f| f.image_laser_off.is_none()) {
-        return Err(bad(format!(
-            "scan {index} holds mono8 (greyscale) images without a laser-off image for every frame: the red laser stripe is found by its colour, so it needs rgb8 or bgr8 images (or laser-off images to difference with)"
-        )));
-    }
-    scan.plan = ScanPlan {
-        slides_mm: scan.frames.iter().map(|f| f.slide_mm).collect(),
-        unclamped_start_mm: scan.frames[0].slide_mm,
-        shifted: false,
-    };
-    Ok((scan, summary))
+}
+
+/// What one message of a bag was to [`ScanReader`].
+enum Step {
+    /// A goal: a scan begins.
+    Goal(LocalizeFruitGoal),
+    /// The scan's previous laser-on frame is complete.
+    Frame((CapturedFrame, bool)),
+    /// The bag's end.
+    End,
+    Other,
 }
 
 fn mm(point: &crate::msgs::Point) -> Point3<f64> {

@@ -1,7 +1,7 @@
 //! `alacs localize`: the fruit's centre from a scan folder.
 
-use alacs::locate::{LocateOptions, locate_scan_targets, priors_of, target_cloud_path};
-use alacs::ros::bag::read_scan;
+use alacs::locate::{locate_scan_targets, priors_of, target_cloud_path};
+use alacs::ros::bag::localize_scan;
 use alacs::{Camera, LaserModel, Scan};
 
 use crate::args::LocalizeArgs;
@@ -14,7 +14,7 @@ pub fn run(args: &LocalizeArgs) -> CmdResult {
         // A bad extension is refused before the long work.
         alacs::locate::CloudFormat::from_path(path)?;
     }
-    let options = LocateOptions { method: args.method.method(), ..LocateOptions::default() };
+    let options = args.rough_error.locate_options(args.method.method());
     let (answers, priors) = match (&args.scan, &args.bag) {
         (Some(dir), _) => {
             let scan = Scan::read(dir)?;
@@ -32,13 +32,12 @@ pub fn run(args: &LocalizeArgs) -> CmdResult {
             let camera = Camera::from_yaml_file(&args.camera)?;
             let laser = LaserModel::from_yaml_file(&args.laser)?;
             let bar = output::progress_bar(args.json, "reading the recording");
-            let (scan, _) = read_scan(bag, args.bag_scan)?;
-            bar.set_message("localizing");
-            let answer = scan
-                .localize(&camera, &laser, &options)
-                .map_err(|e| Failure::from(e).with_context(bag));
+            let answer = localize_scan(bag, args.bag_scan, &camera, &laser, &options, |done| {
+                bar.set_message(format!("{done} frames read"));
+            });
             bar.finish_and_clear();
-            (vec![answer?], vec![scan.prior()])
+            let (answer, prior) = answer?;
+            (vec![answer], vec![prior])
         }
         (None, None) => {
             return Err(Failure::bad_input(anyhow::anyhow!("--scan DIR or --bag FILE.mcap")));

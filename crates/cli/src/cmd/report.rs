@@ -7,7 +7,7 @@ use alacs::eval::{
     OutputKind, ScanReport, ScanReportFrame, calibration_report, open_output,
     write_calibration_html, write_scan_html,
 };
-use alacs::locate::{LocateOptions, locate_scan_images, priors_of, read_scan_images};
+use alacs::locate::{locate_scan_images, priors_of, read_scan_images};
 use alacs::{Camera, LaserModel, Scan, Session};
 use serde_json::{Value, json};
 
@@ -100,7 +100,7 @@ pub fn scan(args: &ReportScanArgs) -> CmdResult {
     let images = read_scan_images(&scan, |_, _| bar.inc(1));
     bar.finish_and_clear();
     let images = images?;
-    let options = LocateOptions { method: args.method.method(), ..LocateOptions::default() };
+    let options = args.rough_error.locate_options(args.method.method());
     let answer = locate_scan_images(&scan, &images, &prior, &camera, &laser, &options)?;
     let names: Vec<String> = scan.frames.iter().map(|f| f.image.display().to_string()).collect();
     let report_frames: Vec<ScanReportFrame> = names

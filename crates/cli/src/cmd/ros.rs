@@ -4,7 +4,6 @@
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
-use alacs::locate::LocateOptions;
 use alacs::ros::{Frames, JobContext, NodeConfig, RosEnvironment, run_node};
 use anyhow::anyhow;
 use serde_json::json;
@@ -62,7 +61,12 @@ pub fn run(args: &RosArgs) -> CmdResult {
             rough_in_rgbd.z
         );
     }
-    let job = JobContext { camera, laser, config: controller, locate: LocateOptions::default() };
+    let job = JobContext {
+        camera,
+        laser,
+        config: controller,
+        locate: args.rig.rough_error.locate_options(alacs::locate::Method::Fused),
+    };
     let rig = devices;
 
     let log = |line: &str| errln!("{line}");

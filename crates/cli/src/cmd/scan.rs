@@ -12,7 +12,7 @@
 
 use std::time::Instant;
 
-use alacs::locate::{Localization, LocateOptions, Status};
+use alacs::locate::{Localization, Status};
 use alacs::model::MAX_SCAN_TARGETS;
 use alacs::model::io::OutputDir;
 use alacs::ros::Frames;
@@ -132,7 +132,11 @@ pub fn run(args: &ScanArgs) -> CmdResult {
     // connection closes here.
     drop(devices);
     bar.set_message("localizing");
-    let answers = scan.localize_targets(&camera, &laser, &LocateOptions::default());
+    let answers = scan.localize_targets(
+        &camera,
+        &laser,
+        &args.rig.rough_error.locate_options(alacs::locate::Method::Fused),
+    );
     let answer = answers.map_err(|error| {
         let mut failure = Failure::from(error);
         if let Some(path) = &args.rig.camera {
