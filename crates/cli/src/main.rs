@@ -53,9 +53,13 @@ fn main() -> ExitCode {
     }
 }
 
-/// Where every `--help` points for files, outputs and exit codes.
-const CONTRACT: &str = "Files, JSON outputs and exit codes: docs/FORMATS.md \
-     (in the source repository; 0 ok, 1 the job failed, 2 bad input)";
+/// docs/FORMATS.md, the contract, for users of the binary alone.
+const FORMATS: &str = include_str!("../../../docs/FORMATS.md");
+
+/// Under every `--help`: the exit codes, and where the rest of the
+/// contract is (built into the binary: `alacs formats`).
+const CONTRACT: &str = "Exit codes: 0 ok (a fruit not found is an answer), 1 the job failed, \
+     2 bad input. Files and --json objects: `alacs formats`";
 
 /// The command line, with [`CONTRACT`] under every command's help.
 fn parse() -> Result<args::Cli, clap::Error> {
@@ -143,5 +147,6 @@ fn run(command: args::Command) -> failure::CmdResult {
         Command::Bag(args::BagCommand::Export(a)) => cmd::bag::export(&a),
         Command::Bag(args::BagCommand::Import(a)) => cmd::bag::import(&a),
         Command::Convert(args::ConvertCommand::Camera(a)) => cmd::convert::camera(&a),
+        Command::Formats => output::print_text(FORMATS),
     }
 }

@@ -114,6 +114,14 @@ pub fn summary(c: &LaserCalibration) -> String {
             c.laser.slide_scale,
             pm(std.and_then(|s| s.slide_scale), 5)
         );
+    } else {
+        // Said, so that a session at one slide position is not mistaken
+        // for one that measured k = 1.
+        let _ = writeln!(
+            out,
+            "  k     = {:>9.5}    held, not fitted (slide scale; fitting it needs views at 3 or more slide positions, and no --hold-slide-scale)",
+            c.laser.slide_scale
+        );
     }
     if let Some(s) = std {
         let _ = writeln!(out, "  +- one standard deviation: {}", s.source.describe());
@@ -353,7 +361,7 @@ pub fn accuracy_table(eval: &alacs::eval::AccuracyEvaluation) -> String {
     }
     let _ = writeln!(
         out,
-        "(errors estimated - true, mm; sigma_z: the depth error's spread within each view (1.4826 MAD),\n\
+        "(errors: triangulated - on the board plane by its pose, mm; sigma_z: the depth error's spread within each view (1.4826 MAD),\n\
          predicted: z^2 cos(alpha) sigma_px / (f L) at the median depth with sigma_px {:.3} px{})",
         eval.sigma_px,
         if eval.sigma_px_measured { ", measured from the session" } else { ", given" }

@@ -47,6 +47,23 @@ fn simulated_samples(dir: &Path, seed: &str) -> String {
     dir.join("samples.csv").to_str().unwrap().to_owned()
 }
 
+/// Samples at one slide position (the default of `simulate samples`) do
+/// not fix the slide scale: the summary and laser.yaml say it is held,
+/// so that k = 1 is not taken for a measurement.
+#[test]
+fn a_slide_scale_not_fitted_is_said_so() {
+    let dir = scratch("slide_scale_held");
+    let samples = simulated_samples(&dir, "4");
+    let laser = dir.join("laser.yaml");
+    let output =
+        alacs(&["calibrate", "laser", "--samples", &samples, "-o", laser.to_str().unwrap()]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let text = String::from_utf8_lossy(&output.stdout);
+    assert!(text.contains("held, not fitted"), "{text}");
+    let yaml = std::fs::read_to_string(&laser).unwrap();
+    assert!(yaml.lines().next().unwrap().contains("slide_scale is held, not fitted"), "{yaml}");
+}
+
 #[test]
 fn calibrate_laser_json_has_the_formats_md_keys() {
     let dir = scratch("calibrate_json");
@@ -857,4 +874,28 @@ fn scan_sim_all_targets_sweeps_a_cluster_once_and_answers_each() {
     assert_eq!(output.status.code(), Some(2), "{}", stderr(&output));
     assert!(stderr(&output).contains("one fruit per scan"), "{}", stderr(&output));
     assert!(!bag.exists());
+}
+
+/// `--help` is read by users of the binary alone: its footer names the
+/// built-in contract (`alacs formats`) and the exit codes, not a file of
+/// the source tree; simulator knobs stand under their own heading in
+/// `ros` and `rig check`, not among the node's or rig's options.
+#[test]
+fn help_points_to_the_built_in_contract_and_groups_the_simulator() {
+    for command in [&["ros", "--help"][..], &["rig", "check", "--help"], &["localize", "--help"]] {
+        let output = alacs(command);
+        assert!(output.status.success());
+        let text = String::from_utf8_lossy(&output.stdout);
+        assert!(text.contains("`alacs formats`") && text.contains("Exit codes"), "{text}");
+        assert!(!text.contains("source repository"), "{text}");
+        if command[0] != "localize" {
+            let heading = text.find("Simulated scene").expect("a heading for the scene");
+            assert!(text.find("--occlusion").unwrap() > heading, "{text}");
+        }
+    }
+    let output = alacs(&["formats"]);
+    assert!(output.status.success());
+    let text = String::from_utf8_lossy(&output.stdout);
+    assert!(text.contains("## Exit codes") || text.contains("exit code"), "{}", &text[..200]);
+    assert!(text.contains("scan.yaml") && text.contains("laser.yaml"));
 }

@@ -198,7 +198,7 @@ impl BoxPlots<'_> {
         let caption = if zoom {
             format!("{name} error, zoomed to the boxes")
         } else {
-            format!("{name} error (estimated - true)")
+            format!("{name}: triangulated - on the board plane")
         };
         let mut chart = ChartBuilder::on(panel)
             .margin(10)
@@ -526,8 +526,9 @@ pub struct ViewDiagnostics {
     pub slide_mm: f64,
     /// z - z_hat of each sample, mm.
     pub residuals_mm: Vec<f64>,
-    /// Whether the report flags the view.
-    pub flagged: bool,
+    /// Whether the report flags the view's board pose (its RMS): its bar
+    /// is drawn red. Views flagged for other reasons keep a plain bar.
+    pub pose_flagged: bool,
 }
 
 /// Size of the per-view figure, px.
@@ -536,7 +537,7 @@ const VIEWS_SIZE: (u32, u32) = (1100, 820);
 /// Most residuals drawn per view (an even stride beyond).
 const MAX_POINTS_PER_VIEW: usize = 400;
 
-/// The per-view figure: the board poses' RMS as bars (flagged views red),
+/// The per-view figure: the board poses' RMS as bars (red where the RMS is flagged),
 /// and under them each view's residuals as a strip coloured by slide
 /// position, zoomed to the threshold band.
 struct Views<'a> {
@@ -570,7 +571,7 @@ impl Figure for Views<'_> {
             .draw()?;
         bars.draw_series(self.views.iter().enumerate().filter_map(|(i, v)| {
             let x = i as f64 + 1.0;
-            let colour = if v.flagged { RED } else { BOX_LINE };
+            let colour = if v.pose_flagged { RED } else { BOX_LINE };
             v.pose_rms_px
                 .map(|rms| Rectangle::new([(x - 0.35, 0.0), (x + 0.35, rms)], colour.filled()))
         }))?;

@@ -104,7 +104,11 @@ pub fn laser(args: &CalibrateLaserArgs) -> CmdResult {
             fit.n_samples,
             source,
             fit.mean_abs_error_mm
-        );
+        ) + if fit.slide_scale_fitted {
+            ""
+        } else {
+            "; slide_scale is held, not fitted (samples at one slide position, or --hold-slide-scale)"
+        };
         fit.laser.to_yaml_file(path, &header)?;
     }
 

@@ -15,7 +15,7 @@ use alacs_vision::{StripeOptions, read_image};
 use nalgebra::Point2;
 use rayon::prelude::*;
 
-use super::draw::{BLUE, Canvas, GREEN, GREY, RED, palette};
+use super::draw::{CYAN, Canvas, GREEN, GREY, MAGENTA, ORANGE, palette};
 use super::page::{Page, fixed, num, txt};
 use crate::accuracy::accuracy_from_views;
 use crate::{
@@ -40,6 +40,9 @@ pub struct CalibrationReportView {
     pub board_image: String,
     /// The detected board corners, px.
     pub corners_px: Vec<Point2<f64>>,
+    /// Where the board pose puts the corners that were not detected, px
+    /// (a partial board's missing part; empty without a pose).
+    pub missing_corners_px: Vec<Point2<f64>>,
     /// The view's laser samples as pixels (their normalized coordinates
     /// through the camera's distortion), px.
     pub stripe_px: Vec<Point2<f64>>,
@@ -151,8 +154,19 @@ pub fn calibration_report_from_views(
         let board_image =
             spec.image_laser_off.as_deref().unwrap_or(&spec.image).display().to_string();
         let board = boards.iter().find(|b| b.image == board_image);
-        let corners_px: Vec<Point2<f64>> = match board.map(|b| &b.corners) {
-            Some(Ok(corners)) => corners.found().map(|(_, p)| p).collect(),
+        let found: Vec<(usize, Point2<f64>)> = match board.map(|b| &b.corners) {
+            Some(Ok(corners)) => corners.found().collect(),
+            _ => Vec::new(),
+        };
+        let corners_px: Vec<Point2<f64>> = found.iter().map(|(_, p)| *p).collect();
+        let missing_corners_px: Vec<Point2<f64>> = match view.camera_from_board {
+            Some(camera_from_board) if !found.is_empty() => (0..session.board.cols
+                * session.board.rows)
+                .filter(|i| !found.iter().any(|(j, _)| j == i))
+                .filter_map(|i| {
+                    camera.project(&(camera_from_board * session.board.corner_in_board(i))).ok()
+                })
+                .collect(),
             _ => Vec::new(),
         };
         let stripe_px = view_samples.iter().map(|s| camera.normalized_to_pixel(&s.normalized()));
@@ -179,6 +193,7 @@ pub fn calibration_report_from_views(
             view: view.clone(),
             board_image,
             corners_px,
+            missing_corners_px,
             stripe_px: stripe_px.collect(),
             residuals_mm,
             flag,
@@ -215,8 +230,9 @@ pub fn calibration_report_from_views(
 }
 
 /// The page's images of one view: its image with the corners (green
-/// crosses) and the stripe samples (red: within the threshold of the
-/// reported laser, blue: beyond) drawn over it, at most
+/// crosses; magenta circles where the board pose puts corners that were
+/// not detected) and the stripe samples (cyan: within the threshold of the
+/// reported laser, orange: beyond; not red, the laser's colour) drawn over it, at most
 /// [`MAX_VIEW_WIDTH_PX`] wide, and at full size when the image is wider.
 fn view_image(
     session: &Session,
@@ -230,10 +246,13 @@ fn view_image(
     let draw = |max_width_px: u32, path: &Path| {
         let mut canvas = Canvas::whole(&image, max_width_px);
         for (p, r) in view.stripe_px.iter().zip(&view.residuals_mm) {
-            canvas.dot(p, 1, if r.abs() <= threshold_mm { RED } else { BLUE });
+            canvas.dot(p, 1, if r.abs() <= threshold_mm { CYAN } else { ORANGE });
         }
         for p in &view.corners_px {
             canvas.cross(p, 5.0, GREEN);
+        }
+        for p in &view.missing_corners_px {
+            canvas.circle(p, 6.0, MAGENTA);
         }
         canvas.jpeg(path)
     };
@@ -365,7 +384,8 @@ pub fn write_calibration_html(
             pose_rms_px: v.view.pose_rms_px,
             slide_mm: v.view.slide_mm,
             residuals_mm: v.residuals_mm.clone(),
-            flagged: v.flag.is_some(),
+            // The bar shows the pose's RMS: red only for that reason.
+            pose_flagged: v.view.pose_rms_px.is_some_and(|rms| rms > FLAG_POSE_RMS_PX),
         })
         .collect();
     files.extend(write_view_plots(out, "calibration_views", &diagnostics, report.threshold_mm)?);
@@ -444,6 +464,24 @@ pub fn write_calibration_html(
     Ok(files)
 }
 
+/// `value +- sd` with at least `digits` decimals, and more where the
+/// standard deviation needs them to show two significant digits (a sigma
+/// of 0.0004 deg is not "+- 0.000"), at most 8.
+fn plus_minus(value: f64, sd: Option<f64>, digits: usize) -> String {
+    match sd {
+        Some(s) => {
+            let needed = if s > 0.0 && s.is_finite() {
+                (1.0 - s.log10().floor()).clamp(0.0, 8.0) as usize
+            } else {
+                0
+            };
+            let digits = digits.max(needed);
+            format!("{value:.digits$} +- {s:.digits$}")
+        }
+        None => format!("{value:.digits$}"),
+    }
+}
+
 /// The names of a distortion model's coefficients, in OpenCV's order.
 const COEFFICIENT_NAMES: [&str; 8] = ["k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"];
 
@@ -453,10 +491,7 @@ fn summary(page: &mut Page, report: &CalibrationReport, coverage: &CornerCoverag
     page.heading("Camera");
     let (model, coefficients) = camera.distortion.ros_model();
     let std = |i: usize| report.camera_std.as_ref().and_then(|s| s.get(i).copied());
-    let pm = |value: f64, i: usize, digits: usize| match std(i) {
-        Some(s) => format!("{value:.digits$} +- {s:.digits$}"),
-        None => format!("{value:.digits$}"),
-    };
+    let pm = |value: f64, i: usize, digits: usize| plus_minus(value, std(i), digits);
     let coefficients: Vec<String> = coefficients
         .iter()
         .zip(COEFFICIENT_NAMES)
@@ -516,10 +551,7 @@ fn summary(page: &mut Page, report: &CalibrationReport, coverage: &CornerCoverag
     page.heading("Laser");
     let laser = &report.laser;
     let std = report.laser_std;
-    let pm = |value: f64, sd: Option<f64>, digits: usize| match sd {
-        Some(s) => format!("{value:.digits$} +- {s:.digits$}"),
-        None => format!("{value:.digits$}"),
-    };
+    let pm = plus_minus;
     page.table(
         &[
             txt(""),
@@ -684,5 +716,18 @@ fn plots(page: &mut Page, report: &CalibrationReport) {
             page.plot("accuracy_boxplots.png", "accuracy box plots");
         }
         Err(reason) => page.paragraph(&format!("Not computed: {reason}"), Some("flag")),
+    }
+}
+
+#[cfg(test)]
+mod plus_minus_tests {
+    use super::plus_minus;
+
+    #[test]
+    fn a_small_sigma_shows_two_significant_digits() {
+        assert_eq!(plus_minus(19.07012, Some(0.0004), 3), "19.07012 +- 0.00040");
+        assert_eq!(plus_minus(19.07012, Some(0.05), 3), "19.070 +- 0.050");
+        assert_eq!(plus_minus(412.5, Some(1.5), 2), "412.50 +- 1.50");
+        assert_eq!(plus_minus(1.0, None, 2), "1.00");
     }
 }

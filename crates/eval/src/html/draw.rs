@@ -16,19 +16,17 @@ const JPEG_QUALITY: u8 = 85;
 
 /// Corner marks (detected board corners).
 pub const GREEN: Rgb<u8> = Rgb([0, 230, 0]);
-/// Stripe points that agree (inliers, fruit points).
-pub const RED: Rgb<u8> = Rgb([255, 40, 40]);
 /// Stripe points that do not agree (outliers, points off the fruit).
 pub const BLUE: Rgb<u8> = Rgb([40, 140, 255]);
 /// Fruit points (the laser on a red fruit is red already).
 pub const LIME: Rgb<u8> = Rgb([120, 255, 0]);
 /// Search regions.
 pub const YELLOW: Rgb<u8> = Rgb([255, 230, 0]);
-/// Fitted spheres' silhouettes.
+/// Fitted spheres' silhouettes; board corners a pose puts where none was detected.
 pub const MAGENTA: Rgb<u8> = Rgb([255, 0, 255]);
-/// Outlines in the image.
+/// Outlines in the image; calibration samples beyond the threshold.
 pub const ORANGE: Rgb<u8> = Rgb([255, 150, 0]);
-/// Candidates.
+/// Candidates; calibration samples within the threshold (not red: the laser is).
 pub const CYAN: Rgb<u8> = Rgb([0, 240, 240]);
 /// The answer.
 pub const WHITE: Rgb<u8> = Rgb([255, 255, 255]);
@@ -236,11 +234,11 @@ mod tests {
         let frame = RgbImage::new(40, 30);
         let mut canvas = Canvas::whole(&frame, 100);
         let far = [Point2::new(-1e12, 5.0), Point2::new(1e12, 5.0), Point2::new(1e12, 1e12)];
-        canvas.polyline(&far, true, RED);
-        canvas.circle(&Point2::new(1e12, 0.0), 1e3, RED);
-        canvas.dot(&Point2::new(f64::NAN, 0.0), 2, RED);
+        canvas.polyline(&far, true, MAGENTA);
+        canvas.circle(&Point2::new(1e12, 0.0), 1e3, MAGENTA);
+        canvas.dot(&Point2::new(f64::NAN, 0.0), 2, MAGENTA);
         // The horizontal segment through the image is drawn, and only it.
-        assert_eq!(canvas.image.get_pixel(20, 5), &RED);
+        assert_eq!(canvas.image.get_pixel(20, 5), &MAGENTA);
         assert_eq!(canvas.image.get_pixel(20, 20), &Rgb([0, 0, 0]));
     }
 }
