@@ -249,6 +249,53 @@ class TFMessage(IdlStruct, typename="tf2_msgs::msg::dds_::TFMessage_"):
     transforms: sequence[TransformStamped]
 
 
+# --- vision_msgs 4.x Detection3DArray --------------------------------------
+
+
+@dataclass
+class Pose(IdlStruct, typename="geometry_msgs::msg::dds_::Pose_"):
+    position: Point
+    orientation: Quaternion
+
+
+@dataclass
+class PoseWithCovariance(IdlStruct, typename="geometry_msgs::msg::dds_::PoseWithCovariance_"):
+    pose: Pose
+    covariance: array[float64, 36]
+
+
+@dataclass
+class ObjectHypothesis(IdlStruct, typename="vision_msgs::msg::dds_::ObjectHypothesis_"):
+    class_id: str
+    score: float64
+
+
+@dataclass
+class ObjectHypothesisWithPose(IdlStruct, typename="vision_msgs::msg::dds_::ObjectHypothesisWithPose_"):
+    hypothesis: ObjectHypothesis
+    pose: PoseWithCovariance
+
+
+@dataclass
+class BoundingBox3D(IdlStruct, typename="vision_msgs::msg::dds_::BoundingBox3D_"):
+    center: Pose
+    size: Vector3
+
+
+@dataclass
+class Detection3D(IdlStruct, typename="vision_msgs::msg::dds_::Detection3D_"):
+    header: Header
+    results: sequence[ObjectHypothesisWithPose]
+    bbox: BoundingBox3D
+    id: str
+
+
+@dataclass
+class Detection3DArray(IdlStruct, typename="vision_msgs::msg::dds_::Detection3DArray_"):
+    header: Header
+    detections: sequence[Detection3D]
+
+
 # --------------------------------------------------------------------------
 # QoS profiles (ROS 2 defaults), all forced to XCDR1 (plain CDR), which is
 # what rmw_cyclonedds and RustDDS use. RustDDS rejects XCDR2 payloads.
@@ -435,6 +482,9 @@ def main(argv=None) -> int:
     cloud_name = ros_name(args.namespace, args.cloud_topic)
     cloud_reader = DataReader(dp, Topic(dp, f"rt{cloud_name}", PointCloud2, qos=SENSOR_QOS),
                               qos=SENSOR_QOS)
+    # <ns>/fruit: vision_msgs/Detection3DArray, reliable and volatile as the node publishes it.
+    fruit_reader = DataReader(dp, Topic(dp, f"rt{ros_name(args.namespace, 'fruit')}",
+                                        Detection3DArray, qos=FEEDBACK_QOS), qos=FEEDBACK_QOS)
     # /tf_static as tf2's static listener reads it: reliable, transient local.
     tf_reader = DataReader(dp, Topic(dp, "rt/tf_static", TFMessage, qos=STATUS_QOS),
                            qos=STATUS_QOS)
@@ -445,7 +495,8 @@ def main(argv=None) -> int:
         log("participant and entities created; --check-only: exiting")
         return 0
 
-    summary = {"action": action, "feedback": [], "statuses": [], "clouds": [], "tf_static": []}
+    summary = {"action": action, "feedback": [], "statuses": [], "clouds": [], "tf_static": [],
+               "fruit": []}
 
     def drain():
         for m in take_valid(fb_reader, 64):
@@ -466,6 +517,15 @@ def main(argv=None) -> int:
                 summary["tf_static"].append({"parent": t.header.frame_id, "child": t.child_frame_id,
                                              "translation": [tr.x, tr.y, tr.z],
                                              "rotation": [q.x, q.y, q.z, q.w]})
+        for m in take_valid(fruit_reader, 8):
+            for d in m.detections:
+                for h in d.results:
+                    p = h.pose.pose.position
+                    summary["fruit"].append({
+                        "frame_id": m.header.frame_id, "class_id": h.hypothesis.class_id,
+                        "score": h.hypothesis.score, "position": [p.x, p.y, p.z],
+                        "covariance": list(h.pose.covariance),
+                        "size": [d.bbox.size.x, d.bbox.size.y, d.bbox.size.z]})
         for c in take_valid(cloud_reader, 8):
             summary["clouds"].append({"frame_id": c.header.frame_id, "width": c.width,
                                       "height": c.height, "point_step": c.point_step,

@@ -18,7 +18,8 @@ pub struct Cli {
 /// The subcommands.
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    /// Calibrate the laser-camera extrinsics.
+    /// Calibrate the camera (intrinsics), the laser (the laser-camera
+    /// extrinsics and slide scale) or the RGB-D camera's pose.
     #[command(subcommand)]
     Calibrate(CalibrateCommand),
     /// Map laser pixels to 3-D points in the camera frame (eqs. (3), (7), (8)).
@@ -57,11 +58,14 @@ pub enum Command {
     #[command(subcommand)]
     Bag(BagCommand),
     /// Run the ROS 2 node: the action <ns>/localize_fruit (alacs_msgs/action/LocalizeFruit)
-    /// and its topics, until SIGINT or SIGTERM. See README.md, "ROS 2".
+    /// and its topics, until SIGINT or SIGTERM (topics, parameters: `alacs formats`).
     Ros(RosArgs),
     /// Rewrite a file in another tool's layout.
     #[command(subcommand)]
     Convert(ConvertCommand),
+    /// Print the contract: every file this binary reads and writes, every
+    /// `--json` object and the exit codes (docs/FORMATS.md, built in).
+    Formats,
 }
 
 /// `alacs convert`
@@ -84,7 +88,7 @@ pub struct ConvertCameraArgs {
     /// The layout to write.
     #[arg(long, value_enum, default_value_t = CameraFormatArg::Opencv)]
     pub format: CameraFormatArg,
-    /// Print one JSON object (docs/FORMATS.md) on standard output instead of text.
+    /// Print one JSON object (`alacs formats`) on standard output instead of text.
     #[arg(long)]
     pub json: bool,
 }
@@ -109,7 +113,7 @@ impl From<CameraFormatArg> for alacs::model::CameraFileFormat {
 
 impl Command {
     /// Whether `--json` was given: standard output then carries one JSON
-    /// object, also when the command fails (docs/FORMATS.md).
+    /// object, also when the command fails (`alacs formats`).
     pub fn json(&self) -> bool {
         match self {
             Command::Calibrate(CalibrateCommand::Laser(a)) => a.json,
@@ -135,6 +139,7 @@ impl Command {
             Command::Session(SessionCommand::Init(a)) => a.json,
             Command::Ros(a) => a.json,
             Command::Convert(ConvertCommand::Camera(a)) => a.json,
+            Command::Formats => false,
         }
     }
 }
@@ -142,7 +147,7 @@ impl Command {
 /// `alacs session ...`
 #[derive(Debug, Subcommand)]
 pub enum SessionCommand {
-    /// Write DIR/session.yaml (docs/FORMATS.md) listing the folder's PNG and
+    /// Write DIR/session.yaml (`alacs formats`) listing the folder's PNG and
     /// JPEG images in name order; `X_off.png` beside `X.png` becomes X's
     /// laser-off image.
     Init(SessionInitArgs),
@@ -397,7 +402,7 @@ pub struct CalibrateCameraArgs {
     /// OpenCV's camera calibration controls.
     #[command(flatten)]
     pub controls: CameraControlArgs,
-    /// Print one JSON object (docs/FORMATS.md) on standard output instead of text.
+    /// Print one JSON object (`alacs formats`) on standard output instead of text.
     #[arg(long)]
     pub json: bool,
 }
@@ -517,7 +522,7 @@ pub struct CalibrateLaserArgs {
     /// fitting L = L0 - k d where the samples span two or more slide positions.
     #[arg(long)]
     pub hold_slide_scale: bool,
-    /// Print one JSON object (docs/FORMATS.md) on standard output instead of text.
+    /// Print one JSON object (`alacs formats`) on standard output instead of text.
     #[arg(long)]
     pub json: bool,
     /// Write the fitted laser.yaml here (the --method result; with --compare, Method 4 unless --method says otherwise).
@@ -707,6 +712,7 @@ impl From<&SlideArgs> for alacs::sim::SlideError {
 
 /// A simulated orchard scene: an apple behind leaves, in shade or sun.
 #[derive(Debug, Args)]
+#[command(next_help_heading = "Simulated scene (--sim, and a rig.toml's \"sim\" devices)")]
 pub struct SceneArgs {
     /// Seed: same seed, same scene and bytes.
     #[arg(long, default_value_t = 0)]
@@ -937,7 +943,7 @@ pub struct LocalizeArgs {
     /// .pcd (binary PCD), millimetres, ALACS camera frame.
     #[arg(long, value_name = "FILE")]
     pub points: Option<PathBuf>,
-    /// Print one JSON object (docs/FORMATS.md) on standard output instead of text.
+    /// Print one JSON object (`alacs formats`) on standard output instead of text.
     #[arg(long)]
     pub json: bool,
 }
@@ -970,7 +976,7 @@ pub struct RigArgs {
     /// simulator).
     #[arg(long, conflicts_with = "rig_file")]
     pub sim: bool,
-    /// Use the rig of this rig.toml (docs/FORMATS.md): a GRBL slide and
+    /// Use the rig of this rig.toml (`alacs formats`): a GRBL slide and
     /// laser, and "sim" devices for what the rig lacks (they show the
     /// simulated scene below).
     #[arg(long = "rig", value_name = "FILE")]
@@ -1194,6 +1200,15 @@ pub struct RosArgs {
     /// Publish no static transform (the robot's URDF mounts the camera).
     #[arg(long)]
     pub no_static_tf: bool,
+    /// The RGB-D camera's namespace: its color/image_raw,
+    /// aligned_depth_to_color/image_raw and color/camera_info (realsense-ros'
+    /// names) are searched for fruit, published on <ns>/fruit_rough
+    /// (vision_msgs/Detection3DArray).
+    #[arg(long, value_name = "NS", default_value = "/camera/camera")]
+    pub rgbd_ns: String,
+    /// Subscribe to no RGB-D camera (goals bring the rough position).
+    #[arg(long)]
+    pub no_rgbd_detector: bool,
     /// A topic or the action under another name, FROM:=TO (as `--ros-args
     /// -r FROM:=TO`); repeatable.
     #[arg(long, value_name = "FROM:=TO")]

@@ -98,7 +98,7 @@ from collections import Counter
 from pathlib import Path
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
-counts, types, result = Counter(), {}, None
+counts, types, result, fruit = Counter(), {}, None, None
 with AnyReader([Path(sys.argv[1])], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
     for conn, timestamp, rawdata in reader.messages():
         msg = reader.deserialize(rawdata, conn.msgtype)
@@ -108,7 +108,15 @@ with AnyReader([Path(sys.argv[1])], default_typestore=get_typestore(Stores.ROS2_
             result = [msg.status, msg.position.point.x, msg.position.point.y, msg.position.point.z]
         if conn.msgtype == "sensor_msgs/msg/Image":
             assert msg.encoding == "rgb8" and len(msg.data) == msg.step * msg.height
-print(json.dumps({"counts": counts, "types": types, "result": result}))
+        if conn.msgtype == "vision_msgs/msg/Detection3DArray":
+            d = msg.detections[0]
+            h = d.results[0]
+            p = h.pose.pose.position
+            fruit = {"class_id": h.hypothesis.class_id, "position": [p.x, p.y, p.z],
+                     "covariance": [float(c) for c in h.pose.covariance],
+                     "size": [d.bbox.size.x, d.bbox.size.y, d.bbox.size.z],
+                     "frame_id": msg.header.frame_id}
+print(json.dumps({"counts": counts, "types": types, "result": result, "fruit": fruit}))
 "#;
     let output = Command::new(python).args(["-c", script, p(&bag)]).output().unwrap();
     assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
@@ -134,6 +142,20 @@ print(json.dumps({"counts": counts, "types": types, "result": result}))
         let metres = read["result"][i + 1].as_f64().unwrap();
         let mm = from_folder[i].as_f64().unwrap();
         assert!((metres * 1000.0 - mm).abs() < 1e-9, "{read}");
+    }
+    // The fruit as vision_msgs 4.x gives detections: class, centre (m),
+    // its position covariance (m^2, positive) and a box of its diameter.
+    let fruit = &read["fruit"];
+    assert_eq!(read["types"]["/alacs/fruit"], "vision_msgs/msg/Detection3DArray");
+    assert_eq!(fruit["class_id"], "apple");
+    assert_eq!(fruit["frame_id"], "alacs_camera_optical_frame");
+    for i in 0..3 {
+        let metres = fruit["position"][i].as_f64().unwrap();
+        assert!((metres * 1000.0 - from_folder[i].as_f64().unwrap()).abs() < 1e-9, "{read}");
+        let variance = fruit["covariance"][7 * i].as_f64().unwrap();
+        assert!(variance > 0.0 && variance < 1e-4, "{read}");
+        let size = fruit["size"][i].as_f64().unwrap();
+        assert!((0.04..0.2).contains(&size), "{read}");
     }
 }
 

@@ -208,6 +208,23 @@ fn a_cyclone_dds_client_gets_the_fruit_from_alacs_ros_sim() {
     let cloud = &r.peer["clouds"][0];
     assert_eq!(cloud["fields"], serde_json::json!(["x", "y", "z", "frame", "fruit"]));
     assert!(cloud["width"].as_u64().unwrap() > 50, "{context}");
+    // <ns>/fruit as vision_msgs 4.x: the result's centre and covariance,
+    // class "apple", a box of the fruit's diameter.
+    let fruit = r.peer["fruit"].as_array().unwrap();
+    assert_eq!(fruit.len(), 1, "{context}");
+    let fruit = &fruit[0];
+    assert_eq!(fruit["class_id"], "apple", "{context}");
+    assert_eq!(fruit["frame_id"], "alacs_camera_optical_frame", "{context}");
+    for i in 0..3 {
+        let got = fruit["position"][i].as_f64().unwrap();
+        assert!((got - result["position"][i].as_f64().unwrap()).abs() < 1e-12, "{context}");
+        for k in 0..3 {
+            let variance = fruit["covariance"][6 * i + k].as_f64().unwrap();
+            assert!((variance - covariance[3 * i + k]).abs() < 1e-15, "{context}");
+        }
+        let size = fruit["size"][i].as_f64().unwrap();
+        assert!((size - 2.0 * result["radius_m"].as_f64().unwrap()).abs() < 1e-12, "{context}");
+    }
     assert!(context.contains("the laser is off"), "{context}");
     assert_eq!(r.node["found"], 1, "{context}");
     // The node recorded the goal's scan: it localizes from the bag to the
@@ -358,4 +375,89 @@ fn a_signal_in_the_nodes_first_moments_ends_it_with_its_summary() {
         let summary: Value = serde_json::from_str(stdout.trim()).expect(&context);
         assert_eq!(summary["goals"], 0, "{context}");
     }
+}
+
+/// The RGB-D front end: a stand-in camera driver (Cyclone DDS) publishes
+/// `alacs simulate rgbd`'s colour and depth images and camera under
+/// realsense-ros' names; the node answers on `<ns>/fruit_rough` with the
+/// apple, class "apple", within 15 mm of the simulator's truth (in the
+/// RGB-D frame), stamped and framed as the colour image.
+#[test]
+fn the_rgbd_front_end_publishes_fruit_rough_from_a_drivers_images() {
+    let Some(python) = peer_python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let view = dir.path().join("rgbd");
+    let status = Command::new(ALACS)
+        .args(["simulate", "rgbd", "--out", view.to_str().unwrap()])
+        .args(SCENE)
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let camera = alacs::Camera::from_yaml_file(&view.join("camera.yaml")).unwrap();
+    let (model, d) = camera.distortion.ros_model();
+    let camera_json = dir.path().join("camera.json");
+    let k = [
+        camera.fx_px,
+        camera.skew_px,
+        camera.cx_px,
+        0.0,
+        camera.fy_px,
+        camera.cy_px,
+        0.0,
+        0.0,
+        1.0,
+    ];
+    std::fs::write(
+        &camera_json,
+        serde_json::json!({"width": camera.width_px, "height": camera.height_px, "k": k,
+                           "d": d, "distortion_model": model})
+        .to_string(),
+    )
+    .unwrap();
+    let truth: Value =
+        serde_json::from_str(&std::fs::read_to_string(view.join("truth.json")).unwrap()).unwrap();
+    let node_log = dir.path().join("node.log");
+    let script = format!(
+        "ip link set lo up || exit 90\n\
+         {alacs} ros --sim {scene} --no-images --namespace /alacs_left > /dev/null 2> {log} &\n\
+         node=$!\n\
+         {python} {peer} /alacs_left --color {color} --depth {depth} --camera {camera} --timeout 90\n\
+         peer=$?\n\
+         kill -TERM $node; wait $node\n\
+         exit $peer\n",
+        alacs = q(ALACS),
+        scene = SCENE.join(" "),
+        log = q(node_log.to_str().unwrap()),
+        python = q(&python),
+        peer = q(repo().join("ros/peer/rgbd_peer.py").to_str().unwrap()),
+        color = q(view.join("color.png").to_str().unwrap()),
+        depth = q(view.join("depth.png").to_str().unwrap()),
+        camera = q(camera_json.to_str().unwrap()),
+    );
+    let output = run_in_namespace(&script);
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    let context = format!(
+        "peer stdout:\n{stdout}\npeer stderr:\n{}\nnode log:\n{}",
+        String::from_utf8_lossy(&output.stderr),
+        std::fs::read_to_string(&node_log).unwrap_or_default()
+    );
+    assert_eq!(output.status.code(), Some(0), "{context}");
+    let rough: Value = serde_json::from_str(stdout.trim()).unwrap();
+    assert_eq!(rough["frame_id"], "camera_color_optical_frame", "{context}");
+    let target = truth["apples"].as_array().unwrap().iter().find(|a| a["target"] == true).unwrap();
+    let detections = rough["detections"].as_array().unwrap();
+    let nearest_mm = detections
+        .iter()
+        .map(|d| {
+            assert_eq!(d["class_id"], "apple");
+            (0..3)
+                .map(|i| {
+                    let got = d["position"][i].as_f64().unwrap() * 1000.0;
+                    (got - target["position_mm"][i].as_f64().unwrap()).powi(2)
+                })
+                .sum::<f64>()
+                .sqrt()
+        })
+        .fold(f64::INFINITY, f64::min);
+    assert!(nearest_mm < 15.0, "the nearest detection is {nearest_mm:.1} mm off\n{context}");
 }

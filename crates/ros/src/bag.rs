@@ -11,7 +11,7 @@
 //! rgb8) and the camera (`<ns>/camera_info`, when known), all with the
 //! image's stamp; then, when it was localized, the result (`<ns>/result`,
 //! `alacs_msgs/action/LocalizeFruit_Result`), the fruit (`<ns>/fruit`,
-//! when ok) and the laser points (`<ns>/laser_points`, PointCloud2). A bag
+//! vision_msgs/Detection3DArray, when ok) and the laser points (`<ns>/laser_points`, PointCloud2). A bag
 //! holds one scan or several (the ROS node records every goal).
 
 use std::collections::BTreeMap;
@@ -34,7 +34,8 @@ use serde::Serialize;
 use serde::de::DeserializeOwned;
 
 use crate::convert::{
-    Frames, MM_PER_M, camera_info, image_message, laser_cloud, localization_result, point_m,
+    Frames, MM_PER_M, camera_info, fruit_detections, image_message, laser_cloud,
+    localization_result, point_m, rgb_image,
 };
 use crate::msgs::{
     Bool, Header, Image, JointState, LOCALIZE_FRUIT_ACTION, LocalizeFruitGoal, PointStamped,
@@ -149,6 +150,35 @@ fn schemas() -> Vec<(&'static str, String)> {
         (
             "alacs_msgs/action/LocalizeFruit_Result",
             schema(&action_part(1), &point_stamped_deps_with_prefix()),
+        ),
+        (
+            "vision_msgs/msg/Detection3DArray",
+            schema(
+                "std_msgs/Header header\nDetection3D[] detections\n",
+                &[
+                    HEADER_DEPS[0],
+                    HEADER_DEPS[1],
+                    (
+                        "vision_msgs/Detection3D",
+                        "std_msgs/Header header\nObjectHypothesisWithPose[] results\n\
+                         BoundingBox3D bbox\nstring id\n",
+                    ),
+                    (
+                        "vision_msgs/ObjectHypothesisWithPose",
+                        "ObjectHypothesis hypothesis\ngeometry_msgs/PoseWithCovariance pose\n",
+                    ),
+                    ("vision_msgs/ObjectHypothesis", "string class_id\nfloat64 score\n"),
+                    ("geometry_msgs/PoseWithCovariance", "Pose pose\nfloat64[36] covariance\n"),
+                    ("geometry_msgs/Pose", "Point position\nQuaternion orientation\n"),
+                    ("geometry_msgs/Point", POINT_DEF),
+                    ("geometry_msgs/Quaternion", "float64 x\nfloat64 y\nfloat64 z\nfloat64 w\n"),
+                    (
+                        "vision_msgs/BoundingBox3D",
+                        "geometry_msgs/Pose center\ngeometry_msgs/Vector3 size\n",
+                    ),
+                    ("geometry_msgs/Vector3", POINT_DEF),
+                ],
+            ),
         ),
     ]
 }
@@ -340,8 +370,10 @@ impl BagWriter {
             let cloud = laser_cloud(localization, Header::new(end, &self.frames.camera));
             let (out, topics) = (&mut self.out, &self.topics);
             out.write(&topics.result, "alacs_msgs/action/LocalizeFruit_Result", &end, &result)?;
-            if result.status == "ok" {
-                out.write(&topics.fruit, "geometry_msgs/msg/PointStamped", &end, &result.position)?;
+            if let Some(detections) =
+                fruit_detections(localization, Header::new(end, &self.frames.camera))
+            {
+                out.write(&topics.fruit, "vision_msgs/msg/Detection3DArray", &end, &detections)?;
             }
             out.write(&topics.laser_points, "sensor_msgs/msg/PointCloud2", &end, &cloud)?;
         }
@@ -801,35 +833,6 @@ fn empty_scan(goal: &LocalizeFruitGoal) -> std::result::Result<CapturedScan, Str
         exposure: None,
         sweep_speed_mm_per_s: None,
     })
-}
-
-/// An Image message as an RGB image: rgb8, bgr8 or mono8.
-fn rgb_image(image: Image) -> std::result::Result<RgbImage, String> {
-    let (w, h) = (image.width, image.height);
-    let channels = match image.encoding.as_str() {
-        "rgb8" | "bgr8" => 3,
-        "mono8" => 1,
-        other => return Err(format!("image encoding `{other}`: rgb8, bgr8 or mono8 are read")),
-    };
-    let row = u64::from(w) * channels;
-    if u64::from(image.step) != row
-        || image.data.len() as u64 != row * u64::from(h)
-        || w == 0
-        || h == 0
-    {
-        return Err(format!(
-            "a {w} x {h} {} image with step {} holds {} bytes",
-            image.encoding,
-            image.step,
-            image.data.len()
-        ));
-    }
-    let data = match image.encoding.as_str() {
-        "rgb8" => image.data,
-        "bgr8" => image.data.chunks_exact(3).flat_map(|p| [p[2], p[1], p[0]]).collect(),
-        _ => image.data.iter().flat_map(|&v| [v, v, v]).collect(),
-    };
-    RgbImage::from_raw(w, h, data).ok_or_else(|| "image size and data disagree".to_string())
 }
 
 /// A capture time as a ROS stamp (`default` when unknown).

@@ -1,6 +1,7 @@
 //! Between the library (mm, nalgebra, `Localization`) and ROS messages
 //! (metres, REP 103 / 105 frames). Every unit conversion of the node is here.
 
+use alacs_detect::{DepthImage, Detection};
 use alacs_locate::{Localization, Method, Status};
 use alacs_model::{Camera, DEFAULT_FRUIT_RADIUS_MM, FRUIT_RADIUS_RANGE_MM};
 use image::RgbImage;
@@ -9,9 +10,11 @@ use ros2_client::builtin_interfaces::{Duration, Time};
 
 use crate::job::JobRequest;
 use crate::msgs::{
-    CameraInfo, ColorRgba, CompressedImage, Header, Image, LocalizeFruitGoal, LocalizeFruitResult,
-    Marker, MeshFile, Point, PointCloud2, PointField, PointStamped, Pose, Quaternion,
-    RegionOfInterest, TfMessage, Transform, TransformStamped,
+    BoundingBox3D, CameraInfo, ColorRgba, CompressedImage, Detection3D, Detection3DArray, Header,
+    Image, LocalizeFruitGoal, LocalizeFruitResult, Marker, MeshFile, ObjectHypothesis,
+    ObjectHypothesisWithPose, Point, PointCloud2, PointField, PointStamped, Pose,
+    PoseWithCovariance, Quaternion, RegionOfInterest, TfMessage, Transform, TransformStamped,
+    Vector3,
 };
 
 /// Millimetres per metre.
@@ -118,6 +121,164 @@ pub fn position_covariance_m2(localization: &Localization) -> [f64; 9] {
     match (localization.status, localization.position_cov_mm2) {
         (Status::Ok, Some(c)) => std::array::from_fn(|i| c[(i / 3, i % 3)] / (MM_PER_M * MM_PER_M)),
         _ => UNKNOWN_COVARIANCE,
+    }
+}
+
+/// The class every fruit is published as.
+pub const FRUIT_CLASS: &str = "apple";
+
+/// The variance of a sphere's rotation, rad^2: a fruit located as a sphere
+/// has no orientation; a large variance says so to filters that read the
+/// whole 6 x 6 (robot_localization's convention for what is not measured).
+const UNKNOWN_ROTATION_VARIANCE: f64 = 1e3;
+
+/// An `ok` localization as vision_msgs/Detection3DArray (`<ns>/fruit`): one
+/// detection, class [`FRUIT_CLASS`], score 1 (it passed the acceptance
+/// test), its centre in metres with the position covariance (where the
+/// method gives one; else -1 in the first element, "not estimated"),
+/// and a box the fruit's diameter on each side. `None` when not found.
+pub fn fruit_detections(localization: &Localization, header: Header) -> Option<Detection3DArray> {
+    let (Status::Ok, Some(centre), Some(radius_mm)) =
+        (localization.status, localization.position_mm, localization.radius_mm)
+    else {
+        return None;
+    };
+    let detection =
+        detection_3d(&header, &centre, position_covariance_m2(localization), radius_mm, 1.0);
+    Some(Detection3DArray { header, detections: vec![detection] })
+}
+
+/// An Image message as an RGB image: rgb8, bgr8 or mono8.
+pub(crate) fn rgb_image(image: Image) -> std::result::Result<RgbImage, String> {
+    let (w, h) = (image.width, image.height);
+    let channels = match image.encoding.as_str() {
+        "rgb8" | "bgr8" => 3,
+        "mono8" => 1,
+        other => return Err(format!("image encoding `{other}`: rgb8, bgr8 or mono8 are read")),
+    };
+    let row = u64::from(w) * channels;
+    if u64::from(image.step) != row
+        || image.data.len() as u64 != row * u64::from(h)
+        || w == 0
+        || h == 0
+    {
+        return Err(format!(
+            "a {w} x {h} {} image with step {} holds {} bytes",
+            image.encoding,
+            image.step,
+            image.data.len()
+        ));
+    }
+    let data = match image.encoding.as_str() {
+        "rgb8" => image.data,
+        "bgr8" => image.data.chunks_exact(3).flat_map(|p| [p[2], p[1], p[0]]).collect(),
+        _ => image.data.iter().flat_map(|&v| [v, v, v]).collect(),
+    };
+    RgbImage::from_raw(w, h, data).ok_or_else(|| "image size and data disagree".to_string())
+}
+
+/// A depth Image message aligned to colour (REP 118): `16UC1` (or `mono16`)
+/// millimetres, 0 for no data; `32FC1` metres, NaN for no data.
+pub(crate) fn depth_image(image: &Image) -> std::result::Result<DepthImage, String> {
+    let (w, h) = (image.width, image.height);
+    let bytes = match image.encoding.as_str() {
+        "16UC1" | "mono16" => 2,
+        "32FC1" => 4,
+        other => {
+            return Err(format!("depth encoding `{other}`: 16UC1 (mm) or 32FC1 (m) are read"));
+        }
+    };
+    let row = u64::from(w) * bytes;
+    if u64::from(image.step) != row
+        || image.data.len() as u64 != row * u64::from(h)
+        || w == 0
+        || h == 0
+    {
+        return Err(format!(
+            "a {w} x {h} {} depth image with step {} holds {} bytes",
+            image.encoding,
+            image.step,
+            image.data.len()
+        ));
+    }
+    let big = image.is_bigendian != 0;
+    let bad = || "depth image size and data disagree".to_string();
+    if bytes == 2 {
+        let values: Vec<u16> = image
+            .data
+            .chunks_exact(2)
+            .map(|b| {
+                if big {
+                    u16::from_be_bytes([b[0], b[1]])
+                } else {
+                    u16::from_le_bytes([b[0], b[1]])
+                }
+            })
+            .collect();
+        Ok(DepthImage::Millimetres(image::ImageBuffer::from_raw(w, h, values).ok_or_else(bad)?))
+    } else {
+        let values: Vec<f32> = image
+            .data
+            .chunks_exact(4)
+            .map(|b| {
+                let b = [b[0], b[1], b[2], b[3]];
+                if big { f32::from_be_bytes(b) } else { f32::from_le_bytes(b) }
+            })
+            .collect();
+        Ok(DepthImage::Metres(image::ImageBuffer::from_raw(w, h, values).ok_or_else(bad)?))
+    }
+}
+
+/// The RGB-D camera's detections with a rough position as
+/// vision_msgs/Detection3DArray (`<ns>/fruit_rough`), stamped and framed as
+/// the colour image (`header`): per fruit class [`FRUIT_CLASS`], the
+/// detector's score, the centre (m) with its covariance (m^2), a box of its
+/// diameter.
+pub fn rough_detections(detections: &[Detection], header: Header) -> Detection3DArray {
+    let detections = detections
+        .iter()
+        .filter_map(|d| {
+            let rough = d.rough.as_ref()?;
+            let c = rough.position_cov_mm2;
+            let cov_m2: [f64; 9] =
+                std::array::from_fn(|i| c[(i / 3, i % 3)] / (MM_PER_M * MM_PER_M));
+            Some(detection_3d(&header, &rough.position_mm, cov_m2, rough.radius_mm, d.score))
+        })
+        .collect();
+    Detection3DArray { header, detections }
+}
+
+/// One fruit as a vision_msgs/Detection3D: class [`FRUIT_CLASS`], `score`,
+/// its centre (mm in, m out) with the position covariance (m^2, row-major)
+/// in the pose's top-left 3 x 3, and a box of its diameter.
+fn detection_3d(
+    header: &Header,
+    centre_mm: &Point3<f64>,
+    position_cov_m2: [f64; 9],
+    radius_mm: f64,
+    score: f64,
+) -> Detection3D {
+    let mut covariance = [[0.0; 6]; 6];
+    for (i, row) in covariance.iter_mut().enumerate() {
+        if i < 3 {
+            row[..3].copy_from_slice(&position_cov_m2[3 * i..3 * i + 3]);
+        } else {
+            row[i] = UNKNOWN_ROTATION_VARIANCE;
+        }
+    }
+    let pose = Pose { position: point_m(centre_mm), orientation: Quaternion::default() };
+    let diameter_m = 2.0 * radius_mm / MM_PER_M;
+    Detection3D {
+        header: header.clone(),
+        results: vec![ObjectHypothesisWithPose {
+            hypothesis: ObjectHypothesis { class_id: FRUIT_CLASS.into(), score },
+            pose: PoseWithCovariance { pose, covariance },
+        }],
+        bbox: BoundingBox3D {
+            center: pose,
+            size: Vector3 { x: diameter_m, y: diameter_m, z: diameter_m },
+        },
+        id: String::new(),
     }
 }
 

@@ -20,8 +20,8 @@ pub mod msgs;
 mod node;
 
 pub use convert::{
-    CLOUD_POINT_STEP, Frames, body_from_optical, camera_from_info, job_request, laser_cloud,
-    localization_result,
+    CLOUD_POINT_STEP, FRUIT_CLASS, Frames, body_from_optical, camera_from_info, fruit_detections,
+    job_request, laser_cloud, localization_result,
 };
 pub use env::{DEFAULT_RMW, MAX_DOMAIN_ID, RosEnvironment};
 pub use error::{Error, Result};

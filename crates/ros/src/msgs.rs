@@ -1,7 +1,8 @@
 //! The ROS 2 messages the node speaks, as serde structs in the fields' .msg
 //! order (CDR, XCDR1, is positional: names are ours, order and types are
 //! the wire). The standard ones mirror `std_msgs`, `geometry_msgs`,
-//! `sensor_msgs`, `visualization_msgs`, `tf2_msgs` and `diagnostic_msgs`
+//! `sensor_msgs`, `visualization_msgs`, `tf2_msgs`, `diagnostic_msgs` and
+//! `vision_msgs` 4.x
 //! (identical in Humble and Jazzy); the action is `alacs_msgs`'s
 //! `LocalizeFruit`, checked field by field against
 //! `ros/alacs_msgs/action/LocalizeFruit.action` ([`LOCALIZE_FRUIT_ACTION`]).
@@ -82,6 +83,67 @@ pub struct Pose {
     /// Orientation.
     pub orientation: Quaternion,
 }
+
+/// `geometry_msgs/PoseWithCovariance`: the covariance row-major over
+/// (x, y, z, rotation about x, y, z), m^2 and rad^2.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PoseWithCovariance {
+    /// The pose.
+    pub pose: Pose,
+    /// 6 x 6, row by row (on the wire the 36 float64 of `float64[36]`:
+    /// fixed arrays carry no length, so rows of six are the same bytes).
+    pub covariance: [[f64; 6]; 6],
+}
+
+/// `vision_msgs/ObjectHypothesis` (vision_msgs 4.x).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ObjectHypothesis {
+    /// The class ("apple").
+    pub class_id: String,
+    /// Its probability or score.
+    pub score: f64,
+}
+
+/// `vision_msgs/ObjectHypothesisWithPose`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ObjectHypothesisWithPose {
+    /// The class and score.
+    pub hypothesis: ObjectHypothesis,
+    /// Where the object is, with the covariance.
+    pub pose: PoseWithCovariance,
+}
+
+/// `vision_msgs/BoundingBox3D`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct BoundingBox3D {
+    /// The box's centre and orientation.
+    pub center: Pose,
+    /// Its size along its axes, m.
+    pub size: Vector3,
+}
+
+/// `vision_msgs/Detection3D` (vision_msgs 4.x: no source data).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Detection3D {
+    /// Time and frame.
+    pub header: Header,
+    /// The hypotheses (one: the fruit).
+    pub results: Vec<ObjectHypothesisWithPose>,
+    /// The box around it.
+    pub bbox: BoundingBox3D,
+    /// The same object across messages, where tracked; may be empty.
+    pub id: String,
+}
+
+/// `vision_msgs/Detection3DArray`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Detection3DArray {
+    /// Time and frame.
+    pub header: Header,
+    /// The detections.
+    pub detections: Vec<Detection3D>,
+}
+impl Message for Detection3DArray {}
 
 /// `geometry_msgs/Transform`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]

@@ -2,6 +2,7 @@
 //! loop that serves one goal at a time while the rig works on a thread of
 //! its own.
 
+use std::collections::VecDeque;
 use std::net::{IpAddr, Ipv4Addr};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
@@ -21,14 +22,15 @@ use smol::future::FutureExt as _;
 
 use crate::bag::BagWriter;
 use crate::convert::{
-    Frames, camera_info, error_result, fruit_marker, image_message, job_request, laser_cloud,
-    localization_result, point_m, static_transform,
+    Frames, camera_from_info, camera_info, depth_image, error_result, fruit_detections,
+    fruit_marker, image_message, job_request, laser_cloud, localization_result, point_m, rgb_image,
+    rough_detections, static_transform,
 };
 use crate::env::RosEnvironment;
 use crate::job::{JobContext, Outcome, Progress, ScanRig, run_job};
 use crate::msgs::{
-    CameraInfo, DiagnosticArray, DiagnosticStatus, Header, Image, KeyValue, LocalizeFruitFeedback,
-    LocalizeFruitGoal, LocalizeFruitResult, Marker, PointCloud2, PointStamped, TfMessage,
+    CameraInfo, Detection3DArray, DiagnosticArray, DiagnosticStatus, Header, Image, KeyValue,
+    LocalizeFruitFeedback, LocalizeFruitGoal, LocalizeFruitResult, Marker, PointCloud2, TfMessage,
 };
 use crate::{Error, Result};
 
@@ -73,6 +75,11 @@ pub struct NodeConfig {
     /// FROM:=TO` gives them: FROM the relative name (`fruit`) or the full
     /// one (`/alacs/fruit`), TO relative to the namespace or absolute.
     pub remaps: Vec<(String, String)>,
+    /// The RGB-D camera's namespace (realsense-ros' names under it:
+    /// `color/image_raw`, `aligned_depth_to_color/image_raw`,
+    /// `color/camera_info`): its frames are searched for fruit and each
+    /// pair's fruit published on `<ns>/fruit_rough`; `None`: no front end.
+    pub rgbd_ns: Option<String>,
 }
 
 impl Default for NodeConfig {
@@ -86,8 +93,102 @@ impl Default for NodeConfig {
             record: None,
             mount: Some(("alacs_link".into(), crate::convert::body_from_optical())),
             remaps: Vec::new(),
+            rgbd_ns: Some(DEFAULT_RGBD_NS.into()),
         }
     }
+}
+
+/// realsense-ros 4.x's default namespace and name: `/camera/camera`.
+pub const DEFAULT_RGBD_NS: &str = "/camera/camera";
+
+/// Colour and depth images kept while waiting for their pair (by stamp).
+const RGBD_QUEUE: usize = 5;
+
+/// The RGB-D camera's streams the front end reads (sensor-data QoS).
+struct RgbdInput {
+    color: ros2_client::Subscription<Image>,
+    depth: ros2_client::Subscription<Image>,
+    info: ros2_client::Subscription<CameraInfo>,
+}
+
+impl RgbdInput {
+    fn new(node: &mut Node, rgbd_ns: &str) -> Result<Self> {
+        let ns = rgbd_ns.trim_end_matches('/');
+        let topic = |node: &mut Node, base: &str, type_name: &str| {
+            let full = format!("{ns}/{base}");
+            let name = Name::parse(&full).map_err(|e| {
+                Error::InvalidInput(format!("rgbd_ns `{rgbd_ns}`: `{full}` is no ROS name ({e:?})"))
+            })?;
+            node.create_topic(&name, MessageTypeName::new("sensor_msgs", type_name), &sensor_data())
+                .map_err(|e| Error::dds("topic", e))
+        };
+        let color = topic(node, "color/image_raw", "Image")?;
+        let depth = topic(node, "aligned_depth_to_color/image_raw", "Image")?;
+        let info = topic(node, "color/camera_info", "CameraInfo")?;
+        let failed = |e| Error::dds("subscription", e);
+        Ok(Self {
+            color: node.create_subscription(&color, Some(sensor_data())).map_err(failed)?,
+            depth: node.create_subscription(&depth, Some(sensor_data())).map_err(failed)?,
+            info: node.create_subscription(&info, Some(sensor_data())).map_err(failed)?,
+        })
+    }
+}
+
+/// The next message of `subscription`; never, without one.
+async fn next_message<M>(subscription: Option<&ros2_client::Subscription<M>>) -> Option<M>
+where
+    M: 'static + serde::de::DeserializeOwned,
+{
+    match subscription {
+        Some(s) => s.async_take().await.ok().map(|(message, _)| message),
+        None => futures::future::pending().await,
+    }
+}
+
+/// Keeps `image` among the last [`RGBD_QUEUE`] of its stream.
+fn queue(images: &mut VecDeque<Image>, image: Image) {
+    if images.len() >= RGBD_QUEUE {
+        images.pop_front();
+    }
+    images.push_back(image);
+}
+
+/// The newest colour and depth images with one stamp, taken out with
+/// everything older (realsense-ros stamps an aligned pair alike).
+fn take_pair(colors: &mut VecDeque<Image>, depths: &mut VecDeque<Image>) -> Option<(Image, Image)> {
+    let stamp = |i: &Image| i.header.stamp;
+    let (ci, di) =
+        colors.iter().enumerate().rev().find_map(|(ci, c)| {
+            depths.iter().position(|d| stamp(d) == stamp(c)).map(|di| (ci, di))
+        })?;
+    let color = colors.drain(..=ci).next_back()?;
+    let depth = depths.drain(..=di).next_back()?;
+    Some((color, depth))
+}
+
+/// The fruit of one colour and depth pair, with the colour image's header.
+type RoughFound = (Header, std::result::Result<Vec<alacs_detect::Detection>, String>);
+
+/// Detects the fruit in a colour image and places them with its depth
+/// image and camera (alacs-detect's classical detector and depth model).
+fn detect_rough(
+    color: Image,
+    depth: &Image,
+    camera: &alacs_model::Camera,
+) -> std::result::Result<Vec<alacs_detect::Detection>, String> {
+    let depth = depth_image(depth)?;
+    let image = rgb_image(color)?;
+    let mut detections = alacs_detect::detect(&image, &alacs_detect::DetectOptions::default())
+        .map_err(|e| e.to_string())?;
+    alacs_detect::locate_detections(
+        &mut detections,
+        &image,
+        &depth,
+        camera,
+        &alacs_detect::DepthModel::default(),
+    )
+    .map_err(|e| e.to_string())?;
+    Ok(detections)
 }
 
 impl NodeConfig {
@@ -180,7 +281,8 @@ enum StopReason {
 
 /// The publishers of the node.
 struct Topics {
-    fruit: Publisher<PointStamped>,
+    fruit: Publisher<Detection3DArray>,
+    fruit_rough: Publisher<Detection3DArray>,
     laser_points: Publisher<PointCloud2>,
     marker: Publisher<Marker>,
     image: Publisher<Image>,
@@ -259,7 +361,13 @@ impl Topics {
             fruit: publisher(
                 node,
                 &name(ns, "fruit")?,
-                ("geometry_msgs", "PointStamped"),
+                ("vision_msgs", "Detection3DArray"),
+                &reliable(10),
+            )?,
+            fruit_rough: publisher(
+                node,
+                &name(ns, "fruit_rough")?,
+                ("vision_msgs", "Detection3DArray"),
                 &reliable(10),
             )?,
             laser_points: publisher(
@@ -398,6 +506,8 @@ pub fn run_node(
         .map_err(|e| Error::dds("action server", e))?,
     ));
     let topics = Topics::new(&mut node, ns, &config.remaps)?;
+    let rgbd =
+        config.rgbd_ns.as_deref().map(|rgbd_ns| RgbdInput::new(&mut node, rgbd_ns)).transpose()?;
     let rig_name = rig.describe();
     let rig = Arc::new(Mutex::new(rig));
     let job = Arc::new(job);
@@ -432,6 +542,15 @@ pub fn run_node(
         // it exits, so a goal stopped by a signal still gets its answer.
         let mut results: Vec<smol::Task<()>> = Vec::new();
         let mut last_diagnostics = Instant::now() - DIAGNOSTICS_PERIOD;
+        // The RGB-D front end: images waiting for their pair, the colour
+        // camera, and one detection at a time (frames that come meanwhile
+        // are dropped: the freshest pair is searched next).
+        let mut colors: VecDeque<Image> = VecDeque::new();
+        let mut depths: VecDeque<Image> = VecDeque::new();
+        let mut rgbd_camera: Option<alacs_model::Camera> = None;
+        let (rough_sender, rough_receiver) = smol::channel::unbounded::<RoughFound>();
+        let mut detecting = false;
+        let mut last_rgbd_problem: Option<String> = None;
         loop {
             let finished = config.max_goals.is_some_and(|max| state.summary.goals >= max);
             if running.is_none() && (stop.load(Ordering::Relaxed) || finished) {
@@ -446,6 +565,18 @@ pub fn run_node(
                 r.stop_reason = Some(StopReason::Shutdown);
             }
             results.retain(|task| !task.is_finished());
+            if !detecting
+                && let Some(camera) = &rgbd_camera
+                && let Some((color, depth)) = take_pair(&mut colors, &mut depths)
+            {
+                detecting = true;
+                let (sender, camera) = (rough_sender.clone(), camera.clone());
+                std::thread::spawn(move || {
+                    let header = color.header.clone();
+                    let found = detect_rough(color, &depth, &camera);
+                    let _ = sender.send_blocking((header, found));
+                });
+            }
             if last_diagnostics.elapsed() >= DIAGNOSTICS_PERIOD {
                 let _ = topics.diagnostics.publish(state.diagnostics(&node_name));
                 last_diagnostics = Instant::now();
@@ -573,6 +704,41 @@ pub fn run_node(
                         }
                     }
                 }
+                color = next_message(rgbd.as_ref().map(|r| &r.color)).fuse() => {
+                    if let Some(color) = color {
+                        queue(&mut colors, color);
+                    }
+                }
+                depth = next_message(rgbd.as_ref().map(|r| &r.depth)).fuse() => {
+                    if let Some(depth) = depth {
+                        queue(&mut depths, depth);
+                    }
+                }
+                info = next_message(rgbd.as_ref().map(|r| &r.info)).fuse() => {
+                    match info.map(|info| camera_from_info(&info, "the RGB-D camera")) {
+                        Some(Ok(camera)) => rgbd_camera = Some(camera),
+                        Some(Err(problem)) if last_rgbd_problem.as_ref() != Some(&problem) => {
+                            log(&format!("RGB-D camera_info: {problem}"));
+                            last_rgbd_problem = Some(problem);
+                        }
+                        Some(Err(_)) | None => {}
+                    }
+                }
+                found = rough_receiver.recv().fuse() => {
+                    detecting = false;
+                    match found {
+                        Ok((header, Ok(detections))) => {
+                            let _ = topics.fruit_rough.publish(rough_detections(&detections, header));
+                        }
+                        Ok((_, Err(problem))) => {
+                            if last_rgbd_problem.as_ref() != Some(&problem) {
+                                log(&format!("RGB-D images: {problem}"));
+                                last_rgbd_problem = Some(problem);
+                            }
+                        }
+                        Err(_) => {}
+                    }
+                }
                 _ = smol::Timer::after(TICK).fuse() => {}
             }
         }
@@ -648,7 +814,9 @@ fn conclude(
                         p.z,
                         elapsed.as_secs_f64() * 1000.0
                     ));
-                    let _ = topics.fruit.publish(result.position.clone());
+                    if let Some(detections) = fruit_detections(localization, header.clone()) {
+                        let _ = topics.fruit.publish(detections);
+                    }
                     let _ = topics.marker.publish(fruit_marker(centre, radius, header.clone()));
                 }
                 _ => log(&format!(

@@ -41,6 +41,7 @@ pub fn run(args: &RosArgs) -> CmdResult {
             ))
         },
         remaps: args.remap.iter().map(|r| parse_remap(r)).collect::<CmdResult<_>>()?,
+        rgbd_ns: (!args.no_rgbd_detector).then(|| args.rgbd_ns.clone()),
     };
     config.validate()?;
     let OpenRig { devices, sim, camera, laser, alacs_from_rgbd, controller } =
