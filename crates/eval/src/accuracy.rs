@@ -364,13 +364,15 @@ impl AccuracyEvaluation {
     /// points and the board pose's RMS, and per slide position `n`, the
     /// laser-camera distance, the median depth, the predicted sigma_z and
     /// the box-plot statistics of the x, y and z errors (`x`, `y`, `z`:
-    /// n, median, q1, q3, min, max, mean, rms, all mm).
+    /// n, median, q1, q3, min, max, the whiskers' ends at 1.5 IQR, mean,
+    /// rms, all mm).
     pub fn to_json(&self) -> Value {
         let stats = |s: &BoxStats| {
             json!({
                 "n": s.n, "median_mm": s.median, "q1_mm": s.q1, "q3_mm": s.q3,
                 "min_mm": s.min, "max_mm": s.max, "mean_mm": s.mean, "rms_mm": s.rms,
-                "iqr_mm": s.iqr(),
+                "iqr_mm": s.iqr(), "whisker_low_mm": s.whisker_low,
+                "whisker_high_mm": s.whisker_high,
             })
         };
         json!({

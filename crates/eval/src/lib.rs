@@ -8,7 +8,7 @@
 //!   views at several slide positions d, each laser pixel's triangulation
 //!   (eqs. (7)-(8)) against its ray on the board plane, with the errors in
 //!   x, y and z per slide position as box-plot statistics ([`BoxStats`]:
-//!   median, quartiles, whiskers to the extremes, as the paper's figure)
+//!   median, quartiles, whiskers at 1.5 IQR and the values beyond them)
 //!   and the predicted noise floor sigma_z = z^2 cos(alpha) sigma_px / (f L);
 //! - [`write_calibration_report`], [`write_accuracy_report`]: text, JSON,
 //!   CSV and plots (PNG and SVG, plotters with a built-in font), written
@@ -26,7 +26,10 @@
 //! use alacs_eval::BoxStats;
 //!
 //! let s = BoxStats::from_values(&[0.3, -0.1, 0.2, 0.0, 5.0]).unwrap();
-//! assert_eq!((s.min, s.median, s.max), (-0.1, 0.2, 5.0)); // whiskers to the extremes
+//! assert_eq!((s.min, s.median, s.max), (-0.1, 0.2, 5.0));
+//! // Whiskers stop within 1.5 IQR of the quartiles: 5.0 is an outlier point.
+//! assert_eq!((s.whisker_low, s.whisker_high), (-0.1, 0.3));
+//! assert!(s.is_outlier(5.0));
 //! assert!((s.q1 - 0.0).abs() < 1e-12 && (s.q3 - 0.3).abs() < 1e-12);
 //! ```
 
@@ -54,4 +57,4 @@ pub use html::{
 pub use output::{OutputKind, open_output, open_sub_output};
 pub use plot::{ViewDiagnostics, write_accuracy_boxplots, write_residual_plot, write_view_plots};
 pub use report::{write_accuracy_report, write_calibration_report};
-pub use stats::{BoxStats, median, quantile_sorted};
+pub use stats::{BoxStats, WHISKER_IQRS, median, quantile_sorted};

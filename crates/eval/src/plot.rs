@@ -1,5 +1,5 @@
 //! Plots as PNG and SVG (plotters): the accuracy box plots (one panel per
-//! axis, one box per slide position, whiskers to the extremes) and a residual
+//! axis, one box per slide position, whiskers at 1.5 IQR) and a residual
 //! scatter per calibration method.
 //!
 //! Text uses DejaVu Sans compiled into the binary (`assets/`, Bitstream Vera
@@ -140,9 +140,10 @@ fn padded(lo: f64, hi: f64, min_pad: f64) -> (f64, f64) {
     (lo - pad, hi + pad)
 }
 
-/// The accuracy figure: per axis a panel, per slide position a box; the top
-/// row to the extremes, the bottom row zoomed to the boxes (whiskers cut at
-/// the panel's edge).
+/// The accuracy figure: per axis a panel, per slide position a box with
+/// whiskers at 1.5 IQR and the points beyond them; the top row to the
+/// extremes, the bottom row zoomed to the boxes (points beyond its edge
+/// left out, whiskers cut there).
 struct BoxPlots<'a> {
     eval: &'a AccuracyEvaluation,
 }
@@ -227,13 +228,24 @@ impl BoxPlots<'_> {
             let b = &s.error_mm[axis];
             let x = s.slide_mm;
             let cap = 0.5 * half_width;
-            let (bottom, top) = (clamp(b.min), clamp(b.max));
+            let (bottom, top) = (clamp(b.whisker_low), clamp(b.whisker_high));
             chart.draw_series([
                 PathElement::new(vec![(x, bottom), (x, clamp(b.q1))], line),
                 PathElement::new(vec![(x, clamp(b.q3)), (x, top)], line),
             ])?;
+            // The values beyond the whiskers, as points (those inside the panel).
+            let outliers = self
+                .eval
+                .points
+                .iter()
+                .filter(|p| p.slide_mm == s.slide_mm)
+                .map(|p| p.error_mm()[axis])
+                .filter(|&e| b.is_outlier(e) && (lo..=hi).contains(&e))
+                .take(MAX_PLOT_POINTS);
+            chart
+                .draw_series(outliers.map(|e| Circle::new((x, e), 3, BOX_LINE.stroke_width(1))))?;
             // Caps only where the whisker really ends inside the panel.
-            for (end, value) in [(bottom, b.min), (top, b.max)] {
+            for (end, value) in [(bottom, b.whisker_low), (top, b.whisker_high)] {
                 if end == value {
                     chart.draw_series(std::iter::once(PathElement::new(
                         vec![(x - cap, end), (x + cap, end)],
@@ -293,7 +305,7 @@ impl Figure for BoxPlots<'_> {
         let (title, body) = root.split_vertically(40);
         title.draw(&Text::new(
             format!(
-                "Localization error per slide position: {} points ({} per view), boxes: quartiles and median, whiskers: extremes",
+                "Localization error per slide position: {} points ({} per view), boxes: quartiles and median, whiskers: 1.5 IQR, circles: beyond",
                 self.eval.points.len(),
                 self.eval.points_per_view.as_str()
             ),

@@ -1,11 +1,13 @@
-//! Box-plot statistics: what one box of the seed paper's accuracy figure
-//! shows (median, quartiles, whiskers to the extremes) plus the mean and the
-//! root mean square.
+//! Box-plot statistics: median, quartiles, Tukey's whiskers (the most
+//! extreme values within 1.5 IQR of the quartiles; values beyond them are
+//! drawn as points), the extremes, the mean and the root mean square.
 
 use serde::Serialize;
 
 /// The statistics of one set of values (errors in mm, say), as one box of a
-/// box plot with whiskers to the extremes.
+/// box plot: whiskers to the last values within [`WHISKER_IQRS`] of the
+/// quartiles (Tukey's convention, matplotlib's default), so that one stray
+/// value shows as a point instead of stretching the whole plot.
 ///
 /// Quartiles interpolate linearly between order statistics (the "type 7"
 /// definition of Hyndman and Fan, NumPy's and R's default): the q-quantile of
@@ -20,10 +22,15 @@ pub struct BoxStats {
     pub q1: f64,
     /// The upper quartile (the 0.75 quantile).
     pub q3: f64,
-    /// The smallest value: the lower whisker's end.
+    /// The smallest value.
     pub min: f64,
-    /// The largest value: the upper whisker's end.
+    /// The largest value.
     pub max: f64,
+    /// The lower whisker's end: the smallest value at or above
+    /// `q1 - 1.5 IQR`.
+    pub whisker_low: f64,
+    /// The upper whisker's end: the largest value at or below `q3 + 1.5 IQR`.
+    pub whisker_high: f64,
     /// The arithmetic mean.
     pub mean: f64,
     /// The root mean square (about zero, not about the mean).
@@ -42,13 +49,20 @@ impl BoxStats {
         let n = sorted.len();
         let sum: f64 = sorted.iter().sum();
         let sum_squares: f64 = sorted.iter().map(|v| v * v).sum();
+        let (q1, q3) = (quantile_sorted(&sorted, 0.25), quantile_sorted(&sorted, 0.75));
+        let reach = WHISKER_IQRS * (q3 - q1);
+        // The quartiles lie between values, so each whisker has one to end at.
+        let whisker_low = sorted.iter().copied().find(|&v| v >= q1 - reach).unwrap_or(q1);
+        let whisker_high = sorted.iter().rev().copied().find(|&v| v <= q3 + reach).unwrap_or(q3);
         Some(Self {
             n,
             median: quantile_sorted(&sorted, 0.5),
-            q1: quantile_sorted(&sorted, 0.25),
-            q3: quantile_sorted(&sorted, 0.75),
+            q1,
+            q3,
             min: sorted[0],
             max: sorted[n - 1],
+            whisker_low,
+            whisker_high,
             mean: sum / n as f64,
             rms: (sum_squares / n as f64).sqrt(),
         })
@@ -58,7 +72,16 @@ impl BoxStats {
     pub fn iqr(&self) -> f64 {
         self.q3 - self.q1
     }
+
+    /// Whether `value` lies beyond the whiskers (an outlier point).
+    pub fn is_outlier(&self, value: f64) -> bool {
+        value < self.whisker_low || value > self.whisker_high
+    }
 }
+
+/// How far beyond the quartiles the whiskers reach, in interquartile
+/// ranges (Tukey 1977, Exploratory Data Analysis; matplotlib's `whis`).
+pub const WHISKER_IQRS: f64 = 1.5;
 
 /// The `q`-quantile (0 to 1) of ascending `sorted` values, interpolated
 /// linearly (see [`BoxStats`]); NaN for no values.
@@ -108,18 +131,20 @@ mod tests {
     }
 
     #[test]
-    fn whiskers_reach_the_extremes_even_for_outliers() {
-        // A 1.5-IQR whisker would stop at 4; the paper's figure shows 100.
+    fn whiskers_stop_at_one_and_a_half_iqr_and_the_stray_value_is_an_outlier() {
+        // Quartiles 2 and 3: whiskers may reach 0.5 and 4.5 (matplotlib's boxplot
+        // of these values draws them to 1 and 3 and 100 as a flier).
         let s = BoxStats::from_values(&[1.0, 2.0, 2.0, 3.0, 100.0]).unwrap();
-        assert_eq!(s.max, 100.0);
-        assert_eq!(s.min, 1.0);
-        assert_eq!(s.median, 2.0);
+        assert_eq!((s.whisker_low, s.whisker_high), (1.0, 3.0));
+        assert_eq!((s.min, s.max, s.median), (1.0, 100.0, 2.0));
+        assert!(s.is_outlier(100.0) && !s.is_outlier(3.0));
     }
 
     #[test]
     fn one_value_and_none() {
         let s = BoxStats::from_values(&[-2.5]).unwrap();
         assert_eq!((s.min, s.q1, s.median, s.q3, s.max), (-2.5, -2.5, -2.5, -2.5, -2.5));
+        assert_eq!((s.whisker_low, s.whisker_high), (-2.5, -2.5));
         assert_eq!(s.rms, 2.5);
         assert!(BoxStats::from_values(&[]).is_none());
         assert!(BoxStats::from_values(&[1.0, f64::NAN]).is_none());
