@@ -5,6 +5,8 @@ realsense-ros 4.x's names (`<rgbd_ns>/color/image_raw`,
 `<rgbd_ns>/aligned_depth_to_color/image_raw`, `<rgbd_ns>/color/camera_info`;
 sensor-data QoS, one stamp for the pair), again every half second, until the
 node's `<ns>/fruit_rough` (vision_msgs/Detection3DArray) answers that stamp.
+With `--boxes`, also publishes those boxes as another detector would
+(`<ns>/detections_2d`, vision_msgs/Detection2DArray, the images' stamp).
 With `--scan`, then calls `<ns>/scan_detected` (std_srvs/srv/Trigger) as
 `ros2 service call` would and waits for its reply and for `<ns>/fruit`.
 Prints one JSON object: the detections (class, score, position m,
@@ -15,7 +17,8 @@ Speaks what rmw_cyclonedds_cpp puts on the wire (Eclipse Cyclone DDS,
 XCDR1), as localize_fruit_peer.py, whose message types it shares.
 
     python3 rgbd_peer.py /alacs --color color.png --depth depth.png \\
-        --camera camera.json [--rgbd-ns /camera/camera] [--frame-id F] [--scan]
+        --camera camera.json [--rgbd-ns /camera/camera] [--frame-id F] [--scan] \\
+        [--boxes '[[u, v, width, height, "class", score], ...]']
 
 camera.json: {"width", "height", "k": [9], "d": [...], "distortion_model"}.
 """
@@ -37,7 +40,9 @@ from cyclonedds.sub import DataReader
 from cyclonedds.topic import Topic
 
 from localize_fruit_peer import (FEEDBACK_QOS, SENSOR_QOS, Detection3DArray, Header,
-                                 ServiceClient, Timeout, now_time, ros_name, take_valid)
+                                 ObjectHypothesis, ObjectHypothesisWithPose, Point, Pose,
+                                 PoseWithCovariance, Quaternion, ServiceClient, Timeout,
+                                 now_time, ros_name, take_valid)
 
 
 @dataclass
@@ -73,6 +78,48 @@ class CameraInfo(IdlStruct, typename="sensor_msgs::msg::dds_::CameraInfo_"):
     binning_x: uint32
     binning_y: uint32
     roi: RegionOfInterest
+
+
+@dataclass
+class Point2D(IdlStruct, typename="vision_msgs::msg::dds_::Point2D_"):
+    x: float64
+    y: float64
+
+
+@dataclass
+class Pose2D(IdlStruct, typename="vision_msgs::msg::dds_::Pose2D_"):
+    position: Point2D
+    theta: float64
+
+
+@dataclass
+class BoundingBox2D(IdlStruct, typename="vision_msgs::msg::dds_::BoundingBox2D_"):
+    center: Pose2D
+    size_x: float64
+    size_y: float64
+
+
+@dataclass
+class Detection2D(IdlStruct, typename="vision_msgs::msg::dds_::Detection2D_"):
+    header: Header
+    results: sequence[ObjectHypothesisWithPose]
+    bbox: BoundingBox2D
+    id: str
+
+
+@dataclass
+class Detection2DArray(IdlStruct, typename="vision_msgs::msg::dds_::Detection2DArray_"):
+    header: Header
+    detections: sequence[Detection2D]
+
+
+def detections_2d(header, boxes) -> Detection2DArray:
+    """vision_msgs 4.x boxes as a YOLO node publishes them: one hypothesis each."""
+    no_pose = PoseWithCovariance(Pose(Point(), Quaternion()), [0.0] * 36)
+    return Detection2DArray(header, [
+        Detection2D(header, [ObjectHypothesisWithPose(ObjectHypothesis(cls, score), no_pose)],
+                    BoundingBox2D(Pose2D(Point2D(u, v), 0.0), w, h), "")
+        for u, v, w, h, cls, score in boxes])
 
 
 # std_srvs/srv/Trigger with rmw_cyclonedds's request header in front (see
@@ -135,6 +182,8 @@ def main(argv=None) -> int:
     ap.add_argument("--camera", required=True, help="camera.json (see the docstring)")
     ap.add_argument("--frame-id", default="camera_color_optical_frame")
     ap.add_argument("--timeout", type=float, default=60.0)
+    ap.add_argument("--boxes", help="JSON [[u, v, width, height, class, score], ...] to "
+                    "publish on <ns>/detections_2d with each pair")
     ap.add_argument("--scan", action="store_true",
                     help="then call <ns>/scan_detected and report <ns>/fruit")
     args = ap.parse_args(argv)
@@ -156,6 +205,10 @@ def main(argv=None) -> int:
     depth_w = DataWriter(dp, topic("aligned_depth_to_color/image_raw", Image, SENSOR_QOS),
                          qos=SENSOR_QOS)
     info_w = DataWriter(dp, topic("color/camera_info", CameraInfo, SENSOR_QOS), qos=SENSOR_QOS)
+    boxes = json.loads(args.boxes) if args.boxes else None
+    boxes_w = DataWriter(dp, Topic(dp, "rt" + ros_name(args.namespace, "detections_2d"),
+                                   Detection2DArray, qos=FEEDBACK_QOS),
+                         qos=FEEDBACK_QOS) if boxes is not None else None
     rough_r = DataReader(dp, Topic(dp, "rt" + ros_name(args.namespace, "fruit_rough"),
                                    Detection3DArray, qos=FEEDBACK_QOS), qos=FEEDBACK_QOS)
 
@@ -172,6 +225,8 @@ def main(argv=None) -> int:
                                 RegionOfInterest()))
         color_w.write(Image(header, h, w, "rgb8", 0, w * 3, rgb.tobytes()))
         depth_w.write(Image(header, h, w, "16UC1", 0, w * 2, depth.astype("<u2").tobytes()))
+        if boxes_w is not None:
+            boxes_w.write(detections_2d(header, boxes))
         t_next = time.monotonic() + 0.5
         while time.monotonic() < t_next:
             for m in take_valid(rough_r, 8):

@@ -435,6 +435,17 @@ impl CameraControlArgs {
     }
 }
 
+/// What finds the fruit in the RGB-D camera's images (`alacs ros`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum RgbdDetectorArg {
+    /// alacs-detect's classical detector (red, bicolour and yellow apples).
+    Builtin,
+    /// Another detector's vision_msgs/Detection2DArray on <ns>/detections_2d.
+    Topic,
+    /// None: no RGB-D subscriptions.
+    None,
+}
+
 /// A distortion model `calibrate camera` fits.
 #[derive(Debug, Clone, Copy, ValueEnum)]
 pub enum DistortionArg {
@@ -1203,12 +1214,19 @@ pub struct RosArgs {
     /// The RGB-D camera's namespace: its color/image_raw,
     /// aligned_depth_to_color/image_raw and color/camera_info (realsense-ros'
     /// names) are searched for fruit, published on <ns>/fruit_rough
-    /// (vision_msgs/Detection3DArray).
+    /// (vision_msgs/Detection3DArray) for <ns>/scan_detected.
     #[arg(long, value_name = "NS", default_value = "/camera/camera")]
     pub rgbd_ns: String,
-    /// Subscribe to no RGB-D camera (goals bring the rough position).
-    #[arg(long)]
-    pub no_rgbd_detector: bool,
+    /// What finds the fruit in the RGB-D camera's colour images: the
+    /// built-in detector, another detector's boxes on <ns>/detections_2d
+    /// (vision_msgs/Detection2DArray, stamped as the image), or nothing
+    /// (no RGB-D subscriptions: goals bring the rough position).
+    #[arg(long, value_enum, default_value = "builtin")]
+    pub rgbd_detector: RgbdDetectorArg,
+    /// With --rgbd-detector topic: the class ids that are fruit, comma
+    /// separated (any case; boxes without hypotheses are kept).
+    #[arg(long, value_name = "CLASSES", value_delimiter = ',', default_value = "apple")]
+    pub detection_classes: Vec<String>,
     /// A topic or the action under another name, FROM:=TO (as `--ros-args
     /// -r FROM:=TO`); repeatable.
     #[arg(long, value_name = "FROM:=TO")]

@@ -382,20 +382,27 @@ fn a_signal_in_the_nodes_first_moments_ends_it_with_its_summary() {
 /// realsense-ros' names; the node answers on `<ns>/fruit_rough` with the
 /// apple, class "apple", within 15 mm of the simulator's truth (in the
 /// RGB-D frame), stamped and framed as the colour image.
-#[test]
-fn the_rgbd_front_end_publishes_fruit_rough_from_a_drivers_images() {
-    let Some(python) = peer_python() else { return };
-    let dir = tempfile::tempdir().unwrap();
-    let view = dir.path().join("rgbd");
+/// What `simulate rgbd` saw of a scene: its folder, the colour camera
+/// and its truth (RGB-D frame, mm; `alacs_from_rgbd`).
+struct RgbdView {
+    scene: &'static [&'static str],
+    dir: PathBuf,
+    camera: alacs::Camera,
+    camera_json: PathBuf,
+    truth: Value,
+}
+
+fn rgbd_view(dir: &Path, scene: &'static [&'static str]) -> RgbdView {
+    let view = dir.join("rgbd");
     let status = Command::new(ALACS)
         .args(["simulate", "rgbd", "--out", view.to_str().unwrap()])
-        .args(SCENE)
+        .args(scene)
         .status()
         .unwrap();
     assert!(status.success());
     let camera = alacs::Camera::from_yaml_file(&view.join("camera.yaml")).unwrap();
     let (model, d) = camera.distortion.ros_model();
-    let camera_json = dir.path().join("camera.json");
+    let camera_json = dir.join("camera.json");
     let k = [
         camera.fx_px,
         camera.skew_px,
@@ -416,48 +423,143 @@ fn the_rgbd_front_end_publishes_fruit_rough_from_a_drivers_images() {
     .unwrap();
     let truth: Value =
         serde_json::from_str(&std::fs::read_to_string(view.join("truth.json")).unwrap()).unwrap();
-    let node_log = dir.path().join("node.log");
-    let script = format!(
-        "ip link set lo up || exit 90\n\
-         {alacs} ros --sim {scene} --no-images --namespace /alacs_left > /dev/null 2> {log} &\n\
-         node=$!\n\
-         {python} {peer} /alacs_left --color {color} --depth {depth} --camera {camera} --timeout 90\n\
-         peer=$?\n\
-         kill -TERM $node; wait $node\n\
-         exit $peer\n",
-        alacs = q(ALACS),
-        scene = SCENE.join(" "),
-        log = q(node_log.to_str().unwrap()),
-        python = q(&python),
-        peer = q(repo().join("ros/peer/rgbd_peer.py").to_str().unwrap()),
-        color = q(view.join("color.png").to_str().unwrap()),
-        depth = q(view.join("depth.png").to_str().unwrap()),
-        camera = q(camera_json.to_str().unwrap()),
-    );
-    let output = run_in_namespace(&script);
-    let stdout = String::from_utf8_lossy(&output.stdout);
-    let context = format!(
-        "peer stdout:\n{stdout}\npeer stderr:\n{}\nnode log:\n{}",
-        String::from_utf8_lossy(&output.stderr),
-        std::fs::read_to_string(&node_log).unwrap_or_default()
-    );
-    assert_eq!(output.status.code(), Some(0), "{context}");
-    let rough: Value = serde_json::from_str(stdout.trim()).unwrap();
+    RgbdView { scene, dir: view, camera, camera_json, truth }
+}
+
+impl RgbdView {
+    /// The simulated apple the scan aims at.
+    fn target(&self) -> &Value {
+        self.truth["apples"].as_array().unwrap().iter().find(|a| a["target"] == true).unwrap()
+    }
+
+    /// Runs `alacs ros --sim` with `node_args` and rgbd_peer.py with
+    /// `peer_args` in a network namespace; the peer's JSON and the logs.
+    fn run(&self, python: &str, node_args: &str, peer_args: &str) -> (Value, String) {
+        let node_log = self.dir.join("node.log");
+        let script = format!(
+            "ip link set lo up || exit 90\n\
+             {alacs} ros --sim {scene} --no-images --namespace /alacs_left {node_args} > /dev/null 2> {log} &\n\
+             node=$!\n\
+             {python} {peer} /alacs_left --color {color} --depth {depth} --camera {camera} --timeout 90 {peer_args}\n\
+             peer=$?\n\
+             kill -TERM $node; wait $node\n\
+             exit $peer\n",
+            alacs = q(ALACS),
+            scene = self.scene.join(" "),
+            log = q(node_log.to_str().unwrap()),
+            python = q(python),
+            peer = q(repo().join("ros/peer/rgbd_peer.py").to_str().unwrap()),
+            color = q(self.dir.join("color.png").to_str().unwrap()),
+            depth = q(self.dir.join("depth.png").to_str().unwrap()),
+            camera = q(self.camera_json.to_str().unwrap()),
+        );
+        let output = run_in_namespace(&script);
+        let stdout = String::from_utf8_lossy(&output.stdout);
+        let context = format!(
+            "peer stdout:\n{stdout}\npeer stderr:\n{}\nnode log:\n{}",
+            String::from_utf8_lossy(&output.stderr),
+            std::fs::read_to_string(&node_log).unwrap_or_default()
+        );
+        assert_eq!(output.status.code(), Some(0), "{context}");
+        (serde_json::from_str(stdout.trim()).unwrap(), context)
+    }
+}
+
+/// The distance, mm, from a detection's position (m) to `point_mm`.
+fn distance_mm(detection: &Value, point_mm: &[f64]) -> f64 {
+    (0..3)
+        .map(|i| (detection["position"][i].as_f64().unwrap() * 1000.0 - point_mm[i]).powi(2))
+        .sum::<f64>()
+        .sqrt()
+}
+
+/// An apple's truth position, mm.
+fn position_mm(apple: &Value) -> Vec<f64> {
+    (0..3).map(|i| apple["position_mm"][i].as_f64().unwrap()).collect()
+}
+
+#[test]
+fn the_rgbd_front_end_publishes_fruit_rough_and_scan_detected_finds_the_fruit() {
+    let Some(python) = peer_python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    // Three apples touching (one 16 % hidden, one 34 %): the RGB-D camera
+    // sees two, and one sweep scans both.
+    let view = rgbd_view(dir.path(), &["--seed", "6", "--scale", "0.25", "--cluster", "2"]);
+    let (rough, context) = view.run(&python, "", "--scan");
+    let truth = &view.truth;
+    let target = view.target();
     assert_eq!(rough["frame_id"], "camera_color_optical_frame", "{context}");
-    let target = truth["apples"].as_array().unwrap().iter().find(|a| a["target"] == true).unwrap();
     let detections = rough["detections"].as_array().unwrap();
+    assert!(detections.iter().all(|d| d["class_id"] == "apple"), "{context}");
     let nearest_mm = detections
         .iter()
-        .map(|d| {
-            assert_eq!(d["class_id"], "apple");
-            (0..3)
-                .map(|i| {
-                    let got = d["position"][i].as_f64().unwrap() * 1000.0;
-                    (got - target["position_mm"][i].as_f64().unwrap()).powi(2)
-                })
-                .sum::<f64>()
-                .sqrt()
-        })
+        .map(|d| distance_mm(d, &position_mm(target)))
         .fold(f64::INFINITY, f64::min);
     assert!(nearest_mm < 15.0, "the nearest detection is {nearest_mm:.1} mm off\n{context}");
+
+    // scan_detected: one sweep over those detections; the fruit found are in
+    // the ALACS camera's frame, the target among them, none wrong.
+    let scan = &rough["scan"];
+    assert_eq!(scan["success"], true, "{context}");
+    assert_eq!(scan["fruit"]["frame_id"], "alacs_camera_optical_frame", "{context}");
+    let pose = &truth["alacs_from_rgbd"];
+    let in_alacs = |apple: &Value| -> Vec<f64> {
+        let p = position_mm(apple);
+        (0..3)
+            .map(|r| {
+                (0..3).map(|c| pose[r][c].as_f64().unwrap() * p[c]).sum::<f64>()
+                    + pose[r][3].as_f64().unwrap()
+            })
+            .collect()
+    };
+    let apples: Vec<Vec<f64>> = truth["apples"].as_array().unwrap().iter().map(in_alacs).collect();
+    let fruit = scan["fruit"]["detections"].as_array().unwrap();
+    for d in fruit {
+        let nearest = apples.iter().map(|a| distance_mm(d, a)).fold(f64::INFINITY, f64::min);
+        assert!(nearest < 15.0, "a fruit {nearest:.1} mm from every apple\n{context}");
+    }
+    let target_in_alacs = in_alacs(target);
+    let target_mm =
+        fruit.iter().map(|d| distance_mm(d, &target_in_alacs)).fold(f64::INFINITY, f64::min);
+    assert!(target_mm < 15.0, "the target is {target_mm:.1} mm from the nearest fruit\n{context}");
+    let message = scan["message"].as_str().unwrap();
+    assert!(
+        message.starts_with(&format!(
+            "{} of {} detected fruit found in one sweep",
+            fruit.len(),
+            detections.len()
+        )),
+        "{context}"
+    );
+}
+
+#[test]
+fn another_detectors_boxes_on_detections_2d_are_placed_with_the_depth() {
+    let Some(python) = peer_python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let view = rgbd_view(dir.path(), &SCENE);
+    // A YOLO-style detector's boxes: the target as an apple, every other
+    // apple as another class (which the node must leave out).
+    let boxes: Vec<Value> = view.truth["apples"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|apple| {
+            let c = position_mm(apple);
+            let centre = nalgebra::Point3::new(c[0], c[1], c[2]);
+            let px = view.camera.project(&centre).unwrap();
+            let side = 2.0 * view.camera.fx_px * apple["radius_mm"].as_f64().unwrap() / c[2];
+            let class = if apple["target"] == true { "Apple" } else { "sports ball" };
+            serde_json::json!([px.x, px.y, side, side, class, 0.8])
+        })
+        .collect();
+    let boxes = serde_json::to_string(&boxes).unwrap();
+    let (rough, context) =
+        view.run(&python, "--rgbd-detector topic", &format!("--boxes {}", q(&boxes)));
+    let detections = rough["detections"].as_array().unwrap();
+    assert_eq!(detections.len(), 1, "only the box of class apple\n{context}");
+    assert_eq!(detections[0]["class_id"], "apple", "{context}");
+    assert_eq!(detections[0]["score"], 0.8, "the detector's score\n{context}");
+    let off_mm = distance_mm(&detections[0], &position_mm(view.target()));
+    assert!(off_mm < 15.0, "the boxed apple is placed {off_mm:.1} mm off\n{context}");
 }

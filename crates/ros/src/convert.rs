@@ -10,9 +10,9 @@ use ros2_client::builtin_interfaces::{Duration, Time};
 
 use crate::job::JobRequest;
 use crate::msgs::{
-    BoundingBox3D, CameraInfo, ColorRgba, CompressedImage, Detection3D, Detection3DArray, Header,
-    Image, LocalizeFruitGoal, LocalizeFruitResult, Marker, MeshFile, ObjectHypothesis,
-    ObjectHypothesisWithPose, Point, PointCloud2, PointField, PointStamped, Pose,
+    BoundingBox3D, CameraInfo, ColorRgba, CompressedImage, Detection2DArray, Detection3D,
+    Detection3DArray, Header, Image, LocalizeFruitGoal, LocalizeFruitResult, Marker, MeshFile,
+    ObjectHypothesis, ObjectHypothesisWithPose, Point, PointCloud2, PointField, PointStamped, Pose,
     PoseWithCovariance, Quaternion, RegionOfInterest, TfMessage, Transform, TransformStamped,
     Vector3,
 };
@@ -71,9 +71,10 @@ pub fn job_request(goal: &LocalizeFruitGoal, frames: &Frames) -> Result<JobReque
         radius_mm
     };
     Ok(JobRequest {
-        rough_position_mm: Point3::new(p.x, p.y, p.z) * MM_PER_M,
+        rough_positions_mm: vec![Point3::new(p.x, p.y, p.z) * MM_PER_M],
         in_rgbd,
         fruit_radius_mm,
+        leave_out_of_reach: false,
     })
 }
 
@@ -138,14 +139,63 @@ const UNKNOWN_ROTATION_VARIANCE: f64 = 1e3;
 /// method gives one; else -1 in the first element, "not estimated"),
 /// and a box the fruit's diameter on each side. `None` when not found.
 pub fn fruit_detections(localization: &Localization, header: Header) -> Option<Detection3DArray> {
-    let (Status::Ok, Some(centre), Some(radius_mm)) =
-        (localization.status, localization.position_mm, localization.radius_mm)
-    else {
-        return None;
-    };
-    let detection =
-        detection_3d(&header, &centre, position_covariance_m2(localization), radius_mm, 1.0);
-    Some(Detection3DArray { header, detections: vec![detection] })
+    let array = fruit_array(std::slice::from_ref(localization), header);
+    (!array.detections.is_empty()).then_some(array)
+}
+
+/// The fruit found (status `ok`) among `localizations`, one detection each
+/// in the order given; fruit not found are left out.
+pub fn fruit_array(localizations: &[Localization], header: Header) -> Detection3DArray {
+    let detections = localizations
+        .iter()
+        .filter_map(|l| match (l.status, l.position_mm, l.radius_mm) {
+            (Status::Ok, Some(centre), Some(radius_mm)) => {
+                Some(detection_3d(&header, &centre, position_covariance_m2(l), radius_mm, 1.0))
+            }
+            _ => None,
+        })
+        .collect();
+    Detection3DArray { header, detections }
+}
+
+/// Another detector's fruit (`<ns>/detections_2d`) as detections for the
+/// depth image to place: each box whose best hypothesis is one of
+/// `classes` (any case; a box without hypotheses is a one-class
+/// detector's and kept, score 1), as the circle of its longer side (a
+/// fruit cut by a leaf or the image's border keeps its diameter in the
+/// other), strongest first. Boxes with a non-finite or empty size are
+/// dropped.
+pub fn detections_from_2d(array: &Detection2DArray, classes: &[String]) -> Vec<Detection> {
+    let mut detections: Vec<Detection> = array
+        .detections
+        .iter()
+        .filter_map(|d| {
+            let best =
+                d.results.iter().max_by(|a, b| a.hypothesis.score.total_cmp(&b.hypothesis.score));
+            let score = match best {
+                None => 1.0,
+                Some(h)
+                    if classes
+                        .iter()
+                        .any(|c| c.eq_ignore_ascii_case(h.hypothesis.class_id.trim())) =>
+                {
+                    h.hypothesis.score
+                }
+                Some(_) => return None,
+            };
+            let (centre, radius_px) =
+                (d.bbox.center.position, 0.5 * d.bbox.size_x.max(d.bbox.size_y));
+            let finite = [centre.x, centre.y, radius_px, score].iter().all(|v| v.is_finite());
+            (finite && radius_px > 0.0).then(|| Detection {
+                centre_px: nalgebra::Point2::new(centre.x, centre.y),
+                radius_px,
+                score,
+                rough: None,
+            })
+        })
+        .collect();
+    detections.sort_by(|a, b| b.score.total_cmp(&a.score));
+    detections
 }
 
 /// An Image message as an RGB image: rgb8, bgr8 or mono8.

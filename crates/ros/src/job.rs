@@ -44,12 +44,16 @@ pub enum Progress {
 pub enum Outcome {
     /// The scan ran and localization answered (found or not found).
     Localized {
-        /// The answer.
-        localization: Box<Localization>,
-        /// What the scan captured (its rough position, frames, images).
+        /// The answers, one per fruit scanned, in the order of the
+        /// request's rough positions less those left out.
+        localizations: Vec<Localization>,
+        /// What the scan captured (its rough positions, frames, images).
         scan: Box<CapturedScan>,
         /// Rig and localization time.
         elapsed: Duration,
+        /// Rough positions left out: the slide cannot reach their frames
+        /// ([`JobRequest::leave_out_of_reach`]).
+        out_of_reach: usize,
     },
     /// The goal was cancelled; the slide stopped where it was and the laser is off.
     Cancelled,
@@ -60,13 +64,18 @@ pub enum Outcome {
 /// A goal's inputs in the library's units.
 #[derive(Debug, Clone)]
 pub struct JobRequest {
-    /// The rough fruit centre, mm, in the RGB-D frame when `in_rgbd`, else
-    /// in the ALACS camera frame.
-    pub rough_position_mm: Point3<f64>,
-    /// Whether `rough_position_mm` is in the RGB-D camera's frame.
+    /// The rough fruit centres, mm, in the RGB-D frame when `in_rgbd`, else
+    /// in the ALACS camera frame: one for a goal, up to
+    /// [`alacs_model::MAX_SCAN_TARGETS`] scanned in one sweep.
+    pub rough_positions_mm: Vec<Point3<f64>>,
+    /// Whether the rough positions are in the RGB-D camera's frame.
     pub in_rgbd: bool,
     /// The fruit radius prior, mm.
     pub fruit_radius_mm: f64,
+    /// Leave out fruit whose frames lie beyond the slide's stroke (a sweep
+    /// over whatever the RGB-D camera detected) instead of failing the job
+    /// (a goal names one fruit: out of reach is its answer).
+    pub leave_out_of_reach: bool,
 }
 
 /// What a job needs besides the rig: the calibrated camera and laser and
@@ -238,13 +247,31 @@ pub fn run_job(
         Ok(controller) => controller,
         Err(e) => return Outcome::Failed(e.to_string()),
     };
+    let roughs_mm = if request.leave_out_of_reach {
+        let stroke_mm = rig.rig().slide.stroke_mm();
+        within_reach(&controller, &request.rough_positions_mm, stroke_mm)
+    } else {
+        request.rough_positions_mm.clone()
+    };
+    let out_of_reach = request.rough_positions_mm.len() - roughs_mm.len();
+    if roughs_mm.is_empty() {
+        return Outcome::Failed(format!(
+            "none of the {} fruit is within the slide's reach",
+            request.rough_positions_mm.len()
+        ));
+    }
     let captured = {
+        let plan = roughs_mm
+            .iter()
+            .map(|r| controller.rough_in_alacs(r).map(|r| (r, request.fruit_radius_mm)))
+            .collect::<alacs_scanner::Result<Vec<_>>>()
+            .map(|fruit| controller.config().strategy.plan_sweep(&context.laser, &fruit));
         let watch = Watch {
             cancel,
             laser_on: Cell::new(false),
             slide_mm: Cell::new(f64::NAN),
             frame: Cell::new(0),
-            n_frames: controller.config().strategy.frames,
+            n_frames: plan.map_or(controller.config().strategy.frames, |p| p.slides_mm.len()),
             report: RefCell::new(report),
         };
         let devices = rig.rig();
@@ -252,7 +279,7 @@ pub fn run_job(
         let mut camera = WatchedCamera { inner: devices.camera, watch: &watch };
         let mut laser = WatchedLaser { inner: devices.laser, watch: &watch };
         let mut watched = Rig { slide: &mut slide, camera: &mut camera, laser: &mut laser };
-        controller.run(&mut watched, &request.rough_position_mm)
+        controller.run_targets_with_progress(&mut watched, &roughs_mm, |_, _| {})
     };
     // Whatever happened, the laser is off (the controller switched it off;
     // this covers a driver that failed to).
@@ -262,12 +289,32 @@ pub fn run_job(
         Err(_) if cancel.load(Ordering::Relaxed) => return Outcome::Cancelled,
         Err(e) => return Outcome::Failed(e.to_string()),
     };
-    match captured.localize(&context.camera, &context.laser, &context.locate) {
-        Ok(localization) => Outcome::Localized {
-            localization: Box::new(localization),
+    match captured.localize_targets(&context.camera, &context.laser, &context.locate) {
+        Ok(localizations) => Outcome::Localized {
+            localizations,
             elapsed: start.elapsed(),
             scan: Box::new(captured),
+            out_of_reach,
         },
         Err(e) => Outcome::Failed(e.to_string()),
     }
+}
+
+/// The rough positions (RGB-D frame, mm) whose frames the slide can reach:
+/// the scan of each alone lies within `stroke_mm` (a sweep's frames are
+/// the union of its fruit's, so together they fit too).
+fn within_reach(
+    controller: &ScanController,
+    roughs_mm: &[Point3<f64>],
+    stroke_mm: f64,
+) -> Vec<Point3<f64>> {
+    roughs_mm
+        .iter()
+        .filter(|rough| {
+            controller.plan(rough).is_ok_and(|plan| {
+                plan.slides_mm.iter().all(|d| d.is_finite() && (0.0..=stroke_mm).contains(d))
+            })
+        })
+        .copied()
+        .collect()
 }

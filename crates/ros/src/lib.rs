@@ -26,4 +26,4 @@ pub use convert::{
 pub use env::{DEFAULT_RMW, MAX_DOMAIN_ID, RosEnvironment};
 pub use error::{Error, Result};
 pub use job::{CANCELLED, JobContext, JobRequest, Outcome, Progress, ScanRig, run_job};
-pub use node::{NodeConfig, NodeSummary, run_node, validate_namespace};
+pub use node::{FruitDetector, NodeConfig, NodeSummary, run_node, validate_namespace};

@@ -145,6 +145,78 @@ pub struct Detection3DArray {
 }
 impl Message for Detection3DArray {}
 
+/// `vision_msgs/Point2D` (vision_msgs 4.x), px in image messages.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Point2D {
+    /// Column, px.
+    pub x: f64,
+    /// Row, px.
+    pub y: f64,
+}
+
+/// `vision_msgs/Pose2D` (vision_msgs 4.x; geometry_msgs/Pose2D before).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Pose2D {
+    /// The box's centre, px.
+    pub position: Point2D,
+    /// Its rotation, rad.
+    pub theta: f64,
+}
+
+/// `vision_msgs/BoundingBox2D`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct BoundingBox2D {
+    /// The box's centre and rotation.
+    pub center: Pose2D,
+    /// Width, px.
+    pub size_x: f64,
+    /// Height, px.
+    pub size_y: f64,
+}
+
+/// `vision_msgs/Detection2D` (vision_msgs 4.x: no source image).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Detection2D {
+    /// Time and frame (the image's).
+    pub header: Header,
+    /// The class hypotheses (their poses unused in 2-D).
+    pub results: Vec<ObjectHypothesisWithPose>,
+    /// The box in the image.
+    pub bbox: BoundingBox2D,
+    /// The same object across messages, where tracked; may be empty.
+    pub id: String,
+}
+
+/// `vision_msgs/Detection2DArray`: another detector's output on the
+/// colour image (`<ns>/detections_2d`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Detection2DArray {
+    /// Time and frame: the colour image's.
+    pub header: Header,
+    /// The detections.
+    pub detections: Vec<Detection2D>,
+}
+impl Message for Detection2DArray {}
+
+/// `std_srvs/srv/Trigger`'s request: empty, so ROS 2's IDL gives it one
+/// placeholder byte (`structure_needs_at_least_one_field`, 0).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct TriggerRequest {
+    /// ROS 2's placeholder for an empty message.
+    pub structure_needs_at_least_one_field: u8,
+}
+impl Message for TriggerRequest {}
+
+/// `std_srvs/srv/Trigger`'s response.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TriggerResponse {
+    /// Whether the job ran.
+    pub success: bool,
+    /// One line for whoever called.
+    pub message: String,
+}
+impl Message for TriggerResponse {}
+
 /// `geometry_msgs/Transform`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct Transform {

@@ -1,6 +1,7 @@
-//! The ROS 2 node: the action `<ns>/localize_fruit`, its topics, and the
-//! loop that serves one goal at a time while the rig works on a thread of
-//! its own.
+//! The ROS 2 node: the action `<ns>/localize_fruit`, the RGB-D front end
+//! (`<ns>/fruit_rough`), the service `<ns>/scan_detected` that scans every
+//! detected fruit in one sweep, their topics, and the loop that serves one
+//! job at a time while the rig works on a thread of its own.
 
 use std::collections::VecDeque;
 use std::net::{IpAddr, Ipv4Addr};
@@ -15,27 +16,35 @@ use ros2_client::action::{
 use ros2_client::builtin_interfaces::Time;
 use ros2_client::dds::rustdds::DomainParticipantBuilder;
 use ros2_client::qos::{Durability, History, QosProfile};
+use ros2_client::service::RmwRequestId;
 use ros2_client::{
     ActionTypeName, Context, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher,
+    ServiceTypeName,
 };
 use smol::future::FutureExt as _;
 
+use alacs_model::MAX_SCAN_TARGETS;
+
 use crate::bag::BagWriter;
 use crate::convert::{
-    Frames, camera_from_info, camera_info, depth_image, error_result, fruit_detections,
-    fruit_marker, image_message, job_request, laser_cloud, localization_result, point_m, rgb_image,
-    rough_detections, static_transform,
+    Frames, camera_from_info, camera_info, depth_image, detections_from_2d, error_result,
+    fruit_array, fruit_detections, fruit_marker, image_message, job_request, laser_cloud,
+    localization_result, point_m, rgb_image, rough_detections, static_transform,
 };
 use crate::env::RosEnvironment;
-use crate::job::{JobContext, Outcome, Progress, ScanRig, run_job};
+use crate::job::{JobContext, JobRequest, Outcome, Progress, ScanRig, run_job};
 use crate::msgs::{
-    CameraInfo, Detection3DArray, DiagnosticArray, DiagnosticStatus, Header, Image, KeyValue,
-    LocalizeFruitFeedback, LocalizeFruitGoal, LocalizeFruitResult, Marker, PointCloud2, TfMessage,
+    CameraInfo, Detection2DArray, Detection3DArray, DiagnosticArray, DiagnosticStatus, Header,
+    Image, KeyValue, LocalizeFruitFeedback, LocalizeFruitGoal, LocalizeFruitResult, Marker,
+    PointCloud2, TfMessage, TriggerRequest, TriggerResponse,
 };
 use crate::{Error, Result};
 
 /// The action server of `alacs_msgs/action/LocalizeFruit`.
 type Server = AsyncActionServer<LocalizeFruitGoal, LocalizeFruitResult, LocalizeFruitFeedback>;
+
+/// The server of `<ns>/scan_detected` (std_srvs/srv/Trigger).
+type SweepServer = ros2_client::Server<TriggerRequest, TriggerResponse>;
 
 /// How long a finished goal's result waits for the client to ask for it.
 const RESULT_WAIT: Duration = Duration::from_secs(30);
@@ -80,6 +89,22 @@ pub struct NodeConfig {
     /// `color/camera_info`): its frames are searched for fruit and each
     /// pair's fruit published on `<ns>/fruit_rough`; `None`: no front end.
     pub rgbd_ns: Option<String>,
+    /// Where the front end's fruit come from.
+    pub detector: FruitDetector,
+}
+
+/// Where the RGB-D front end's fruit come from.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum FruitDetector {
+    /// alacs-detect's classical detector, on each colour image.
+    Builtin,
+    /// Another detector's vision_msgs/Detection2DArray on
+    /// `<ns>/detections_2d` (on the colour image, stamped as it): its
+    /// boxes of these classes, placed with the depth image of that stamp.
+    Topic {
+        /// The class ids that are fruit (`apple`; any case).
+        classes: Vec<String>,
+    },
 }
 
 impl Default for NodeConfig {
@@ -94,6 +119,7 @@ impl Default for NodeConfig {
             mount: Some(("alacs_link".into(), crate::convert::body_from_optical())),
             remaps: Vec::new(),
             rgbd_ns: Some(DEFAULT_RGBD_NS.into()),
+            detector: FruitDetector::Builtin,
         }
     }
 }
@@ -103,6 +129,10 @@ pub const DEFAULT_RGBD_NS: &str = "/camera/camera";
 
 /// Colour and depth images kept while waiting for their pair (by stamp).
 const RGBD_QUEUE: usize = 5;
+
+/// ... and while waiting for another detector's boxes: half a second at
+/// 30 Hz, a CPU detector's latency (at 1280 x 720, about 70 MB of images).
+const RGBD_QUEUE_FOR_DETECTIONS: usize = 15;
 
 /// The RGB-D camera's streams the front end reads (sensor-data QoS).
 struct RgbdInput {
@@ -145,12 +175,32 @@ where
     }
 }
 
-/// Keeps `image` among the last [`RGBD_QUEUE`] of its stream.
-fn queue(images: &mut VecDeque<Image>, image: Image) {
-    if images.len() >= RGBD_QUEUE {
+/// Keeps `image` among the last `capacity` of its stream.
+fn queue(images: &mut VecDeque<Image>, image: Image, capacity: usize) {
+    if images.len() >= capacity {
         images.pop_front();
     }
     images.push_back(image);
+}
+
+/// The newest boxes whose colour and depth images have come, with them;
+/// older boxes and images are taken out too. `None`, and nothing taken,
+/// while no boxes have their pair.
+fn take_boxed(
+    boxes: &mut VecDeque<Detection2DArray>,
+    colors: &mut VecDeque<Image>,
+    depths: &mut VecDeque<Image>,
+) -> Option<(Detection2DArray, Image, Image)> {
+    let (bi, ci, di) = boxes.iter().enumerate().rev().find_map(|(bi, b)| {
+        let stamp = b.header.stamp;
+        let ci = colors.iter().position(|c| c.header.stamp == stamp)?;
+        let di = depths.iter().position(|d| d.header.stamp == stamp)?;
+        Some((bi, ci, di))
+    })?;
+    let found = boxes.drain(..=bi).next_back()?;
+    let color = colors.drain(..=ci).next_back()?;
+    let depth = depths.drain(..=di).next_back()?;
+    Some((found, color, depth))
 }
 
 /// The newest colour and depth images with one stamp, taken out with
@@ -171,15 +221,20 @@ type RoughFound = (Header, std::result::Result<Vec<alacs_detect::Detection>, Str
 
 /// Detects the fruit in a colour image and places them with its depth
 /// image and camera (alacs-detect's classical detector and depth model).
+/// With `boxes`, another detector's fruit are placed instead.
 fn detect_rough(
     color: Image,
     depth: &Image,
     camera: &alacs_model::Camera,
+    boxes: Option<Vec<alacs_detect::Detection>>,
 ) -> std::result::Result<Vec<alacs_detect::Detection>, String> {
     let depth = depth_image(depth)?;
     let image = rgb_image(color)?;
-    let mut detections = alacs_detect::detect(&image, &alacs_detect::DetectOptions::default())
-        .map_err(|e| e.to_string())?;
+    let mut detections = match boxes {
+        Some(boxes) => boxes,
+        None => alacs_detect::detect(&image, &alacs_detect::DetectOptions::default())
+            .map_err(|e| e.to_string())?,
+    };
     alacs_detect::locate_detections(
         &mut detections,
         &image,
@@ -252,6 +307,9 @@ pub struct NodeSummary {
     /// Goals aborted because the node was stopped (SIGINT, SIGTERM) while
     /// they ran.
     pub stopped: u64,
+    /// `scan_detected` calls that ran a sweep (their fruit found count in
+    /// `found`).
+    pub sweeps: u64,
 }
 
 /// Messages from the job's thread.
@@ -260,9 +318,18 @@ enum JobMessage {
     Done(Outcome),
 }
 
-/// The goal being worked on.
+/// Who waits for the running job's answer.
+enum Client {
+    /// A LocalizeFruit goal.
+    Goal(ExecutingGoalHandle<LocalizeFruitGoal>),
+    /// A `scan_detected` call: its request, and how many fruit the RGB-D
+    /// camera saw beyond the ones scanned ([`MAX_SCAN_TARGETS`] per sweep).
+    Sweep { request: RmwRequestId, detected: usize, beyond_limit: usize },
+}
+
+/// The job being worked on.
 struct Running {
-    handle: ExecutingGoalHandle<LocalizeFruitGoal>,
+    client: Client,
     cancel: Arc<AtomicBool>,
     /// Why the job was told to stop, if it was.
     stop_reason: Option<StopReason>,
@@ -440,6 +507,7 @@ impl State {
                     value("scan_mode", self.scan_mode.into()),
                     value("state", if self.scanning { "scanning" } else { "idle" }.into()),
                     value("goals", s.goals.to_string()),
+                    value("sweeps", s.sweeps.to_string()),
                     value("found", s.found.to_string()),
                     value("rejected", s.rejected.to_string()),
                     value("errors", s.errors.to_string()),
@@ -505,9 +573,35 @@ pub fn run_node(
         )
         .map_err(|e| Error::dds("action server", e))?,
     ));
+    let sweep_server: SweepServer = node
+        .create_server(
+            mapping,
+            &remapped(ns, "scan_detected", &config.remaps)?,
+            &ServiceTypeName::new("std_srvs", "Trigger"),
+            reliable(10),
+            reliable(10),
+        )
+        .map_err(|e| Error::dds("service server", e))?;
     let topics = Topics::new(&mut node, ns, &config.remaps)?;
     let rgbd =
         config.rgbd_ns.as_deref().map(|rgbd_ns| RgbdInput::new(&mut node, rgbd_ns)).transpose()?;
+    let (boxes_2d, classes, image_queue) = match (&config.detector, &rgbd) {
+        (FruitDetector::Topic { classes }, Some(_)) => {
+            let topic = node
+                .create_topic(
+                    &remapped(ns, "detections_2d", &config.remaps)?,
+                    MessageTypeName::new("vision_msgs", "Detection2DArray"),
+                    &sensor_data(),
+                )
+                .map_err(|e| Error::dds("topic", e))?;
+            // Best effort reads reliable and best-effort publishers alike.
+            let subscription = node
+                .create_subscription::<Detection2DArray>(&topic, Some(sensor_data()))
+                .map_err(|e| Error::dds("subscription", e))?;
+            (Some(subscription), classes.clone(), RGBD_QUEUE_FOR_DETECTIONS)
+        }
+        _ => (None, Vec::new(), RGBD_QUEUE),
+    };
     let rig_name = rig.describe();
     let rig = Arc::new(Mutex::new(rig));
     let job = Arc::new(job);
@@ -519,7 +613,7 @@ pub fn run_node(
             .map_err(|e| Error::dds("/tf_static", e))?;
     }
     log(&format!(
-        "node {}/{} serving {ns}/localize_fruit on DDS domain {} ({}, {}) with the {rig_name}",
+        "node {}/{} serving {ns}/localize_fruit and {ns}/scan_detected on DDS domain {} ({}, {}) with the {rig_name}",
         if ns == "/" { "" } else { ns },
         config.node_name,
         env.domain_id,
@@ -551,6 +645,11 @@ pub fn run_node(
         let (rough_sender, rough_receiver) = smol::channel::unbounded::<RoughFound>();
         let mut detecting = false;
         let mut last_rgbd_problem: Option<String> = None;
+        // The fruit of the latest fruit_rough (RGB-D frame, mm, best first)
+        // and its header: what scan_detected scans.
+        let mut latest_rough: Option<(Header, Vec<nalgebra::Point3<f64>>)> = None;
+        // Another detector's boxes waiting for the images of their stamp.
+        let mut pending_boxes: VecDeque<Detection2DArray> = VecDeque::new();
         loop {
             let finished = config.max_goals.is_some_and(|max| state.summary.goals >= max);
             if running.is_none() && (stop.load(Ordering::Relaxed) || finished) {
@@ -565,17 +664,23 @@ pub fn run_node(
                 r.stop_reason = Some(StopReason::Shutdown);
             }
             results.retain(|task| !task.is_finished());
-            if !detecting
-                && let Some(camera) = &rgbd_camera
-                && let Some((color, depth)) = take_pair(&mut colors, &mut depths)
-            {
-                detecting = true;
-                let (sender, camera) = (rough_sender.clone(), camera.clone());
-                std::thread::spawn(move || {
-                    let header = color.header.clone();
-                    let found = detect_rough(color, &depth, &camera);
-                    let _ = sender.send_blocking((header, found));
-                });
+            if !detecting && let Some(camera) = &rgbd_camera {
+                // The built-in detector searches the newest pair; another
+                // detector's boxes wait for the pair of their stamp.
+                let job = match boxes_2d {
+                    None => take_pair(&mut colors, &mut depths).map(|(c, d)| (c, d, None)),
+                    Some(_) => take_boxed(&mut pending_boxes, &mut colors, &mut depths)
+                        .map(|(b, c, d)| (c, d, Some(detections_from_2d(&b, &classes)))),
+                };
+                if let Some((color, depth, boxes)) = job {
+                    detecting = true;
+                    let (sender, camera) = (rough_sender.clone(), camera.clone());
+                    std::thread::spawn(move || {
+                        let header = color.header.clone();
+                        let found = detect_rough(color, &depth, &camera, boxes);
+                        let _ = sender.send_blocking((header, found));
+                    });
+                }
             }
             if last_diagnostics.elapsed() >= DIAGNOSTICS_PERIOD {
                 let _ = topics.diagnostics.publish(state.diagnostics(&node_name));
@@ -612,47 +717,73 @@ pub fn run_node(
                     let Ok(executing) = server.start_executing_goal(accepted).await else { continue };
                     state.summary.goals += 1;
                     state.scanning = true;
+                    let rough = request.rough_positions_mm[0];
                     log(&format!(
                         "goal {}: rough position ({:.1}, {:.1}, {:.1}) mm in the {} frame",
                         state.summary.goals,
-                        request.rough_position_mm.x,
-                        request.rough_position_mm.y,
-                        request.rough_position_mm.z,
+                        rough.x,
+                        rough.y,
+                        rough.z,
                         if request.in_rgbd { &frames.rgbd } else { &frames.camera },
                     ));
-                    let (sender, receiver) = smol::channel::unbounded();
-                    let cancel = Arc::new(AtomicBool::new(false));
-                    let thread = {
-                        let (rig, job, cancel) = (Arc::clone(&rig), Arc::clone(&job), Arc::clone(&cancel));
-                        std::thread::spawn(move || {
-                            let mut rig = rig.lock().unwrap_or_else(PoisonError::into_inner);
-                            let progress = sender.clone();
-                            let mut report = |p: Progress| {
-                                let _ = progress.send_blocking(JobMessage::Progress(p));
-                            };
-                            let outcome = run_job(rig.as_mut(), &job, &request, &cancel, &mut report);
-                            let _ = sender.send_blocking(JobMessage::Done(outcome));
-                        })
+                    running = Some(start_job(Client::Goal(executing), request, &rig, &job));
+                }
+                call = sweep_server.async_receive_request().fuse() => {
+                    let Ok((request_id, _)) = call else { continue };
+                    let refusal = if running.is_some() {
+                        Some("busy: one job at a time, and one is running".to_string())
+                    } else if stop.load(Ordering::Relaxed) {
+                        Some("the node is shutting down".to_string())
+                    } else {
+                        match &latest_rough {
+                            None => Some(match &config.rgbd_ns {
+                                Some(rgbd_ns) => format!("no fruit_rough yet: no colour and depth pair with camera_info has come from {rgbd_ns}"),
+                                None => "the RGB-D front end is off (no rgbd_ns): there is no fruit_rough to scan".to_string(),
+                            }),
+                            Some((_, roughs)) if roughs.is_empty() => Some("the latest fruit_rough holds no fruit".to_string()),
+                            Some(_) => None,
+                        }
                     };
-                    running = Some(Running {
-                        handle: executing,
-                        cancel,
-                        stop_reason: None,
-                        messages: receiver,
-                        thread: Some(thread),
-                    });
+                    if let Some(reason) = refusal {
+                        log(&format!("scan_detected refused: {reason}"));
+                        state.summary.rejected += 1;
+                        state.last_rejection = Some(reason.clone());
+                        let _ = sweep_server.async_send_response(request_id, TriggerResponse { success: false, message: reason }).await;
+                        continue;
+                    }
+                    let Some((header, roughs)) = &latest_rough else { continue };
+                    let detected = roughs.len();
+                    let request = JobRequest {
+                        rough_positions_mm: roughs.iter().take(MAX_SCAN_TARGETS).copied().collect(),
+                        in_rgbd: true,
+                        fruit_radius_mm: job.config.fruit_radius_mm,
+                        leave_out_of_reach: true,
+                    };
+                    state.summary.sweeps += 1;
+                    state.scanning = true;
+                    log(&format!(
+                        "scan_detected {}: {} fruit of the fruit_rough at {:.3} s in one sweep",
+                        state.summary.sweeps,
+                        request.rough_positions_mm.len(),
+                        seconds(header.stamp),
+                    ));
+                    let beyond_limit = detected - request.rough_positions_mm.len();
+                    let client = Client::Sweep { request: request_id, detected, beyond_limit };
+                    running = Some(start_job(client, request, &rig, &job));
                 }
                 message = job_message.fuse() => {
                     let Some(r) = running.as_mut() else { continue };
                     match message {
                         Some(JobMessage::Progress(Progress::Frame { frame, n_frames, slide_mm, stripe_points, image })) => {
                             let header = Header::new(Time::now(), &frames.camera);
-                            let _ = server.publish_feedback(r.handle.clone(), LocalizeFruitFeedback {
-                                frame: u32::try_from(frame + 1).unwrap_or(u32::MAX),
-                                n_frames: u32::try_from(n_frames).unwrap_or(u32::MAX),
-                                slide_position_m: slide_mm / 1000.0,
-                                stripe_points: u32::try_from(stripe_points).unwrap_or(u32::MAX),
-                            }).await;
+                            if let Client::Goal(handle) = &r.client {
+                                let _ = server.publish_feedback(handle.clone(), LocalizeFruitFeedback {
+                                    frame: u32::try_from(frame + 1).unwrap_or(u32::MAX),
+                                    n_frames: u32::try_from(n_frames).unwrap_or(u32::MAX),
+                                    slide_position_m: slide_mm / 1000.0,
+                                    stripe_points: u32::try_from(stripe_points).unwrap_or(u32::MAX),
+                                }).await;
+                            }
                             if config.publish_images {
                                 let _ = topics.image.publish(image_message(&image, header.clone()));
                             }
@@ -664,14 +795,25 @@ pub fn run_node(
                                 let _ = thread.join();
                             }
                             let header = Header::new(Time::now(), &frames.camera);
-                            let (end, result) = conclude(&outcome, r.stop_reason, &header, &topics, &mut state, log);
-                            if let (Some(bag), Outcome::Localized { localization, scan, .. }) = (recorder.as_mut(), &outcome)
-                                && let Err(e) = bag.write_scan(scan, Some(&job.camera), Some(localization))
-                            {
-                                log(&format!("recording: {e}"));
-                            }
                             state.scanning = false;
-                            results.push(send_result(&server, r.handle, end, result));
+                            match r.client {
+                                Client::Goal(handle) => {
+                                    let (end, result) = conclude(&outcome, r.stop_reason, &header, &topics, &mut state, log);
+                                    if let (Some(bag), Outcome::Localized { localizations, scan, .. }) = (recorder.as_mut(), &outcome)
+                                        && let Err(e) = bag.write_scan(scan, Some(&job.camera), localizations.first())
+                                    {
+                                        log(&format!("recording: {e}"));
+                                    }
+                                    results.push(send_result(&server, handle, end, result));
+                                }
+                                Client::Sweep { request, detected, beyond_limit } => {
+                                    if recorder.is_some() && matches!(outcome, Outcome::Localized { .. }) {
+                                        log("recording: a sweep is not recorded (a bag holds one fruit per scan)");
+                                    }
+                                    let response = conclude_sweep(&outcome, (detected, beyond_limit), r.stop_reason, &header, &topics, &mut state, log);
+                                    let _ = sweep_server.async_send_response(request, response).await;
+                                }
+                            }
                             let _ = topics.diagnostics.publish(state.diagnostics(&node_name));
                         }
                         None => {
@@ -685,18 +827,25 @@ pub fn run_node(
                             let reason = "the scan's thread ended without a result".to_string();
                             state.last_error = Some(reason.clone());
                             let header = Header::new(Time::now(), &frames.camera);
-                            results.push(send_result(&server, r.handle, GoalEndStatus::Aborted, error_result("error", &reason, header)));
+                            match r.client {
+                                Client::Goal(handle) => results.push(send_result(&server, handle, GoalEndStatus::Aborted, error_result("error", &reason, header))),
+                                Client::Sweep { request, .. } => {
+                                    let _ = sweep_server.async_send_response(request, TriggerResponse { success: false, message: reason }).await;
+                                }
+                            }
                         }
                     }
                 }
                 cancel = server.receive_cancel_request().fuse() => {
                     let Ok(cancel) = cancel else { continue };
                     match running.as_mut() {
-                        Some(r) if cancel.contains_goal(&r.handle.goal_id()) => {
+                        Some(Running { client: Client::Goal(handle), cancel: stop_job, stop_reason, .. })
+                            if cancel.contains_goal(&handle.goal_id()) =>
+                        {
                             log("cancel requested: stopping the slide, laser off");
-                            r.cancel.store(true, Ordering::Relaxed);
-                            r.stop_reason.get_or_insert(StopReason::Cancelled);
-                            let goal = r.handle.goal_id();
+                            stop_job.store(true, Ordering::Relaxed);
+                            stop_reason.get_or_insert(StopReason::Cancelled);
+                            let goal = handle.goal_id();
                             let _ = server.respond_to_cancel_requests(&cancel, std::iter::once(goal)).await;
                         }
                         _ => {
@@ -706,12 +855,12 @@ pub fn run_node(
                 }
                 color = next_message(rgbd.as_ref().map(|r| &r.color)).fuse() => {
                     if let Some(color) = color {
-                        queue(&mut colors, color);
+                        queue(&mut colors, color, image_queue);
                     }
                 }
                 depth = next_message(rgbd.as_ref().map(|r| &r.depth)).fuse() => {
                     if let Some(depth) = depth {
-                        queue(&mut depths, depth);
+                        queue(&mut depths, depth, image_queue);
                     }
                 }
                 info = next_message(rgbd.as_ref().map(|r| &r.info)).fuse() => {
@@ -724,10 +873,32 @@ pub fn run_node(
                         Some(Err(_)) | None => {}
                     }
                 }
+                boxes = next_message(boxes_2d.as_ref()).fuse() => {
+                    // Matched with their images at the top of the loop (either may come first).
+                    let Some(boxes) = boxes else { continue };
+                    if pending_boxes.len() >= image_queue
+                        && let Some(old) = pending_boxes.pop_front()
+                    {
+                        let problem = match rgbd_camera {
+                            None => "detections_2d come, and no camera_info from the RGB-D camera".to_string(),
+                            Some(_) => format!(
+                                "detections_2d at {:.3} s: no colour and depth image with that stamp came",
+                                seconds(old.header.stamp)
+                            ),
+                        };
+                        if last_rgbd_problem.as_ref() != Some(&problem) {
+                            log(&format!("RGB-D front end: {problem}"));
+                            last_rgbd_problem = Some(problem);
+                        }
+                    }
+                    pending_boxes.push_back(boxes);
+                }
                 found = rough_receiver.recv().fuse() => {
                     detecting = false;
                     match found {
                         Ok((header, Ok(detections))) => {
+                            let roughs = detections.iter().filter_map(|d| d.rough.as_ref().map(|r| r.position_mm)).collect();
+                            latest_rough = Some((header.clone(), roughs));
                             let _ = topics.fruit_rough.publish(rough_detections(&detections, header));
                         }
                         Ok((_, Err(problem))) => {
@@ -768,6 +939,100 @@ pub fn run_node(
     Ok(state.summary)
 }
 
+/// A stamp in seconds since the epoch (for the log).
+fn seconds(stamp: Time) -> f64 {
+    stamp.to_nanos() as f64 * 1e-9
+}
+
+/// Starts `request` on the rig's thread for `client`.
+fn start_job(
+    client: Client,
+    request: JobRequest,
+    rig: &Arc<Mutex<Box<dyn ScanRig>>>,
+    job: &Arc<JobContext>,
+) -> Running {
+    let (sender, receiver) = smol::channel::unbounded();
+    let cancel = Arc::new(AtomicBool::new(false));
+    let thread = {
+        let (rig, job, cancel) = (Arc::clone(rig), Arc::clone(job), Arc::clone(&cancel));
+        std::thread::spawn(move || {
+            let mut rig = rig.lock().unwrap_or_else(PoisonError::into_inner);
+            let progress = sender.clone();
+            let mut report = |p: Progress| {
+                let _ = progress.send_blocking(JobMessage::Progress(p));
+            };
+            let outcome = run_job(rig.as_mut(), &job, &request, &cancel, &mut report);
+            let _ = sender.send_blocking(JobMessage::Done(outcome));
+        })
+    };
+    Running { client, cancel, stop_reason: None, messages: receiver, thread: Some(thread) }
+}
+
+/// Publishes a finished sweep's fruit (`<ns>/fruit`: the ones found, in
+/// the ALACS camera's frame) and its laser points, and says in one line
+/// what became of each detected fruit. `counts`: the fruit detected, and
+/// how many of them lay beyond [`MAX_SCAN_TARGETS`]; a sweep is stopped
+/// only when the node is.
+fn conclude_sweep(
+    outcome: &Outcome,
+    (detected, beyond_limit): (usize, usize),
+    stop_reason: Option<StopReason>,
+    header: &Header,
+    topics: &Topics,
+    state: &mut State,
+    log: &(dyn Fn(&str) + Sync),
+) -> TriggerResponse {
+    let (success, message) = match outcome {
+        Outcome::Localized { localizations, scan, elapsed, out_of_reach } => {
+            state.last_scan_s = Some(elapsed.as_secs_f64());
+            state.last_error = None;
+            let fruit = fruit_array(localizations, header.clone());
+            let found = fruit.detections.len();
+            state.summary.found += found as u64;
+            for localization in localizations {
+                let _ = topics.laser_points.publish(laser_cloud(localization, header.clone()));
+            }
+            let _ = topics.fruit.publish(fruit);
+            let mut reasons: Vec<String> = localizations
+                .iter()
+                .filter(|l| l.status != alacs_locate::Status::Ok)
+                .map(|l| l.reason.clone())
+                .collect();
+            reasons.dedup();
+            let mut message = format!(
+                "{found} of {detected} detected fruit found in one sweep of {} frames ({:.1} s)",
+                scan.frames.len(),
+                elapsed.as_secs_f64()
+            );
+            let not_found = localizations.len() - found;
+            if not_found > 0 {
+                message += &format!("; {not_found} not found ({})", reasons.join("; "));
+            }
+            if *out_of_reach > 0 {
+                message += &format!("; {out_of_reach} beyond the slide's reach");
+            }
+            if beyond_limit > 0 {
+                message += &format!(
+                    "; {beyond_limit} left for the next call (a sweep scans at most {MAX_SCAN_TARGETS})"
+                );
+            }
+            (true, message)
+        }
+        Outcome::Cancelled | Outcome::Failed(_) if stop_reason.is_some() => {
+            state.summary.stopped += 1;
+            (false, "the node was stopped (SIGINT or SIGTERM) during the sweep".to_string())
+        }
+        Outcome::Cancelled => (false, "the sweep was cancelled".to_string()),
+        Outcome::Failed(reason) => {
+            state.summary.errors += 1;
+            state.last_error = Some(reason.clone());
+            (false, format!("the sweep failed: {reason}"))
+        }
+    };
+    log(&format!("scan_detected: {message}; the laser is off"));
+    TriggerResponse { success, message }
+}
+
 /// Sends a finished goal's result when its client asks for it (at most
 /// [`RESULT_WAIT`]), without holding up the loop.
 fn send_result(
@@ -798,7 +1063,13 @@ fn conclude(
     log: &(dyn Fn(&str) + Sync),
 ) -> (GoalEndStatus, LocalizeFruitResult) {
     match outcome {
-        Outcome::Localized { localization, elapsed, .. } => {
+        Outcome::Localized { localizations, elapsed, .. } => {
+            let Some(localization) = localizations.first() else {
+                // A goal names one fruit and the job answers for each.
+                let reason = "the scan gave no answer";
+                state.summary.errors += 1;
+                return (GoalEndStatus::Aborted, error_result("error", reason, header.clone()));
+            };
             state.last_scan_s = Some(elapsed.as_secs_f64());
             state.last_error = None;
             let result = localization_result(localization, header.clone());

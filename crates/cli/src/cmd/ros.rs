@@ -4,11 +4,11 @@
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
-use alacs::ros::{Frames, JobContext, NodeConfig, RosEnvironment, run_node};
+use alacs::ros::{Frames, FruitDetector, JobContext, NodeConfig, RosEnvironment, run_node};
 use anyhow::anyhow;
 use serde_json::json;
 
-use crate::args::RosArgs;
+use crate::args::{RgbdDetectorArg, RosArgs};
 use crate::cmd::rig::{self, OpenRig};
 use crate::failure::{CmdResult, Failure};
 use crate::output;
@@ -41,7 +41,13 @@ pub fn run(args: &RosArgs) -> CmdResult {
             ))
         },
         remaps: args.remap.iter().map(|r| parse_remap(r)).collect::<CmdResult<_>>()?,
-        rgbd_ns: (!args.no_rgbd_detector).then(|| args.rgbd_ns.clone()),
+        rgbd_ns: (args.rgbd_detector != RgbdDetectorArg::None).then(|| args.rgbd_ns.clone()),
+        detector: match args.rgbd_detector {
+            RgbdDetectorArg::Topic => {
+                FruitDetector::Topic { classes: args.detection_classes.clone() }
+            }
+            RgbdDetectorArg::Builtin | RgbdDetectorArg::None => FruitDetector::Builtin,
+        },
     };
     config.validate()?;
     let OpenRig { devices, sim, camera, laser, alacs_from_rgbd, controller } =
@@ -80,11 +86,13 @@ pub fn run(args: &RosArgs) -> CmdResult {
             "errors": summary.errors,
             "cancelled": summary.cancelled,
             "stopped": summary.stopped,
+            "sweeps": summary.sweeps,
         }))?;
     } else {
         outln!(
-            "served {} goals: {} found, {} rejected, {} errors, {} cancelled, {} stopped by a signal",
+            "served {} goals and {} sweeps: {} fruit found, {} rejected, {} errors, {} cancelled, {} stopped by a signal",
             summary.goals,
+            summary.sweeps,
             summary.found,
             summary.rejected,
             summary.errors,
