@@ -458,6 +458,10 @@ def main(argv=None) -> int:
     ap.add_argument("--signal-pid", type=int, default=None, help="the node's process id (--signal-after)")
     ap.add_argument("--watch-pid", type=int, default=None,
                     help="the node's process id, whose resident memory --soak reports")
+    ap.add_argument("--tf", nargs=9, default=None,
+                    metavar=("PARENT", "CHILD", "X", "Y", "Z", "QX", "QY", "QZ", "QW"),
+                    help="publish this transform on /tf at 20 Hz (as a robot's state publisher) "
+                    "from before the goal to the end")
     ap.add_argument("--check-only", action="store_true",
                     help="create participant and all entities, then exit 0 (smoke test)")
     args = ap.parse_args(argv)
@@ -498,7 +502,22 @@ def main(argv=None) -> int:
     summary = {"action": action, "feedback": [], "statuses": [], "clouds": [], "tf_static": [],
                "fruit": []}
 
+    tf_writer, last_tf = None, [0.0]
+    if args.tf:
+        # /tf as tf2's broadcaster publishes it: reliable, volatile, depth 100.
+        tf_writer = DataWriter(dp, Topic(dp, "rt/tf", TFMessage, qos=FEEDBACK_QOS), qos=FEEDBACK_QOS)
+
+    def publish_tf():
+        parent, child, *numbers = args.tf
+        x, y, z, qx, qy, qz, qw = map(float, numbers)
+        tf_writer.write(TFMessage([TransformStamped(Header(now_time(), parent), child,
+                                                    Transform(Vector3(x, y, z),
+                                                              Quaternion(qx, qy, qz, qw)))]))
+        last_tf[0] = time.monotonic()
+
     def drain():
+        if tf_writer is not None and time.monotonic() - last_tf[0] > 0.05:
+            publish_tf()
         for m in take_valid(fb_reader, 64):
             if bytes(m.goal_id.uuid) == goal_uuid:
                 f = m.feedback
@@ -542,6 +561,10 @@ def main(argv=None) -> int:
             time.sleep(0.05)
         time.sleep(0.5)  # let the server side finish matching our reply readers (volatile replies)
         log("action server discovered")
+        if tf_writer is not None:
+            for _ in range(20):  # a second of the robot's /tf before the goal
+                publish_tf()
+                time.sleep(0.05)
 
         if args.soak:
             return soak(args, send_goal, get_result, log)

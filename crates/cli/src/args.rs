@@ -57,9 +57,10 @@ pub enum Command {
     /// Recorded scans (ROS 2 bags, MCAP): to and from scan folders.
     #[command(subcommand)]
     Bag(BagCommand),
-    /// Run the ROS 2 node: the action <ns>/localize_fruit (alacs_msgs/action/LocalizeFruit)
-    /// and its topics, until SIGINT or SIGTERM (topics, parameters: `alacs formats`).
-    Ros(RosArgs),
+    /// Run the ROS 2 node: the action <ns>/localize_fruit (alacs_msgs/action/LocalizeFruit),
+    /// the RGB-D front end and <ns>/scan_detected, its topics and parameters, until SIGINT
+    /// or SIGTERM (`alacs formats`).
+    Ros(Box<RosArgs>),
     /// Rewrite a file in another tool's layout.
     #[command(subcommand)]
     Convert(ConvertCommand),
@@ -1180,6 +1181,10 @@ pub struct RosArgs {
     /// with the simulation's true camera and laser unless --camera / --laser).
     #[command(flatten)]
     pub rig: RigArgs,
+    /// Every option as a ROS 2 parameter (filled from the parsed command
+    /// line: [`crate::ros_args::parameters`]).
+    #[arg(skip)]
+    pub parameters: Vec<alacs::ros::NodeParameter>,
     /// Namespace of the node, its action and topics (two units on one robot:
     /// /alacs_left and /alacs_right).
     #[arg(long, value_name = "NS", default_value = "/alacs")]

@@ -89,8 +89,16 @@ fn parse() -> Result<args::Cli, clap::Error> {
         ros_args::expand(std::env::args_os().collect(), &ros_options).map_err(|message| {
             clap::Error::raw(clap::error::ErrorKind::ValueValidation, message + "\n")
         })?;
-    let matches = command.try_get_matches_from(argv)?;
-    args::Cli::from_arg_matches(&matches)
+    let mut command = command;
+    let matches = command.try_get_matches_from_mut(argv)?;
+    let mut cli = args::Cli::from_arg_matches(&matches)?;
+    // The node's options, as its ROS 2 parameters.
+    if let (args::Command::Ros(ros), Some(ros_matches), Some(ros_command)) =
+        (&mut cli.command, matches.subcommand_matches("ros"), command.find_subcommand("ros"))
+    {
+        ros.parameters = ros_args::parameters(ros_command, ros_matches);
+    }
+    Ok(cli)
 }
 
 /// Bad usage: clap's message on standard error (exit 2), and with `--json`

@@ -218,6 +218,70 @@ fn flatten(prefix: &str, map: &serde_json::Map<String, Value>, out: &mut Vec<(St
     }
 }
 
+/// Every option of `alacs ros` (`command`) as the node's ROS 2 parameter
+/// (the names `-p` takes): flags as bools, numbers as integers or doubles
+/// by their parser, lists (comma-separated options) as string arrays, the
+/// rest as strings; an option without a value or default is not set. The
+/// description is the option's help.
+pub fn parameters(
+    command: &clap::Command,
+    matches: &clap::ArgMatches,
+) -> Vec<alacs::ros::NodeParameter> {
+    use alacs::ros::ParameterValue;
+    use clap::builder::ValueParser;
+    let of = |parser: &ValueParser, id: std::any::TypeId| parser.type_id() == id;
+    command
+        .get_arguments()
+        .filter_map(|arg| {
+            let long = arg.get_long()?;
+            let id = arg.get_id().as_str();
+            let value = match arg.get_action() {
+                clap::ArgAction::SetTrue => ParameterValue::Boolean(matches.get_flag(id)),
+                action if action.takes_values() => {
+                    let raw: Vec<String> = matches
+                        .get_raw(id)
+                        .map(|values| values.map(|v| v.to_string_lossy().into_owned()).collect())
+                        .unwrap_or_default();
+                    let parser = arg.get_value_parser();
+                    let list = arg.get_value_delimiter().is_some()
+                        || matches!(action, clap::ArgAction::Append);
+                    let integer = [
+                        std::any::TypeId::of::<u64>(),
+                        std::any::TypeId::of::<u32>(),
+                        std::any::TypeId::of::<usize>(),
+                        std::any::TypeId::of::<i64>(),
+                        std::any::TypeId::of::<u16>(),
+                        std::any::TypeId::of::<u8>(),
+                    ];
+                    match raw.as_slice() {
+                        [] => ParameterValue::NotSet,
+                        _ if list => ParameterValue::StringArray(raw),
+                        [one] if of(parser, std::any::TypeId::of::<f64>()) => {
+                            one.parse().map_or_else(
+                                |_| ParameterValue::String(one.clone()),
+                                ParameterValue::Double,
+                            )
+                        }
+                        [one] if integer.iter().any(|&t| of(parser, t)) => one.parse().map_or_else(
+                            |_| ParameterValue::String(one.clone()),
+                            ParameterValue::Integer,
+                        ),
+                        [one] => ParameterValue::String(one.clone()),
+                        _ => ParameterValue::StringArray(raw),
+                    }
+                }
+                _ => return None, // --help, --version
+            };
+            Some(alacs::ros::NodeParameter {
+                name: long.replace('-', "_"),
+                value,
+                description: arg.get_help().map(ToString::to_string).unwrap_or_default(),
+                read_only: true,
+            })
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

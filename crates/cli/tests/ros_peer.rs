@@ -247,6 +247,52 @@ fn a_cyclone_dds_client_gets_the_fruit_from_alacs_ros_sim() {
 }
 
 #[test]
+fn a_goal_in_base_link_is_answered_in_base_link_through_tf() {
+    if peer_python().is_none() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let truth = scene_truth(dir.path());
+    // The robot's tree (as its state publisher would put it on /tf):
+    // base_link -> the camera's optical frame, 0.4, -0.1, 1.2 m away,
+    // turned 90 deg about x, so that camera (x, y, z) is base (x, -z, y).
+    let base_from_camera_m = |p: [f64; 3]| [p[0] + 0.4, -p[2] - 0.1, p[1] + 1.2];
+    let rough = base_from_camera_m(truth.rough_mm.map(|v| v / 1000.0));
+    let centre = base_from_camera_m(truth.centre_mm.map(|v| v / 1000.0));
+    let half = std::f64::consts::FRAC_1_SQRT_2;
+    let r = run(
+        dir.path(),
+        &truth,
+        // The camera's only parent is the robot's base_link.
+        "--max-goals 1 --no-static-tf",
+        &format!(
+            "--frame-id base_link --rough {} {} {} --tf base_link alacs_camera_optical_frame 0.4 -0.1 1.2 {half} 0 0 {half}",
+            rough[0], rough[1], rough[2]
+        ),
+        0,
+    );
+    let context = &r.context;
+    let result = &r.peer["result"];
+    assert_eq!(result["status"], "ok", "{context}");
+    assert_eq!(result["frame_id"], "base_link", "{context}");
+    let off_mm = (0..3)
+        .map(|i| (result["position"][i].as_f64().unwrap() - centre[i]).powi(2))
+        .sum::<f64>()
+        .sqrt()
+        * 1000.0;
+    assert!(off_mm < 15.0, "{off_mm:.1} mm from the truth in base_link\n{context}");
+    // The covariance turned with the frame: base y is the camera's depth,
+    // the worst-known axis of a laser scanner.
+    let c: Vec<f64> = result["position_covariance"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert!(c[4] > c[0] && c[4] > c[8], "{c:?}\n{context}");
+}
+
+#[test]
 fn a_goal_in_continuous_sweep_mode_reports_each_frame_where_the_slide_was() {
     if peer_python().is_none() {
         return;
@@ -562,4 +608,65 @@ fn another_detectors_boxes_on_detections_2d_are_placed_with_the_depth() {
     assert_eq!(detections[0]["score"], 0.8, "the detector's score\n{context}");
     let off_mm = distance_mm(&detections[0], &position_mm(view.target()));
     assert!(off_mm < 15.0, "the boxed apple is placed {off_mm:.1} mm off\n{context}");
+}
+
+#[test]
+fn ros2_param_lists_gets_and_sets_the_nodes_parameters() {
+    let Some(python) = peer_python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let node_log = dir.path().join("node.log");
+    let script = format!(
+        "ip link set lo up || exit 90\n\
+         {alacs} ros --sim {scene} --no-images --namespace /alacs_left --ros-args -r __node:=unit \
+           -p rough_depth_error:=0.05 -p detection_classes:=[apple,pear] > /dev/null 2> {log} &\n\
+         node=$!\n\
+         {python} {peer} /alacs_left/unit --set no_images:=false --set rough_lateral_error_mm:=12.5 \
+           --set seed:=5 --set rough_depth_error:=oops --set nope:=1\n\
+         peer=$?\n\
+         kill -TERM $node; wait $node\n\
+         exit $peer\n",
+        alacs = q(ALACS),
+        scene = SCENE.join(" "),
+        log = q(node_log.to_str().unwrap()),
+        python = q(&python),
+        peer = q(repo().join("ros/peer/param_peer.py").to_str().unwrap()),
+    );
+    let output = run_in_namespace(&script);
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    let context = format!(
+        "peer stdout:\n{stdout}\npeer stderr:\n{}\nnode log:\n{}",
+        String::from_utf8_lossy(&output.stderr),
+        std::fs::read_to_string(&node_log).unwrap_or_default()
+    );
+    assert_eq!(output.status.code(), Some(0), "{context}");
+    let p: Value = serde_json::from_str(stdout.trim()).unwrap();
+    // Every option is a parameter, typed as ROS 2 types it (1 bool,
+    // 2 integer, 3 double, 4 string, 9 string array).
+    for name in ["camera_frame", "seed", "sim", "rough_depth_error", "rgbd_ns", "no_images"] {
+        assert!(p["names"].as_array().unwrap().iter().any(|n| n == name), "{name}\n{context}");
+    }
+    assert_eq!(p["values"]["seed"], 4, "{context}");
+    assert_eq!(p["types"]["seed"], 2, "{context}");
+    assert_eq!(p["values"]["sim"], true, "{context}");
+    assert_eq!(p["values"]["rough_depth_error"], 0.05, "-p reaches the parameter\n{context}");
+    assert_eq!(p["types"]["rough_depth_error"], 3, "{context}");
+    assert_eq!(p["values"]["camera_frame"], "alacs_camera_optical_frame", "{context}");
+    assert_eq!(p["values"]["detection_classes"], serde_json::json!(["apple", "pear"]), "{context}");
+    assert_eq!(p["read_only"]["seed"], true, "{context}");
+    assert_eq!(p["read_only"]["no_images"], false, "{context}");
+    // Set: the runtime ones change, the rest say why not.
+    let set = p["set"].as_array().unwrap();
+    let result = |name: &str| set.iter().find(|r| r["name"] == name).unwrap();
+    assert_eq!(result("no_images")["successful"], true, "{context}");
+    assert_eq!(result("rough_lateral_error_mm")["successful"], true, "{context}");
+    assert_eq!(result("seed")["successful"], false, "{context}");
+    assert!(result("seed")["reason"].as_str().unwrap().contains("restart"), "{context}");
+    assert!(
+        result("rough_depth_error")["reason"].as_str().unwrap().contains("double"),
+        "{context}"
+    );
+    assert!(result("nope")["reason"].as_str().unwrap().contains("`nope`"), "{context}");
+    assert_eq!(p["after"]["no_images"], false, "{context}");
+    assert_eq!(p["after"]["rough_lateral_error_mm"], 12.5, "{context}");
+    assert_eq!(p["after"]["seed"], 4, "{context}");
 }

@@ -16,6 +16,7 @@ use crate::msgs::{
     PoseWithCovariance, Quaternion, RegionOfInterest, TfMessage, Transform, TransformStamped,
     Vector3,
 };
+use crate::tf::TfTree;
 
 /// Millimetres per metre.
 pub(crate) const MM_PER_M: f64 = 1000.0;
@@ -39,22 +40,36 @@ impl Default for Frames {
 }
 
 /// A goal as the job takes it, or why it is rejected.
-pub fn job_request(goal: &LocalizeFruitGoal, frames: &Frames) -> Result<JobRequest, String> {
+pub fn job_request(
+    goal: &LocalizeFruitGoal,
+    frames: &Frames,
+    tf: &TfTree,
+) -> Result<(JobRequest, Option<GoalFrame>), String> {
     let frame_id = goal.rough_position.header.frame_id.trim();
-    let in_rgbd = if frame_id.is_empty() || frame_id == frames.camera {
-        false
-    } else if frame_id == frames.rgbd {
-        true
-    } else {
-        return Err(format!(
-            "rough_position.header.frame_id `{frame_id}` is neither `{}` nor `{}`",
-            frames.camera, frames.rgbd
-        ));
-    };
     let p = goal.rough_position.point;
     if ![p.x, p.y, p.z].iter().all(|c| c.is_finite()) {
         return Err(format!("rough_position ({}, {}, {}) m is not finite", p.x, p.y, p.z));
     }
+    let point_mm = Point3::new(p.x, p.y, p.z) * MM_PER_M;
+    // The camera's and the RGB-D camera's frames are the calibration's;
+    // any other comes through the robot's tree.
+    let (rough_mm, in_rgbd, goal_frame) = if frame_id.is_empty() || frame_id == frames.camera {
+        (point_mm, false, None)
+    } else if frame_id == frames.rgbd {
+        (point_mm, true, None)
+    } else {
+        let camera_from_goal = tf.lookup(&frames.camera, frame_id).map_err(|e| {
+            format!(
+                "rough_position.header.frame_id `{frame_id}` is neither `{}` nor `{}`, and tf2 cannot place it: {e}",
+                frames.camera, frames.rgbd
+            )
+        })?;
+        let goal_frame = GoalFrame {
+            frame_id: frame_id.to_owned(),
+            frame_from_camera_mm: camera_from_goal.inverse(),
+        };
+        (camera_from_goal * point_mm, false, Some(goal_frame))
+    };
     let fruit_radius_mm = if goal.fruit_radius_m == 0.0 {
         DEFAULT_FRUIT_RADIUS_MM
     } else {
@@ -70,12 +85,44 @@ pub fn job_request(goal: &LocalizeFruitGoal, frames: &Frames) -> Result<JobReque
         }
         radius_mm
     };
-    Ok(JobRequest {
-        rough_positions_mm: vec![Point3::new(p.x, p.y, p.z) * MM_PER_M],
+    let request = JobRequest {
+        rough_positions_mm: vec![rough_mm],
         in_rgbd,
         fruit_radius_mm,
         leave_out_of_reach: false,
-    })
+    };
+    Ok((request, goal_frame))
+}
+
+/// A goal asked in a frame of the robot's tree (not the camera's or the
+/// RGB-D camera's): its result is answered there.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GoalFrame {
+    /// The goal's frame.
+    pub frame_id: String,
+    /// That frame from the ALACS camera's, mm, when the goal came.
+    pub frame_from_camera_mm: Isometry3<f64>,
+}
+
+impl GoalFrame {
+    /// `result` (in the camera's frame) in the goal's frame: the position
+    /// moved, the covariance turned (R C R^T); a position of a fruit not
+    /// found stays zero.
+    pub fn answer(&self, mut result: LocalizeFruitResult) -> LocalizeFruitResult {
+        result.position.header.frame_id.clone_from(&self.frame_id);
+        if result.status == "ok" {
+            let p = result.position.point;
+            let moved = self.frame_from_camera_mm * (Point3::new(p.x, p.y, p.z) * MM_PER_M);
+            result.position.point = point_m(&moved);
+            if result.position_covariance[0] >= 0.0 {
+                let r = self.frame_from_camera_mm.rotation.to_rotation_matrix();
+                let c = nalgebra::Matrix3::from_row_slice(&result.position_covariance);
+                let turned = r.matrix() * c * r.matrix().transpose();
+                result.position_covariance = std::array::from_fn(|i| turned[(i / 3, i % 3)]);
+            }
+        }
+        result
+    }
 }
 
 /// A point in mm as a ROS point in m.

@@ -15,6 +15,7 @@ use ros2_client::action::{
 };
 use ros2_client::builtin_interfaces::Time;
 use ros2_client::dds::rustdds::DomainParticipantBuilder;
+use ros2_client::parameters::ParameterValue;
 use ros2_client::qos::{Durability, History, QosProfile};
 use ros2_client::service::RmwRequestId;
 use ros2_client::{
@@ -27,9 +28,9 @@ use alacs_model::MAX_SCAN_TARGETS;
 
 use crate::bag::BagWriter;
 use crate::convert::{
-    Frames, camera_from_info, camera_info, depth_image, detections_from_2d, error_result,
-    fruit_array, fruit_detections, fruit_marker, image_message, job_request, laser_cloud,
-    localization_result, point_m, rgb_image, rough_detections, static_transform,
+    Frames, GoalFrame, camera_from_info, camera_info, depth_image, detections_from_2d,
+    error_result, fruit_array, fruit_detections, fruit_marker, image_message, job_request,
+    laser_cloud, localization_result, point_m, rgb_image, rough_detections, static_transform,
 };
 use crate::env::RosEnvironment;
 use crate::job::{JobContext, JobRequest, Outcome, Progress, ScanRig, run_job};
@@ -38,6 +39,8 @@ use crate::msgs::{
     Image, KeyValue, LocalizeFruitFeedback, LocalizeFruitGoal, LocalizeFruitResult, Marker,
     PointCloud2, TfMessage, TriggerRequest, TriggerResponse,
 };
+use crate::params::{NodeParameter, ParameterServices, Parameters};
+use crate::tf::TfTree;
 use crate::{Error, Result};
 
 /// The action server of `alacs_msgs/action/LocalizeFruit`.
@@ -91,7 +94,17 @@ pub struct NodeConfig {
     pub rgbd_ns: Option<String>,
     /// Where the front end's fruit come from.
     pub detector: FruitDetector,
+    /// The node's options as ROS 2 parameters (the parameter services);
+    /// [`RUNTIME_PARAMETERS`] may be set while it runs, the rest are
+    /// read-only.
+    pub parameters: Vec<NodeParameter>,
 }
+
+/// The parameters `ros2 param set` changes while the node runs; each
+/// applies from the next job. The others are read at start (the rig, the
+/// calibration, names and topics).
+pub const RUNTIME_PARAMETERS: [&str; 3] =
+    ["no_images", "rough_depth_error", "rough_lateral_error_mm"];
 
 /// Where the RGB-D front end's fruit come from.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -120,6 +133,7 @@ impl Default for NodeConfig {
             remaps: Vec::new(),
             rgbd_ns: Some(DEFAULT_RGBD_NS.into()),
             detector: FruitDetector::Builtin,
+            parameters: Vec::new(),
         }
     }
 }
@@ -320,8 +334,9 @@ enum JobMessage {
 
 /// Who waits for the running job's answer.
 enum Client {
-    /// A LocalizeFruit goal.
-    Goal(ExecutingGoalHandle<LocalizeFruitGoal>),
+    /// A LocalizeFruit goal, and the frame of the robot's tree it is
+    /// answered in (none: the camera's).
+    Goal(ExecutingGoalHandle<LocalizeFruitGoal>, Option<GoalFrame>),
     /// A `scan_detected` call: its request, and how many fruit the RGB-D
     /// camera saw beyond the ones scanned ([`MAX_SCAN_TARGETS`] per sweep).
     Sweep { request: RmwRequestId, detected: usize, beyond_limit: usize },
@@ -582,6 +597,18 @@ pub fn run_node(
             reliable(10),
         )
         .map_err(|e| Error::dds("service server", e))?;
+    let parameter_services = ParameterServices::new(&mut node, mapping, &reliable(100))?;
+    let mut parameters = Parameters::new(
+        config
+            .parameters
+            .iter()
+            .map(|p| NodeParameter {
+                read_only: !RUNTIME_PARAMETERS.contains(&p.name.as_str()),
+                ..p.clone()
+            })
+            .collect(),
+    );
+    let mut publish_images = config.publish_images;
     let topics = Topics::new(&mut node, ns, &config.remaps)?;
     let rgbd =
         config.rgbd_ns.as_deref().map(|rgbd_ns| RgbdInput::new(&mut node, rgbd_ns)).transpose()?;
@@ -602,11 +629,28 @@ pub fn run_node(
         }
         _ => (None, Vec::new(), RGBD_QUEUE),
     };
+    // The robot's frames, for goals in any of them.
+    let tf_qos = reliable(100);
+    let tf_static_qos = reliable(100).durability(Durability::TransientLocal);
+    let tf_topic = |node: &mut Node, base: &str, qos: &QosProfile| {
+        node.create_topic(&name("/", base)?, MessageTypeName::new("tf2_msgs", "TFMessage"), qos)
+            .map_err(|e| Error::dds("topic", e))
+    };
+    let tf_topics =
+        (tf_topic(&mut node, "tf", &tf_qos)?, tf_topic(&mut node, "tf_static", &tf_static_qos)?);
+    let tf_reader = node
+        .create_subscription::<TfMessage>(&tf_topics.0, Some(tf_qos))
+        .map_err(|e| Error::dds("subscription", e))?;
+    let tf_static_reader = node
+        .create_subscription::<TfMessage>(&tf_topics.1, Some(tf_static_qos))
+        .map_err(|e| Error::dds("subscription", e))?;
+    let mut tf_tree = TfTree::new();
     let rig_name = rig.describe();
     let rig = Arc::new(Mutex::new(rig));
-    let job = Arc::new(job);
+    let mut job = Arc::new(job);
     let frames = config.frames.clone();
     if let Some((mount_frame, mount_from_camera)) = &config.mount {
+        tf_tree.insert_mm(mount_frame, &frames.camera, *mount_from_camera);
         topics
             .tf_static
             .publish(static_transform(mount_from_camera, mount_frame, &frames, Time::now()))
@@ -701,9 +745,9 @@ pub fn run_node(
                     } else if stop.load(Ordering::Relaxed) {
                         Err("the node is shutting down".to_string())
                     } else {
-                        job_request(&goal, &frames)
+                        job_request(&goal, &frames, &tf_tree)
                     };
-                    let request = match request {
+                    let (request, goal_frame) = match request {
                         Ok(request) => request,
                         Err(reason) => {
                             log(&format!("goal rejected: {reason}"));
@@ -719,14 +763,15 @@ pub fn run_node(
                     state.scanning = true;
                     let rough = request.rough_positions_mm[0];
                     log(&format!(
-                        "goal {}: rough position ({:.1}, {:.1}, {:.1}) mm in the {} frame",
+                        "goal {}: rough position ({:.1}, {:.1}, {:.1}) mm in the {} frame{}",
                         state.summary.goals,
                         rough.x,
                         rough.y,
                         rough.z,
                         if request.in_rgbd { &frames.rgbd } else { &frames.camera },
+                        goal_frame.as_ref().map_or_else(String::new, |f| format!(" (the goal's {}, through tf2)", f.frame_id)),
                     ));
-                    running = Some(start_job(Client::Goal(executing), request, &rig, &job));
+                    running = Some(start_job(Client::Goal(executing, goal_frame), request, &rig, &job));
                 }
                 call = sweep_server.async_receive_request().fuse() => {
                     let Ok((request_id, _)) = call else { continue };
@@ -776,7 +821,7 @@ pub fn run_node(
                     match message {
                         Some(JobMessage::Progress(Progress::Frame { frame, n_frames, slide_mm, stripe_points, image })) => {
                             let header = Header::new(Time::now(), &frames.camera);
-                            if let Client::Goal(handle) = &r.client {
+                            if let Client::Goal(handle, _) = &r.client {
                                 let _ = server.publish_feedback(handle.clone(), LocalizeFruitFeedback {
                                     frame: u32::try_from(frame + 1).unwrap_or(u32::MAX),
                                     n_frames: u32::try_from(n_frames).unwrap_or(u32::MAX),
@@ -784,7 +829,7 @@ pub fn run_node(
                                     stripe_points: u32::try_from(stripe_points).unwrap_or(u32::MAX),
                                 }).await;
                             }
-                            if config.publish_images {
+                            if publish_images {
                                 let _ = topics.image.publish(image_message(&image, header.clone()));
                             }
                             let _ = topics.camera_info.publish(camera_info(&job.camera, header));
@@ -797,8 +842,12 @@ pub fn run_node(
                             let header = Header::new(Time::now(), &frames.camera);
                             state.scanning = false;
                             match r.client {
-                                Client::Goal(handle) => {
+                                Client::Goal(handle, goal_frame) => {
                                     let (end, result) = conclude(&outcome, r.stop_reason, &header, &topics, &mut state, log);
+                                    let result = match &goal_frame {
+                                        Some(frame) => frame.answer(result),
+                                        None => result,
+                                    };
                                     if let (Some(bag), Outcome::Localized { localizations, scan, .. }) = (recorder.as_mut(), &outcome)
                                         && let Err(e) = bag.write_scan(scan, Some(&job.camera), localizations.first())
                                     {
@@ -828,7 +877,7 @@ pub fn run_node(
                             state.last_error = Some(reason.clone());
                             let header = Header::new(Time::now(), &frames.camera);
                             match r.client {
-                                Client::Goal(handle) => results.push(send_result(&server, handle, GoalEndStatus::Aborted, error_result("error", &reason, header))),
+                                Client::Goal(handle, _) => results.push(send_result(&server, handle, GoalEndStatus::Aborted, error_result("error", &reason, header))),
                                 Client::Sweep { request, .. } => {
                                     let _ = sweep_server.async_send_response(request, TriggerResponse { success: false, message: reason }).await;
                                 }
@@ -839,7 +888,7 @@ pub fn run_node(
                 cancel = server.receive_cancel_request().fuse() => {
                     let Ok(cancel) = cancel else { continue };
                     match running.as_mut() {
-                        Some(Running { client: Client::Goal(handle), cancel: stop_job, stop_reason, .. })
+                        Some(Running { client: Client::Goal(handle, _), cancel: stop_job, stop_reason, .. })
                             if cancel.contains_goal(&handle.goal_id()) =>
                         {
                             log("cancel requested: stopping the slide, laser off");
@@ -892,6 +941,33 @@ pub fn run_node(
                         }
                     }
                     pending_boxes.push_back(boxes);
+                }
+                request = parameter_services.next().fuse() => {
+                    let changed = parameter_services.answer(request, &mut parameters).await;
+                    for name in changed {
+                        let value = parameters.get(&name).map(|p| p.value.clone());
+                        log(&format!("parameter {name} set to {value:?}; it applies from the next job"));
+                        match (name.as_str(), value) {
+                            ("no_images", Some(ParameterValue::Boolean(off))) => publish_images = !off,
+                            ("rough_depth_error", Some(ParameterValue::Double(v))) => {
+                                Arc::make_mut(&mut job).locate.rough_depth_error = v;
+                            }
+                            ("rough_lateral_error_mm", Some(ParameterValue::Double(v))) => {
+                                Arc::make_mut(&mut job).locate.rough_lateral_error_mm = v;
+                            }
+                            _ => {}
+                        }
+                    }
+                }
+                transforms = next_message(Some(&tf_reader)).fuse() => {
+                    if let Some(transforms) = transforms {
+                        tf_tree.insert(&transforms);
+                    }
+                }
+                transforms = next_message(Some(&tf_static_reader)).fuse() => {
+                    if let Some(transforms) = transforms {
+                        tf_tree.insert(&transforms);
+                    }
                 }
                 found = rough_receiver.recv().fuse() => {
                     detecting = false;

@@ -48,6 +48,7 @@ pub fn run(args: &RosArgs) -> CmdResult {
             }
             RgbdDetectorArg::Builtin | RgbdDetectorArg::None => FruitDetector::Builtin,
         },
+        parameters: args.parameters.clone(),
     };
     config.validate()?;
     let OpenRig { devices, sim, camera, laser, alacs_from_rgbd, controller } =
