@@ -94,6 +94,9 @@ pub struct NodeConfig {
     pub rgbd_ns: Option<String>,
     /// Where the front end's fruit come from.
     pub detector: FruitDetector,
+    /// The files the rig and the calibration came from, by what they are
+    /// (`rig`, `camera`, `laser`): named in `/diagnostics` with their age.
+    pub sources: Vec<(String, std::path::PathBuf)>,
     /// The node's options as ROS 2 parameters (the parameter services);
     /// [`RUNTIME_PARAMETERS`] may be set while it runs, the rest are
     /// read-only.
@@ -133,6 +136,7 @@ impl Default for NodeConfig {
             remaps: Vec::new(),
             rgbd_ns: Some(DEFAULT_RGBD_NS.into()),
             detector: FruitDetector::Builtin,
+            sources: Vec::new(),
             parameters: Vec::new(),
         }
     }
@@ -490,6 +494,9 @@ impl Topics {
 /// The node's state for diagnostics.
 struct State {
     rig: String,
+    /// The rig's and the calibration's files, with when they were last
+    /// written (`None`: unknown).
+    sources: Vec<(String, std::path::PathBuf, Option<std::time::SystemTime>)>,
     /// `stop_and_go` or `continuous`.
     scan_mode: &'static str,
     summary: NodeSummary,
@@ -534,7 +541,19 @@ impl State {
                     ),
                     value("last_error", self.last_error.clone().unwrap_or_default()),
                     value("last_rejection", self.last_rejection.clone().unwrap_or_default()),
-                ],
+                ]
+                .into_iter()
+                .chain(self.sources.iter().flat_map(|(what, path, written)| {
+                    let age = written.and_then(|t| t.elapsed().ok()).map_or_else(
+                        || "unknown".to_string(),
+                        |a| format!("{:.1}", a.as_secs_f64() / 86_400.0),
+                    );
+                    [
+                        value(&format!("{what}_file"), path.display().to_string()),
+                        value(&format!("{what}_file_age_days"), age),
+                    ]
+                }))
+                .collect(),
             }],
         }
     }
@@ -666,6 +685,14 @@ pub fn run_node(
     ));
     let mut state = State {
         rig: rig_name,
+        sources: config
+            .sources
+            .iter()
+            .map(|(what, path)| {
+                let written = std::fs::metadata(path).and_then(|m| m.modified()).ok();
+                (what.clone(), path.clone(), written)
+            })
+            .collect(),
         scan_mode: job.config.mode.name(),
         summary: NodeSummary::default(),
         scanning: false,
@@ -1199,5 +1226,39 @@ fn conclude(
             log(&format!("goal aborted: {reason}; the laser is off"));
             (GoalEndStatus::Aborted, error_result("error", reason, header.clone()))
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn diagnostics_name_the_calibration_files_and_their_age() {
+        let dir = tempfile::tempdir().unwrap();
+        let camera = dir.path().join("camera.yaml");
+        std::fs::write(&camera, "x").unwrap();
+        let state = State {
+            rig: "simulated rig".into(),
+            sources: vec![
+                (
+                    "camera".into(),
+                    camera.clone(),
+                    std::fs::metadata(&camera).unwrap().modified().ok(),
+                ),
+                ("laser".into(), dir.path().join("gone.yaml"), None),
+            ],
+            scan_mode: "stop_and_go",
+            summary: NodeSummary::default(),
+            scanning: false,
+            last_scan_s: None,
+            last_error: None,
+            last_rejection: None,
+        };
+        let values = &state.diagnostics("alacs").status[0].values;
+        let get = |key: &str| values.iter().find(|v| v.key == key).map(|v| v.value.clone());
+        assert_eq!(get("camera_file"), Some(camera.display().to_string()));
+        assert_eq!(get("camera_file_age_days").as_deref(), Some("0.0"));
+        assert_eq!(get("laser_file_age_days").as_deref(), Some("unknown"));
     }
 }

@@ -48,6 +48,14 @@ pub fn run(args: &RosArgs) -> CmdResult {
             }
             RgbdDetectorArg::Builtin | RgbdDetectorArg::None => FruitDetector::Builtin,
         },
+        sources: [
+            ("rig", &args.rig.rig_file),
+            ("camera", &args.rig.camera),
+            ("laser", &args.rig.laser),
+        ]
+        .into_iter()
+        .filter_map(|(what, path)| Some((what.to_string(), path.clone()?)))
+        .collect(),
         parameters: args.parameters.clone(),
     };
     config.validate()?;
