@@ -871,9 +871,23 @@ pub struct DetectArgs {
     /// The colour camera (camera.yaml or an OpenCV/ROS camera file alacs reads).
     #[arg(long, value_name = "FILE", requires = "depth")]
     pub camera: Option<PathBuf>,
-    /// Smallest fruit radius in the image, px.
+    /// Smallest fruit radius in the image, px (the built-in detector).
     #[arg(long, value_name = "PX", default_value_t = 6.0, value_parser = positive_up_to(10_000.0))]
     pub min_radius_px: f64,
+    /// A YOLO-style ONNX model instead of the built-in detector (YOLOv8
+    /// [1, 4+C, N] or YOLOv5 [1, N, 5+C] output; needs a build with
+    /// `--features onnx`).
+    #[arg(long, value_name = "FILE.onnx", requires = "classes")]
+    pub model: Option<PathBuf>,
+    /// The model's class names in its output order, comma separated.
+    #[arg(long, value_name = "NAMES", value_delimiter = ',', requires = "model")]
+    pub classes: Vec<String>,
+    /// With --model: the classes that are fruit, comma separated (any case).
+    #[arg(long, value_name = "NAMES", value_delimiter = ',', default_value = "apple")]
+    pub fruit_classes: Vec<String>,
+    /// With --model: boxes scoring below this are dropped.
+    #[arg(long, value_name = "0-1", default_value_t = 0.25, value_parser = number_in(0.0, 1.0))]
+    pub min_score: f64,
     /// Print one JSON object (docs/FORMATS.md, "alacs detect") instead of text.
     #[arg(long)]
     pub json: bool,

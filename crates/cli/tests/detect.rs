@@ -90,3 +90,15 @@ fn detect_finds_the_simulated_rgbd_fruit_within_15_mm() {
     let o = alacs(&["detect", "--image", &file("color.png"), "--depth", &file("depth.png")]);
     assert_eq!(o.status.code(), Some(2), "{}", context(&o));
 }
+
+/// Without the `onnx` feature, `--model` says how to get it (exit 2),
+/// naming the model, before anything is read.
+#[cfg(not(feature = "onnx"))]
+#[test]
+fn a_model_without_the_onnx_feature_says_how_to_build_it() {
+    let output =
+        alacs(&["detect", "--image", "x.png", "--model", "yolo.onnx", "--classes", "apple"]);
+    assert_eq!(output.status.code(), Some(2), "{}", context(&output));
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(stderr.contains("yolo.onnx") && stderr.contains("--features onnx"), "{stderr}");
+}

@@ -15,6 +15,9 @@ pub enum Error {
     /// out of their range.
     #[error("{0}")]
     InvalidInput(String),
+    /// A learned detector's model failed to run on an image.
+    #[error("{0}")]
+    Failed(String),
 }
 
 impl Error {
@@ -23,6 +26,7 @@ impl Error {
         match self {
             Error::Model(e) => e.class(),
             Error::InvalidInput(_) => alacs_model::ErrorClass::BadInput,
+            Error::Failed(_) => alacs_model::ErrorClass::JobFailed,
         }
     }
 

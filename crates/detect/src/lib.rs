@@ -19,6 +19,10 @@
 //! overlap), fruit smaller than [`DetectOptions::min_radius_px`], and a
 //! fruit cut in two by a branch shows as two circles.
 //!
+//! **A learned detector** (cargo feature `onnx`: `OnnxDetector`): a
+//! YOLO-style ONNX model the user brings, with its class names, run on the
+//! CPU by tract (pure Rust); its boxes become the same [`Detection`]s.
+//!
 //! **Locate** ([`locate_detections`]): with a depth image aligned to the
 //! colour image (uint16 millimetres, 0 no data; or float32 metres, NaN no
 //! data: REP 118) and the colour camera, each fruit's centre: the depths
@@ -32,9 +36,13 @@ mod circles;
 pub mod colour;
 pub mod depth;
 mod error;
+#[cfg(feature = "onnx")]
+mod onnx;
 mod output;
 
 pub use circles::{DetectOptions, Detection, detect};
 pub use depth::{DepthImage, DepthModel, RoughPosition, locate_detections};
 pub use error::{Error, Result};
+#[cfg(feature = "onnx")]
+pub use onnx::{OnnxDetector, OnnxOptions};
 pub use output::detections_json;

@@ -14,10 +14,20 @@ use crate::output;
 /// Runs `alacs detect`.
 pub fn run(args: &DetectArgs) -> CmdResult {
     let options = DetectOptions { min_radius_px: args.min_radius_px, ..DetectOptions::default() };
+    #[cfg(not(feature = "onnx"))]
+    if let Some(model) = &args.model {
+        return learned(model).map(|_| ());
+    }
     // Every input is read before the work.
     let camera = args.camera.as_deref().map(Camera::from_yaml_file).transpose()?;
     let image = read_colour_image(&args.image, false)?;
     let depth = args.depth.as_deref().map(read_depth_png).transpose()?;
+    #[cfg(feature = "onnx")]
+    let mut detections = match &args.model {
+        Some(model) => learned(model, args, &image)?,
+        None => detect(&image, &options)?,
+    };
+    #[cfg(not(feature = "onnx"))]
     let mut detections = detect(&image, &options)?;
     if let (Some(depth), Some(camera)) = (depth, &camera) {
         let depth = DepthImage::Millimetres(depth);
@@ -53,4 +63,29 @@ pub fn run(args: &DetectArgs) -> CmdResult {
         outln!("{line}");
     }
     Ok(())
+}
+
+/// The fruit a YOLO-style ONNX model finds (feature `onnx`).
+#[cfg(feature = "onnx")]
+fn learned(
+    model: &std::path::Path,
+    args: &DetectArgs,
+    image: &image::RgbImage,
+) -> CmdResult<Vec<alacs::detect::Detection>> {
+    let options = alacs::detect::OnnxOptions {
+        fruit_classes: args.fruit_classes.clone(),
+        score_threshold: args.min_score,
+        ..alacs::detect::OnnxOptions::new(args.classes.clone())
+    };
+    let detector = alacs::detect::OnnxDetector::load(model, options)?;
+    Ok(detector.detect(image)?)
+}
+
+/// Without the feature, --model says how to get it.
+#[cfg(not(feature = "onnx"))]
+fn learned(model: &std::path::Path) -> CmdResult {
+    Err(crate::failure::Failure::bad_input(anyhow::anyhow!(
+        "--model {}: this alacs was built without ONNX models; build it with `cargo build --release --features onnx`",
+        model.display()
+    )))
 }
