@@ -145,6 +145,11 @@ fn run(dir: &Path, truth: &Truth, node_args: &str, peer_args: &str, peer_exit: i
     Run { peer, node, node_exit, context }
 }
 
+/// A JSON array of numbers.
+fn floats(array: &Value) -> Vec<f64> {
+    array.as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect()
+}
+
 /// The distance of a result's position (m) from the true centre, mm.
 fn error_mm(result: &Value, truth: &Truth) -> f64 {
     (0..3)
@@ -172,12 +177,7 @@ fn a_cyclone_dds_client_gets_the_fruit_from_alacs_ros_sim() {
     assert!(error_mm < 15.0, "{error_mm:.1} mm from the truth\n{context}");
     // The position covariance in m^2, as the Cyclone peer decoded it: a
     // symmetric matrix with variances of a few mm^2 (not ROS's "unknown", -1).
-    let covariance: Vec<f64> = result["position_covariance"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_f64().unwrap())
-        .collect();
+    let covariance = floats(&result["position_covariance"]);
     assert_eq!(covariance.len(), 9);
     for i in 0..3 {
         let sigma_mm = covariance[4 * i].sqrt() * 1000.0;
@@ -200,8 +200,7 @@ fn a_cyclone_dds_client_gets_the_fruit_from_alacs_ros_sim() {
     assert_eq!(tf.len(), 1, "{context}");
     assert_eq!(tf[0]["parent"], "alacs_link", "{context}");
     assert_eq!(tf[0]["child"], "alacs_camera_optical_frame", "{context}");
-    let q: Vec<f64> =
-        tf[0]["rotation"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    let q = floats(&tf[0]["rotation"]);
     for (got, want) in q.iter().zip([-0.5, 0.5, -0.5, 0.5]) {
         assert!((got - want).abs() < 1e-9, "{q:?}\n{context}");
     }
@@ -283,12 +282,7 @@ fn a_goal_in_base_link_is_answered_in_base_link_through_tf() {
     assert!(off_mm < 15.0, "{off_mm:.1} mm from the truth in base_link\n{context}");
     // The covariance turned with the frame: base y is the camera's depth,
     // the worst-known axis of a laser scanner.
-    let c: Vec<f64> = result["position_covariance"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_f64().unwrap())
-        .collect();
+    let c = floats(&result["position_covariance"]);
     assert!(c[4] > c[0] && c[4] > c[8], "{c:?}\n{context}");
 }
 

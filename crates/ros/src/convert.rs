@@ -253,25 +253,37 @@ pub(crate) fn rgb_image(image: Image) -> std::result::Result<RgbImage, String> {
         "mono8" => 1,
         other => return Err(format!("image encoding `{other}`: rgb8, bgr8 or mono8 are read")),
     };
-    let row = u64::from(w) * channels;
-    if u64::from(image.step) != row
-        || image.data.len() as u64 != row * u64::from(h)
-        || w == 0
-        || h == 0
-    {
-        return Err(format!(
-            "a {w} x {h} {} image with step {} holds {} bytes",
-            image.encoding,
-            image.step,
-            image.data.len()
-        ));
-    }
+    check_layout(&image, channels, "")?;
     let data = match image.encoding.as_str() {
         "rgb8" => image.data,
         "bgr8" => image.data.chunks_exact(3).flat_map(|p| [p[2], p[1], p[0]]).collect(),
         _ => image.data.iter().flat_map(|&v| [v, v, v]).collect(),
     };
     RgbImage::from_raw(w, h, data).ok_or_else(|| "image size and data disagree".to_string())
+}
+
+/// Checks that `image` holds `bytes_per_pixel` bytes a pixel, rows of its
+/// step, and is not empty; `what` prefixes "image" in the message.
+fn check_layout(
+    image: &Image,
+    bytes_per_pixel: u64,
+    what: &str,
+) -> std::result::Result<(), String> {
+    let (w, h) = (image.width, image.height);
+    let row = u64::from(w) * bytes_per_pixel;
+    if u64::from(image.step) != row
+        || image.data.len() as u64 != row * u64::from(h)
+        || w == 0
+        || h == 0
+    {
+        return Err(format!(
+            "a {w} x {h} {} {what}image with step {} holds {} bytes",
+            image.encoding,
+            image.step,
+            image.data.len()
+        ));
+    }
+    Ok(())
 }
 
 /// A depth Image message aligned to colour (REP 118): `16UC1` (or `mono16`)
@@ -285,19 +297,7 @@ pub(crate) fn depth_image(image: &Image) -> std::result::Result<DepthImage, Stri
             return Err(format!("depth encoding `{other}`: 16UC1 (mm) or 32FC1 (m) are read"));
         }
     };
-    let row = u64::from(w) * bytes;
-    if u64::from(image.step) != row
-        || image.data.len() as u64 != row * u64::from(h)
-        || w == 0
-        || h == 0
-    {
-        return Err(format!(
-            "a {w} x {h} {} depth image with step {} holds {} bytes",
-            image.encoding,
-            image.step,
-            image.data.len()
-        ));
-    }
+    check_layout(image, bytes, "depth ")?;
     let big = image.is_bigendian != 0;
     let bad = || "depth image size and data disagree".to_string();
     if bytes == 2 {
