@@ -1,7 +1,7 @@
 //! The localizer judged per family of simulated scans: found rate, wrong
 //! rate and error percentiles, as docs/ACCURACY.md's table.
 //!
-//! `cargo run --release -p alacs-locate --example families -- [--seeds tune|report] [--n N] [--scale S] [--randomize on|off|both] [--family NAME] [--scans]`
+//! `cargo run --release -p alacs-locate --example families -- [--seeds tune|report] [--n N] [--scale S] [--randomize on|off|both] [--family NAME] [--scans] [--round] [--no-outline]`
 //!
 //! Randomized scans draw, per scan, what real rigs vary in (alacs-sim's
 //! `RigVariation`: laser, light in the flesh, fruit and leaf colours, lens,
@@ -11,7 +11,11 @@
 //! Seeds come from two ranges that never meet: `tune` (the default) for
 //! development, `report` for the table. `--scans` prints every scan's line
 //! and is refused for the reporting range: its single scans are not looked
-//! at while developing. Progress goes to standard error, the table
+//! at while developing; each line splits the error along the line of sight
+//! and across it, with the answer's radius and the outline's image radius
+//! against the truth's. Two switches take a cause out to measure it:
+//! `--round` renders every fruit a sphere, `--no-outline` locates without
+//! the fruit's outline. Progress goes to standard error, the table
 //! (markdown) to standard output.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
@@ -130,7 +134,10 @@ fn main() {
             let mut tally = Tally::default();
             for i in 0..n {
                 let seed = base + f as u64 * FAMILY_STRIDE + i;
-                let (orchard, sun) = (family.options)(i);
+                let (mut orchard, sun) = (family.options)(i);
+                if args.iter().any(|a| a == "--round") {
+                    orchard.max_ellipticity = 0.0;
+                }
                 let options =
                     ScanOptions { orchard, sun, scale, seed, randomize, ..ScanOptions::default() };
                 // A scene the simulator cannot build (a sliver of occlusion
@@ -149,9 +156,12 @@ fn main() {
                     rough_position_mm: scan.rough_position_mm,
                     fruit_radius_mm: truth_radius * spread(seed, 7, 0.87, 1.15),
                 };
-                let answer =
-                    locate(&scan.camera, &scan.laser, &prior, &frames, &LocateOptions::default())
-                        .expect("a simulated scan is valid input");
+                let locate_options = LocateOptions {
+                    use_outline: !args.iter().any(|a| a == "--no-outline"),
+                    ..LocateOptions::default()
+                };
+                let answer = locate(&scan.camera, &scan.laser, &prior, &frames, &locate_options)
+                    .expect("a simulated scan is valid input");
                 let truth = scan.scene.fruit_centre;
                 let error = match (answer.status, answer.position_mm) {
                     (Status::Ok, Some(p)) => Some((p - truth).norm()),
@@ -192,9 +202,29 @@ fn main() {
                                     }
                                 })
                             });
+                            // The error along the line of sight and across it, and the
+                            // answer's radius against the truth's.
+                            let p = answer.position_mm.unwrap_or(truth);
+                            let sight = truth.coords.normalize();
+                            let along = (p - truth).dot(&sight);
+                            let across = ((p - truth) - sight * along).norm();
+                            let radius =
+                                answer.fused.as_ref().map_or(f64::NAN, |f| f.sphere.radius_mm);
+                            // The outline's radius against the true silhouette's, px.
+                            let outline_px = answer
+                                .fused
+                                .as_ref()
+                                .and_then(|f| f.outline.as_ref())
+                                .map_or(f64::NAN, |o| {
+                                    let theta = (truth_radius / truth.coords.norm()).asin();
+                                    o.radius_px - scan.camera.fx_px * theta.tan()
+                                });
                             format!(
-                                "ok {e:6.2} mm (sigma {sigma:.1} mm, {} of its {} points on the fruit): {}",
-                                on_truth.0, on_truth.1, answer.reason
+                                "ok {e:6.2} mm (outline {outline_px:+.2} px, along {along:+.2}, across {across:.2}, radius {:+.1} mm; sigma {sigma:.1} mm, {} of its {} points on the fruit): {}",
+                                radius - truth_radius,
+                                on_truth.0,
+                                on_truth.1,
+                                answer.reason
                             )
                         }
                         None => format!("NOT FOUND: {}", answer.reason),

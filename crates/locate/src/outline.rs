@@ -184,6 +184,58 @@ fn mask_edges(mask: &[bool], area: PixelBox) -> Vec<Edge> {
     edges
 }
 
+/// Pixels on either side of an edge where the fruit's and the neighbour's
+/// own colours are read: beyond the blur of a real lens (0.3-1 px, see
+/// alacs-sim's `RigVariation`), the pixel the edge cuts and the mask's own
+/// offset (up to about a pixel and a half along a row or column where the
+/// silhouette crosses it obliquely).
+const EDGE_SIDE_PX: i32 = 4;
+
+/// Least colour difference (8-bit, Euclidean over RGB) between the two
+/// sides of an edge for the sub-pixel position: below it the sensor's
+/// noise (a few DN) would move the crossing by a pixel.
+const MIN_EDGE_CONTRAST: f64 = 12.0;
+
+/// Where along its axis an edge of the mask lies at half coverage: the
+/// pixels across it are mixtures of the fruit's colour (read
+/// [`EDGE_SIDE_PX`] inside) and its neighbour's (as far outside), and the
+/// silhouette lies where the mixture is half and half. The colour test that
+/// made the mask calls a pixel fruit from a fifth of fruit in it or less
+/// (red over green is a ratio, and a little red lifts it), which puts the
+/// mask's border up to a pixel outside the silhouette. `None` where the
+/// two sides differ too little or the profile does not cross half at least
+/// a pixel and a half from where the two sides are read.
+fn half_coverage_px(images: &[&RgbImage], edge: &Edge) -> Option<Point2<f64>> {
+    let step = edge.outward;
+    // The fruit pixel of the edge; its neighbour is one step outwards.
+    let fruit = edge.at_px - step * 0.5;
+    let colour = |k: i32| -> Option<Vector3<f64>> {
+        let p = fruit + step * f64::from(k);
+        let rgb = least_at_px(images, p.x.round(), p.y.round())?;
+        Some(Vector3::new(f64::from(rgb[0]), f64::from(rgb[1]), f64::from(rgb[2])))
+    };
+    let inside = colour(-EDGE_SIDE_PX)?;
+    let outside = colour(EDGE_SIDE_PX + 1)?;
+    let contrast = inside - outside;
+    if contrast.norm() < MIN_EDGE_CONTRAST {
+        return None;
+    }
+    let coverage =
+        |k: i32| colour(k).map(|c| (c - outside).dot(&contrast) / contrast.norm_squared());
+    let mut best: Option<f64> = None;
+    for k in -EDGE_SIDE_PX..=EDGE_SIDE_PX {
+        let (a, b) = (coverage(k)?, coverage(k + 1)?);
+        if a >= 0.5 && b < 0.5 {
+            let at = f64::from(k) + (a - 0.5) / (a - b);
+            if best.is_none_or(|x| (at - 0.5).abs() < (x - 0.5).abs()) {
+                best = Some(at);
+            }
+        }
+    }
+    let at = best?;
+    ((at - 0.5).abs() <= f64::from(EDGE_SIDE_PX) - 1.5).then(|| fruit + step * at)
+}
+
 /// Circles through edge points whose edges face outwards, for RANSAC.
 struct OutlineEstimator<'a> {
     edges: &'a [Edge],
@@ -239,7 +291,10 @@ pub(crate) fn find_outline(
         return Err("the search region is outside the image".into());
     }
     let mask = fruit_mask(images, area);
-    let edges = mask_edges(&mask, area);
+    let mut edges = mask_edges(&mask, area);
+    for edge in &mut edges {
+        edge.at_px = half_coverage_px(images, edge).unwrap_or(edge.at_px);
+    }
     let estimator = OutlineEstimator {
         points: edges.iter().map(|e| e.at_px).collect(),
         edges: &edges,
@@ -437,6 +492,58 @@ mod tests {
         assert!(!is_fruit_colour([91, 68, 43]), "sunlit bark");
         assert!(!is_fruit_colour([250, 250, 245]), "highlight");
         assert!(!is_fruit_colour([10, 6, 2]), "deep shade");
+    }
+
+    /// A fruit's disk on leaves as a lens images it: each pixel the mixture
+    /// of the two colours by the share of it the disk covers, then a blur.
+    /// The colour test calls a pixel fruit from well under half of it, so
+    /// the mask's border lies outside the silhouette; the edges at half
+    /// coverage put the outline's radius within a tenth of a pixel.
+    #[test]
+    fn the_outline_lies_at_half_coverage_of_a_blurred_silhouette() {
+        let (fruit, leaf) = ([200.0, 60.0, 40.0], [40.0, 95.0, 30.0]);
+        let (cu, cv, radius) = (100.4, 95.7, 40.3);
+        let (w, h) = (200u32, 200u32);
+        let samples = 8;
+        let mut coverage = vec![0.0f64; (w * h) as usize];
+        for v in 0..h {
+            for u in 0..w {
+                let mut inside = 0;
+                for i in 0..samples {
+                    for j in 0..samples {
+                        let x = f64::from(u) - 0.5 + (f64::from(i) + 0.5) / f64::from(samples);
+                        let y = f64::from(v) - 0.5 + (f64::from(j) + 0.5) / f64::from(samples);
+                        inside +=
+                            usize::from((x - cu).powi(2) + (y - cv).powi(2) < radius * radius);
+                    }
+                }
+                coverage[(v * w + u) as usize] = inside as f64 / f64::from(samples * samples);
+            }
+        }
+        // A blur of about half a pixel: [1 2 1] / 4 along each axis.
+        let at = |c: &[f64], u: i64, v: i64| {
+            c[(v.clamp(0, i64::from(h) - 1) * i64::from(w) + u.clamp(0, i64::from(w) - 1)) as usize]
+        };
+        let mut blurred = coverage.clone();
+        for v in 0..i64::from(h) {
+            for u in 0..i64::from(w) {
+                let mut sum = 0.0;
+                for (dv, a) in [(-1, 1.0), (0, 2.0), (1, 1.0)] {
+                    for (du, b) in [(-1, 1.0), (0, 2.0), (1, 1.0)] {
+                        sum += a * b * at(&coverage, u + du, v + dv);
+                    }
+                }
+                blurred[(v * i64::from(w) + u) as usize] = sum / 16.0;
+            }
+        }
+        let image = RgbImage::from_fn(w, h, |u, v| {
+            let a = blurred[(v * w + u) as usize];
+            image::Rgb(std::array::from_fn(|c| (a * fruit[c] + (1.0 - a) * leaf[c]).round() as u8))
+        });
+        let area = PixelBox { u0: 0, v0: 0, u1: w, v1: h };
+        let outline = find_outline(&[&image], area, (20.0, 80.0), |_| true, 1).unwrap();
+        assert!((outline.radius_px - radius).abs() < 0.1, "{} px", outline.radius_px);
+        assert!((outline.centre_px - Point2::new(cu, cv)).norm() < 0.1, "{:?}", outline.centre_px);
     }
 
     #[test]
