@@ -73,6 +73,10 @@ impl std::fmt::Debug for OnnxDetector {
     }
 }
 
+/// Largest model file read, bytes: the largest YOLOv8 export (x, 640 px)
+/// is about 260 MB; a file several times that is not a detector's model.
+pub const MAX_MODEL_BYTES: u64 = 1 << 30;
+
 /// A model's error as bad input naming the file.
 fn bad_model(path: &Path, what: impl std::fmt::Display) -> Error {
     Error::InvalidInput(format!("{}: {what}", path.display()))
@@ -107,6 +111,17 @@ impl OnnxDetector {
         {
             return Err(bad_model(path, "the score and IoU thresholds lie within 0-1"));
         }
+        // A regular file within the limit: tract reads the path itself (an
+        // ONNX file may keep its weights beside it), and a FIFO would block.
+        let file = alacs_model::io::open_input(path)?;
+        if file.metadata().is_ok_and(|m| m.len() > MAX_MODEL_BYTES) {
+            return Err(alacs_model::Error::TooLarge {
+                path: path.to_path_buf(),
+                limit: MAX_MODEL_BYTES,
+            }
+            .into());
+        }
+        drop(file);
         let model = tract_onnx::onnx()
             .model_for_path(path)
             .map_err(|e| bad_model(path, format!("not an ONNX model tract can read: {e}")))?;

@@ -102,3 +102,15 @@ fn models_and_classes_that_do_not_fit_are_refused_naming_the_file() {
     let error = OnnxDetector::load(&not_onnx, OnnxOptions::new(vec!["apple".into()])).unwrap_err();
     assert!(error.is_bad_input() && error.to_string().contains("model.onnx"), "{error}");
 }
+
+#[test]
+fn a_fifo_given_as_the_model_is_refused_without_blocking() {
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("model.onnx");
+    let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+    if !made.is_ok_and(|s| s.success()) {
+        return;
+    }
+    let error = OnnxDetector::load(&fifo, OnnxOptions::new(vec!["apple".into()])).unwrap_err();
+    assert!(error.is_bad_input() && error.to_string().contains("model.onnx"), "{error}");
+}
