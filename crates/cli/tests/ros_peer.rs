@@ -475,34 +475,47 @@ impl RgbdView {
     /// Runs `alacs ros --sim` with `node_args` and rgbd_peer.py with
     /// `peer_args` in a network namespace; the peer's JSON and the logs.
     fn run(&self, python: &str, node_args: &str, peer_args: &str) -> (Value, String) {
-        let node_log = self.dir.join("node.log");
-        let script = format!(
-            "ip link set lo up || exit 90\n\
-             {alacs} ros --sim {scene} --no-images --namespace /alacs_left {node_args} > /dev/null 2> {log} &\n\
-             node=$!\n\
-             {python} {peer} /alacs_left --color {color} --depth {depth} --camera {camera} --timeout 90 {peer_args}\n\
-             peer=$?\n\
-             kill -TERM $node; wait $node\n\
-             exit $peer\n",
-            alacs = q(ALACS),
-            scene = self.scene.join(" "),
-            log = q(node_log.to_str().unwrap()),
+        let peer = format!(
+            "{python} {peer} /alacs_left --color {color} --depth {depth} --camera {camera} --timeout 90 {peer_args}",
             python = q(python),
             peer = q(repo().join("ros/peer/rgbd_peer.py").to_str().unwrap()),
             color = q(self.dir.join("color.png").to_str().unwrap()),
             depth = q(self.dir.join("depth.png").to_str().unwrap()),
             camera = q(self.camera_json.to_str().unwrap()),
         );
-        let output = run_in_namespace(&script);
-        let stdout = String::from_utf8_lossy(&output.stdout);
-        let context = format!(
-            "peer stdout:\n{stdout}\npeer stderr:\n{}\nnode log:\n{}",
-            String::from_utf8_lossy(&output.stderr),
-            std::fs::read_to_string(&node_log).unwrap_or_default()
-        );
-        assert_eq!(output.status.code(), Some(0), "{context}");
+        let (stdout, context) = node_and_peer(&self.dir, self.scene, node_args, &peer);
         (serde_json::from_str(stdout.trim()).unwrap(), context)
     }
+}
+
+/// Runs `alacs ros --sim SCENE --no-images --namespace /alacs_left
+/// {node_args}` (its log in `dir`) and the shell command `peer` in a
+/// network namespace of their own, then stops the node; asserts the peer
+/// exits 0 and gives its standard output and everything for failure
+/// messages.
+fn node_and_peer(dir: &Path, scene: &[&str], node_args: &str, peer: &str) -> (String, String) {
+    let node_log = dir.join("node.log");
+    let script = format!(
+        "ip link set lo up || exit 90\n\
+         {alacs} ros --sim {scene} --no-images --namespace /alacs_left {node_args} > /dev/null 2> {log} &\n\
+         node=$!\n\
+         {peer}\n\
+         peer=$?\n\
+         kill -TERM $node; wait $node\n\
+         exit $peer\n",
+        alacs = q(ALACS),
+        scene = scene.join(" "),
+        log = q(node_log.to_str().unwrap()),
+    );
+    let output = run_in_namespace(&script);
+    let stdout = String::from_utf8_lossy(&output.stdout).into_owned();
+    let context = format!(
+        "peer stdout:\n{stdout}\npeer stderr:\n{}\nnode log:\n{}",
+        String::from_utf8_lossy(&output.stderr),
+        std::fs::read_to_string(&node_log).unwrap_or_default()
+    );
+    assert_eq!(output.status.code(), Some(0), "{context}");
+    (stdout, context)
 }
 
 /// The distance, mm, from a detection's position (m) to `point_mm`.
@@ -608,31 +621,15 @@ fn another_detectors_boxes_on_detections_2d_are_placed_with_the_depth() {
 fn ros2_param_lists_gets_and_sets_the_nodes_parameters() {
     let Some(python) = peer_python() else { return };
     let dir = tempfile::tempdir().unwrap();
-    let node_log = dir.path().join("node.log");
-    let script = format!(
-        "ip link set lo up || exit 90\n\
-         {alacs} ros --sim {scene} --no-images --namespace /alacs_left --ros-args -r __node:=unit \
-           -p rough_depth_error:=0.05 -p detection_classes:=[apple,pear] > /dev/null 2> {log} &\n\
-         node=$!\n\
-         {python} {peer} /alacs_left/unit --set no_images:=false --set rough_lateral_error_mm:=12.5 \
-           --set seed:=5 --set rough_depth_error:=oops --set nope:=1\n\
-         peer=$?\n\
-         kill -TERM $node; wait $node\n\
-         exit $peer\n",
-        alacs = q(ALACS),
-        scene = SCENE.join(" "),
-        log = q(node_log.to_str().unwrap()),
+    let peer = format!(
+        "{python} {peer} /alacs_left/unit --set no_images:=false --set rough_lateral_error_mm:=12.5 \
+         --set seed:=5 --set rough_depth_error:=oops --set nope:=1",
         python = q(&python),
         peer = q(repo().join("ros/peer/param_peer.py").to_str().unwrap()),
     );
-    let output = run_in_namespace(&script);
-    let stdout = String::from_utf8_lossy(&output.stdout);
-    let context = format!(
-        "peer stdout:\n{stdout}\npeer stderr:\n{}\nnode log:\n{}",
-        String::from_utf8_lossy(&output.stderr),
-        std::fs::read_to_string(&node_log).unwrap_or_default()
-    );
-    assert_eq!(output.status.code(), Some(0), "{context}");
+    let node_args =
+        "--ros-args -r __node:=unit -p rough_depth_error:=0.05 -p detection_classes:=[apple,pear]";
+    let (stdout, context) = node_and_peer(dir.path(), &SCENE, node_args, &peer);
     let p: Value = serde_json::from_str(stdout.trim()).unwrap();
     // Every option is a parameter, typed as ROS 2 types it (1 bool,
     // 2 integer, 3 double, 4 string, 9 string array).

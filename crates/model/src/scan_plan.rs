@@ -58,6 +58,14 @@ pub struct ScanPlan {
     pub shifted: bool,
 }
 
+impl ScanPlan {
+    /// The first slide position beyond a stroke of `stroke_mm` (or not
+    /// finite), mm: a slide shorter than the strategy's cannot take it.
+    pub fn first_beyond_stroke(&self, stroke_mm: f64) -> Option<f64> {
+        self.slides_mm.iter().copied().find(|d| !(d.is_finite() && (0.0..=stroke_mm).contains(d)))
+    }
+}
+
 impl ScanStrategy {
     /// The plan for a fruit roughly at `rough_centre_in_camera` with radius
     /// `radius_mm` (a prior: the paper's apples are 35-45 mm).

@@ -261,11 +261,7 @@ pub fn run_job(
         ));
     }
     let captured = {
-        let plan = roughs_mm
-            .iter()
-            .map(|r| controller.rough_in_alacs(r).map(|r| (r, request.fruit_radius_mm)))
-            .collect::<alacs_scanner::Result<Vec<_>>>()
-            .map(|fruit| controller.config().strategy.plan_sweep(&context.laser, &fruit));
+        let plan = controller.plan_targets(&roughs_mm).map(|(plan, _)| plan);
         let watch = Watch {
             cancel,
             laser_on: Cell::new(false),
@@ -311,9 +307,7 @@ fn within_reach(
     roughs_mm
         .iter()
         .filter(|rough| {
-            controller.plan(rough).is_ok_and(|plan| {
-                plan.slides_mm.iter().all(|d| d.is_finite() && (0.0..=stroke_mm).contains(d))
-            })
+            controller.plan(rough).is_ok_and(|plan| plan.first_beyond_stroke(stroke_mm).is_none())
         })
         .copied()
         .collect()

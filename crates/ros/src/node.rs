@@ -193,6 +193,18 @@ where
     }
 }
 
+/// Why no job can start now, for a goal and a `scan_detected` call alike:
+/// one is `running`, or the node is stopping.
+fn cannot_start(running: bool, stop: &AtomicBool) -> Option<String> {
+    if running {
+        Some("busy: one job at a time, and one is running".to_string())
+    } else if stop.load(Ordering::Relaxed) {
+        Some("the node is shutting down".to_string())
+    } else {
+        None
+    }
+}
+
 /// Keeps `image` among the last `capacity` of its stream.
 fn queue(images: &mut VecDeque<Image>, image: Image, capacity: usize) {
     if images.len() >= capacity {
@@ -210,28 +222,30 @@ fn take_boxed(
     depths: &mut VecDeque<Image>,
 ) -> Option<(Detection2DArray, Image, Image)> {
     let (bi, ci, di) = boxes.iter().enumerate().rev().find_map(|(bi, b)| {
-        let stamp = b.header.stamp;
-        let ci = colors.iter().position(|c| c.header.stamp == stamp)?;
-        let di = depths.iter().position(|d| d.header.stamp == stamp)?;
-        Some((bi, ci, di))
+        Some((bi, stamped(colors, b.header.stamp)?, stamped(depths, b.header.stamp)?))
     })?;
-    let found = boxes.drain(..=bi).next_back()?;
-    let color = colors.drain(..=ci).next_back()?;
-    let depth = depths.drain(..=di).next_back()?;
-    Some((found, color, depth))
+    Some((take_through(boxes, bi)?, take_through(colors, ci)?, take_through(depths, di)?))
 }
 
 /// The newest colour and depth images with one stamp, taken out with
 /// everything older (realsense-ros stamps an aligned pair alike).
 fn take_pair(colors: &mut VecDeque<Image>, depths: &mut VecDeque<Image>) -> Option<(Image, Image)> {
-    let stamp = |i: &Image| i.header.stamp;
-    let (ci, di) =
-        colors.iter().enumerate().rev().find_map(|(ci, c)| {
-            depths.iter().position(|d| stamp(d) == stamp(c)).map(|di| (ci, di))
-        })?;
-    let color = colors.drain(..=ci).next_back()?;
-    let depth = depths.drain(..=di).next_back()?;
-    Some((color, depth))
+    let (ci, di) = colors
+        .iter()
+        .enumerate()
+        .rev()
+        .find_map(|(ci, c)| Some((ci, stamped(depths, c.header.stamp)?)))?;
+    Some((take_through(colors, ci)?, take_through(depths, di)?))
+}
+
+/// Where the image stamped `stamp` waits in `images`.
+fn stamped(images: &VecDeque<Image>, stamp: Time) -> Option<usize> {
+    images.iter().position(|i| i.header.stamp == stamp)
+}
+
+/// The entry at `index` of `queue`, taken out with everything older.
+fn take_through<T>(queue: &mut VecDeque<T>, index: usize) -> Option<T> {
+    queue.drain(..=index).next_back()
 }
 
 /// The fruit of one colour and depth pair, with the colour image's header.
@@ -767,12 +781,9 @@ pub fn run_node(
                 goal = server.receive_new_goal().fuse() => {
                     let Ok(handle) = goal else { continue };
                     let Some(goal) = server.get_new_goal(handle.clone()) else { continue };
-                    let request = if running.is_some() {
-                        Err("busy: one goal at a time, and one is running".to_string())
-                    } else if stop.load(Ordering::Relaxed) {
-                        Err("the node is shutting down".to_string())
-                    } else {
-                        job_request(&goal, &frames, &tf_tree)
+                    let request = match cannot_start(running.is_some(), &stop) {
+                        Some(reason) => Err(reason),
+                        None => job_request(&goal, &frames, &tf_tree),
                     };
                     let (request, goal_frame) = match request {
                         Ok(request) => request,
@@ -802,11 +813,7 @@ pub fn run_node(
                 }
                 call = sweep_server.async_receive_request().fuse() => {
                     let Ok((request_id, _)) = call else { continue };
-                    let refusal = if running.is_some() {
-                        Some("busy: one job at a time, and one is running".to_string())
-                    } else if stop.load(Ordering::Relaxed) {
-                        Some("the node is shutting down".to_string())
-                    } else {
+                    let refusal = cannot_start(running.is_some(), &stop).or_else(|| {
                         match &latest_rough {
                             None => Some(match &config.rgbd_ns {
                                 Some(rgbd_ns) => format!("no fruit_rough yet: no colour and depth pair with camera_info has come from {rgbd_ns}"),
@@ -815,7 +822,7 @@ pub fn run_node(
                             Some((_, roughs)) if roughs.is_empty() => Some("the latest fruit_rough holds no fruit".to_string()),
                             Some(_) => None,
                         }
-                    };
+                    });
                     if let Some(reason) = refusal {
                         log(&format!("scan_detected refused: {reason}"));
                         state.summary.rejected += 1;

@@ -178,6 +178,10 @@ impl CapturedScan {
     }
 }
 
+/// A fruit to scan: its rough centre in the ALACS camera's frame and the
+/// radius prior, mm.
+pub type FruitToScan = (Point3<f64>, f64);
+
 impl ScanController {
     /// A controller planning with `laser`; checks the configuration.
     pub fn new(laser: LaserModel, config: ControllerConfig) -> Result<Self> {
@@ -254,6 +258,28 @@ impl ScanController {
         Ok(self.config.strategy.plan(&self.laser, &rough, self.config.fruit_radius_mm))
     }
 
+    /// The sweep's plan for several fruit (rough positions in the RGB-D
+    /// camera's frame, 1 to [`MAX_SCAN_TARGETS`],
+    /// [`ScanStrategy::plan_sweep`]), and each fruit in the ALACS camera's
+    /// frame with the configured radius.
+    pub fn plan_targets(
+        &self,
+        rough_positions_in_rgbd_mm: &[Point3<f64>],
+    ) -> Result<(ScanPlan, Vec<FruitToScan>)> {
+        let n = rough_positions_in_rgbd_mm.len();
+        if !(1..=MAX_SCAN_TARGETS).contains(&n) {
+            return Err(Error::InvalidInput(format!(
+                "{n} rough positions: a scan covers 1-{MAX_SCAN_TARGETS} fruit"
+            )));
+        }
+        let radius_mm = self.config.fruit_radius_mm;
+        let fruit = rough_positions_in_rgbd_mm
+            .iter()
+            .map(|r| self.rough_in_alacs(r).map(|r| (r, radius_mm)))
+            .collect::<Result<Vec<_>>>()?;
+        Ok((self.config.strategy.plan_sweep(&self.laser, &fruit), fruit))
+    }
+
     /// How many images a scan of one fruit captures at most: laser-on and
     /// laser-off frames (a sweep's one laser-off reference frame), and the
     /// metering frames. A metered scene that is not bright takes no
@@ -306,24 +332,10 @@ impl ScanController {
         rough_positions_in_rgbd_mm: &[Point3<f64>],
         mut progress: impl FnMut(usize, usize),
     ) -> Result<CapturedScan> {
-        let n = rough_positions_in_rgbd_mm.len();
-        if !(1..=MAX_SCAN_TARGETS).contains(&n) {
-            return Err(Error::InvalidInput(format!(
-                "{n} rough positions: a scan covers 1-{MAX_SCAN_TARGETS} fruit"
-            )));
-        }
-        let roughs_mm = rough_positions_in_rgbd_mm
-            .iter()
-            .map(|r| self.rough_in_alacs(r))
-            .collect::<Result<Vec<_>>>()?;
-        let radius_mm = self.config.fruit_radius_mm;
-        let fruit: Vec<(Point3<f64>, f64)> = roughs_mm.iter().map(|&r| (r, radius_mm)).collect();
-        let plan = self.config.strategy.plan_sweep(&self.laser, &fruit);
+        let (plan, fruit) = self.plan_targets(rough_positions_in_rgbd_mm)?;
         // The plan fits the strategy's stroke; the slide's may be shorter.
         let stroke_mm = rig.slide.stroke_mm();
-        if let Some(&target_mm) =
-            plan.slides_mm.iter().find(|d| !(d.is_finite() && (0.0..=stroke_mm).contains(*d)))
-        {
+        if let Some(target_mm) = plan.first_beyond_stroke(stroke_mm) {
             return Err(Error::OutOfStroke { step: Some(Step::Planning), target_mm, stroke_mm });
         }
         let captured = match &self.config.mode {
@@ -341,20 +353,20 @@ impl ScanController {
             }
         };
         rig.laser.set(false).map_err(|e| e.at(Step::Finish))?;
-        let more_targets = roughs_mm
+        let more_targets = fruit
             .iter()
             .zip(rough_positions_in_rgbd_mm)
             .skip(1)
-            .map(|(&rough_position_mm, &in_rgbd)| ScanTarget {
+            .map(|(&(rough_position_mm, fruit_radius_mm), &in_rgbd)| ScanTarget {
                 rough_position_mm,
-                fruit_radius_mm: radius_mm,
+                fruit_radius_mm,
                 rough_position_in_rgbd_mm: Some(in_rgbd),
             })
             .collect();
         Ok(CapturedScan {
             rough_position_in_rgbd_mm: rough_positions_in_rgbd_mm[0],
-            rough_position_mm: roughs_mm[0],
-            fruit_radius_mm: radius_mm,
+            rough_position_mm: fruit[0].0,
+            fruit_radius_mm: fruit[0].1,
             more_targets,
             plan,
             frames,
