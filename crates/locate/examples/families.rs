@@ -1,7 +1,7 @@
 //! The localizer judged per family of simulated scans: found rate, wrong
 //! rate and error percentiles, as docs/ACCURACY.md's table.
 //!
-//! `cargo run --release -p alacs-locate --example families -- [--seeds tune|report] [--n N] [--scale S] [--randomize on|off|both] [--family NAME] [--scans] [--round] [--no-outline]`
+//! `cargo run --release -p alacs-locate --example families -- [--seeds tune|report] [--n N] [--scale S] [--randomize on|off|both] [--family NAME] [--scans] [--round] [--no-outline] [--true-calibration]`
 //!
 //! Randomized scans draw, per scan, what real rigs vary in (alacs-sim's
 //! `RigVariation`: laser, light in the flesh, fruit and leaf colours, lens,
@@ -13,9 +13,11 @@
 //! and is refused for the reporting range: its single scans are not looked
 //! at while developing; each line splits the error along the line of sight
 //! and across it, with the answer's radius and the outline's image radius
-//! against the truth's. Two switches take a cause out to measure it:
+//! against the truth's. Three switches take a cause out to measure it:
 //! `--round` renders every fruit a sphere, `--no-outline` locates without
-//! the fruit's outline. Progress goes to standard error, the table
+//! the fruit's outline, `--true-calibration` locates a randomized scan
+//! with the calibration its images were rendered with (no calibration
+//! error). Progress goes to standard error, the table
 //! (markdown) to standard output.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
@@ -160,7 +162,15 @@ fn main() {
                     use_outline: !args.iter().any(|a| a == "--no-outline"),
                     ..LocateOptions::default()
                 };
-                let answer = locate(&scan.camera, &scan.laser, &prior, &frames, &locate_options)
+                // The calibration the localizer is given, or (to measure what
+                // the randomized calibration error costs) the one the images
+                // were rendered with.
+                let (camera, laser) = if args.iter().any(|a| a == "--true-calibration") {
+                    (&scan.rendered_camera, &scan.rendered_laser)
+                } else {
+                    (&scan.camera, &scan.laser)
+                };
+                let answer = locate(camera, laser, &prior, &frames, &locate_options)
                     .expect("a simulated scan is valid input");
                 let truth = scan.scene.fruit_centre;
                 let error = match (answer.status, answer.position_mm) {

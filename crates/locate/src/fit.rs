@@ -349,6 +349,67 @@ mod tests {
         assert!((ellipsoid.tangency_residual(&Vector3::z(), 40.0) + 40.0).abs() < 1e-9);
     }
 
+    /// An elongated fruit seen from the front only, its silhouette's rays
+    /// with a tenth of them edges beside it (a leaf's, 3 mm out): with
+    /// the rays the robust ellipsoid finds the centre the front alone
+    /// leaves to the roundness prior.
+    #[test]
+    fn the_silhouettes_rays_fix_the_depth_semi_axis_despite_stray_edges() {
+        let rotation = nalgebra::Rotation3::from_euler_angles(0.2, 0.6, -0.4);
+        let axes = Vector3::new(43.0, 38.0, 36.0);
+        let truth = Ellipsoid {
+            centre: Point3::new(-30.0, 15.0, 900.0),
+            shape: rotation.matrix()
+                * Matrix3::from_diagonal(&axes.map(|a| 1.0 / (a * a)))
+                * rotation.matrix().transpose(),
+        };
+        let radius = truth.equal_volume_radius_mm();
+        // The front: points whose normal faces the camera well (the stripe
+        // thins out towards the limb).
+        let mut points = Vec::new();
+        for i in 0..30 {
+            for j in 0..30 {
+                let theta = std::f64::consts::PI * i as f64 / 30.0;
+                let phi = std::f64::consts::TAU * j as f64 / 30.0;
+                let body =
+                    Vector3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos());
+                let p = truth.centre + rotation * body.component_mul(&axes);
+                let normal = (truth.shape * (p - truth.centre)).normalize();
+                if normal.dot(&(-p.coords).normalize()) > 0.5 {
+                    points.push(p);
+                }
+            }
+        }
+        // The silhouette: for each azimuth, the ray that touches (bisection
+        // on the tangency residual, negative through the fruit).
+        let sight = truth.centre.coords.normalize();
+        let e1 = sight.cross(&Vector3::y()).normalize();
+        let e2 = sight.cross(&e1);
+        let mut rays = Vec::new();
+        for k in 0..120 {
+            let phi = std::f64::consts::TAU * k as f64 / 120.0;
+            let towards = e1 * phi.cos() + e2 * phi.sin();
+            let ray = |t: f64| (sight + towards * t).normalize();
+            let (mut lo, mut hi) = (0.0, 0.2);
+            for _ in 0..60 {
+                let mid = 0.5 * (lo + hi);
+                if truth.tangency_residual(&ray(mid), radius) < 0.0 { lo = mid } else { hi = mid }
+            }
+            // Every tenth a stray edge 3 mm outside the silhouette.
+            let t = if k % 10 == 0 { lo + 3.0 / truth.centre.coords.norm() } else { lo };
+            rays.push(ray(t));
+        }
+        let sphere = fit_sphere(&points).unwrap();
+        let start = Ellipsoid::from_sphere(&sphere);
+        let rays = Rays { directions: rays, weight: 0.25 };
+        let with_rays = fit_ellipsoid_with_rays(&points, &rays, &start, 0.3, 20.0).unwrap();
+        let front_only = fit_ellipsoid_robust(&points, &sphere, 0.3, 20.0).unwrap();
+        let error = (with_rays.centre - truth.centre).norm();
+        let front_error = (front_only.centre - truth.centre).norm();
+        assert!(error < 0.5, "with the rays {error:.2} mm, the front only {front_error:.2} mm");
+        assert!(front_error > 2.0 * error, "the front only {front_error:.2} mm");
+    }
+
     /// The front of an elongated fruit, as the camera sees it, with a few
     /// stray points 4 mm off: the robust ellipsoid finds the centre, the
     /// sphere does not.
@@ -469,9 +530,10 @@ fn ellipsoid_of(x: &nalgebra::SVector<f64, 9>) -> Ellipsoid {
 /// [`fit_ellipsoid_from`] robust to stray points: iteratively reweighted least
 /// squares with Cauchy weights 1 / (1 + (r / c)^2), c = 3 times the robust
 /// scatter (1.4826 x the median absolute distance, at least `noise_mm` / 2),
-/// from the sphere. A handful of points a few millimetres off the surface
-/// (the stripe's ends at the silhouette, a leaf touching the fruit) would
-/// otherwise pull an ellipsoid, with its extra freedom, far more than a sphere.
+/// from the sphere, on the points and the rays alike. A handful of points a
+/// few millimetres off the surface (the stripe's ends at the silhouette, a
+/// leaf touching the fruit) or edges beside the silhouette would otherwise
+/// pull an ellipsoid, with its extra freedom, far more than a sphere.
 pub fn fit_ellipsoid_robust(
     points: &[Point3<f64>],
     sphere: &Sphere,
@@ -512,8 +574,13 @@ pub fn fit_ellipsoid_with_rays(
         distances.sort_by(f64::total_cmp);
         let median = distances.get(distances.len() / 2).copied().unwrap_or(noise_mm);
         let c = 3.0 * (1.4826 * median).max(0.5 * noise_mm);
-        let weights: Vec<f64> =
-            weights_from.iter().map(|d| 1.0 / (1.0 + (d / c).powi(2))).collect();
+        let cauchy = |d: f64| 1.0 / (1.0 + (d / c).powi(2));
+        let mut weights: Vec<f64> = weights_from.iter().map(|d| cauchy(*d)).collect();
+        // The rays too: an edge of a leaf beside the silhouette is a stray.
+        let radius = ellipsoid.equal_volume_radius_mm();
+        weights.extend(
+            rays.directions.iter().map(|r| cauchy(ellipsoid.tangency_residual(r, radius).abs())),
+        );
         ellipsoid =
             fit_weighted(points, Some(&weights), rays, &ellipsoid, noise_mm, prior_weight_points)?;
     }
@@ -543,7 +610,7 @@ pub fn fit_ellipsoid_from(
 }
 
 /// The Levenberg-Marquardt core of the ellipsoid fits, with optional
-/// per-point weights (on the squared residuals).
+/// weights on the squared residuals: the points' first, then the rays'.
 fn fit_weighted(
     points: &[Point3<f64>],
     weights: Option<&[f64]>,
@@ -569,8 +636,9 @@ fn fit_weighted(
             let weight = weights.and_then(|w| w.get(i)).map_or(1.0, |w| w.sqrt());
             r[i] = weight * e.scaled_residual(p, radius);
         }
-        let ray_weight = rays.weight.max(0.0).sqrt();
         for (k, direction) in rays.directions.iter().enumerate() {
+            let robust = weights.and_then(|w| w.get(points.len() + k)).map_or(1.0, |w| *w);
+            let ray_weight = (rays.weight.max(0.0) * robust).sqrt();
             r[points.len() + k] = ray_weight * e.tangency_residual(direction, radius);
         }
         // |D|_F^2 = d0^2 + d1^2 + (d0 + d1)^2 + 2 (d2^2 + d3^2 + d4^2).

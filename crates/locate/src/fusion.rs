@@ -10,8 +10,8 @@ use image::RgbImage;
 use nalgebra::{Matrix3, Point2, Point3, Vector3};
 
 use crate::fit::{
-    Ellipsoid, Rays, Sphere, SphereEstimator, fit_circle, fit_ellipsoid_robust,
-    fit_ellipsoid_with_rays, line_rms_mm, plane_rms_mm, rms_mm,
+    Ellipsoid, Rays, Sphere, SphereEstimator, fit_circle, fit_ellipsoid_with_rays, line_rms_mm,
+    plane_rms_mm, rms_mm,
 };
 use crate::frame::{
     CURVATURE_SIGNIFICANCE, FrameContext, MIN_NOISE_MM, MIN_POINTS, PlaneFrame, SearchBall,
@@ -19,7 +19,7 @@ use crate::frame::{
 };
 use crate::outline::{
     OUTLINE_WEIGHT, Outline, PixelBox, find_outline, fit_outline_sphere, is_fruit_coloured_at,
-    outline_rays,
+    outline_rays, rays_through, silhouette_edges,
 };
 use crate::{Candidate, FrameResult, FusedFit, Localization, LocateOptions, Status};
 
@@ -109,14 +109,10 @@ pub(crate) fn estimate_fruit(
         outline: if best.source == Source::Outline { outline } else { None },
         outline_refined: false,
     };
-    // The accepted sphere refined by the fruit's outline where the two
-    // agree, to an ellipsoid where that fits clearly better: the silhouette
-    // fixes the semi-axes across the line of sight, which the front's
-    // curvature does not. (An ellipsoid fitted to the laser points alone
-    // follows whatever lies within the band of the sphere, a neighbour's or
-    // a leaf's points as readily as the fruit's.)
-    if options.use_outline && fit.outline.is_none() && best.score.frames >= 2 {
-        fit = refine_with_outline(fit, results, context, views);
+    // The accepted sphere refined to the fruit's ellipsoid by its outline
+    // (two cuts or more: one fixes only a circle).
+    if best.score.frames >= 2 {
+        fit = refine_to_ellipsoid(fit, &evidence, context, views);
     }
     let covariance = crate::uncertainty::position_covariance(&fit, results, options);
     if let Some(cov) = &covariance {
@@ -165,6 +161,105 @@ pub(crate) fn answer_fused(
     answer.reason = note;
     answer.position_cov_mm2 = covariance;
 }
+
+/// The accepted sphere refined to the fruit's ellipsoid (its MAP estimate
+/// under the roundness prior, [`fit_ellipsoid_with_rays`]): the laser
+/// points the sphere explains and, where the fruit's outline is found
+/// around it, the outline's rays that touch the sphere within the fruit's
+/// departure from round. The silhouette shows the semi-axes across the
+/// line of sight and the front's curvature (a^2 / c) then the one along
+/// it, which a sphere fitted to the front takes wrong by the fruit's
+/// elongation. The ellipsoid replaces the sphere where it is an apple's
+/// shape and the same explanation (its centre within the estimator's
+/// rival distance); without the outline's rays the sphere stands, as the
+/// front alone does not fix the depth semi-axis.
+fn refine_to_ellipsoid(
+    fit: FusedFit,
+    evidence: &crate::estimate::Evidence,
+    context: &FrameContext,
+    views: &[&RgbImage],
+) -> FusedFit {
+    use crate::estimate::{RIVAL_DISTANCE, SURFACE_BAND_MM};
+    let (camera, options, sphere) = (context.camera, context.options, fit.sphere);
+    let outline = match fit.outline.clone() {
+        Some(outline) => Some(outline),
+        None if options.use_outline => {
+            let Ok(centre_px) = camera.project(&sphere.centre) else { return fit };
+            let f_px = 0.5 * (camera.fx_px + camera.fy_px);
+            let radius_px = f_px * sphere.radius_mm / sphere.centre.z;
+            let area = PixelBox::around(&centre_px, 1.5 * radius_px + 5.0, camera);
+            find_outline(
+                views,
+                area,
+                (OUTLINE_RADIUS_RANGE.0 * radius_px, OUTLINE_RADIUS_RANGE.1 * radius_px),
+                |c| (c - centre_px).norm() <= radius_px / 3.0,
+                options.seed,
+            )
+            .ok()
+        }
+        None => None,
+    };
+    let Some(outline) = outline else { return fit };
+    // The fruit's departure from round: two standard deviations of a
+    // semi-axis, beyond the surface band.
+    let band = SURFACE_BAND_MM + 2.0 * options.shape_std * sphere.radius_mm;
+    let band_px = band * 0.5 * (camera.fx_px + camera.fy_px) / sphere.centre.z.max(1.0);
+    let directions: Vec<Vector3<f64>> =
+        rays_through(camera, &silhouette_edges(views, &outline, band_px))
+            .into_iter()
+            .filter(|ray| {
+                let c = sphere.centre.coords;
+                ((c - ray * ray.dot(&c)).norm() - sphere.radius_mm).abs() < band
+            })
+            .collect();
+    if directions.len() < MIN_OUTLINE_RAYS {
+        return fit;
+    }
+    let near: Vec<(usize, Point3<f64>)> = evidence
+        .points
+        .iter()
+        .copied()
+        .filter(|(_, p)| sphere.distance_mm(p).abs() < SURFACE_BAND_MM)
+        .collect();
+    let points: Vec<Point3<f64>> = near.iter().map(|(_, p)| *p).collect();
+    let rays = Rays { directions, weight: OUTLINE_WEIGHT };
+    let noise = fit.rms_mm.max(MIN_NOISE_MM);
+    let start = Ellipsoid::from_sphere(&sphere);
+    let Some(ellipsoid) =
+        fit_ellipsoid_with_rays(&points, &rays, &start, noise, ELLIPSOID_PRIOR_POINTS)
+    else {
+        return fit;
+    };
+    let same =
+        (ellipsoid.centre - sphere.centre).norm() <= RIVAL_DISTANCE * context.prior.fruit_radius_mm;
+    if !(same && is_apple_shaped(&ellipsoid)) {
+        return fit;
+    }
+    let on: Vec<usize> = near
+        .iter()
+        .filter(|(_, p)| ellipsoid.distance_mm(p) < options.inlier_threshold_mm)
+        .map(|(k, _)| *k)
+        .collect();
+    let rms = rms_mm(
+        points
+            .iter()
+            .map(|p| ellipsoid.distance_mm(p))
+            .filter(|d| *d < options.inlier_threshold_mm),
+    );
+    FusedFit {
+        ellipsoid: Some(ellipsoid),
+        n_points: on.len(),
+        n_frames: count_frames(&on, 0..on.len()),
+        rms_mm: rms,
+        outline: Some(outline),
+        outline_refined: true,
+        ..fit
+    }
+}
+
+/// Fewest outline rays that refine the sphere to an ellipsoid: a tenth of
+/// a small fruit's silhouette at 1.6 m and half scale (about 20 px round).
+const MIN_OUTLINE_RAYS: usize = 12;
 
 /// The free fit: one robust sphere over every frame's fruit points. Its
 /// checks decide whether it proposes a sphere to [`estimate_fruit`].
@@ -251,19 +346,9 @@ fn fuse(results: &[FrameResult], context: &FrameContext) -> std::result::Result<
     }
     check_sphere_fit(&sphere, &on_sphere, rms, search, options)?;
     check_not_flat(&on_sphere, rms, CURVATURE_SIGNIFICANCE)?;
-    // The ellipsoid replaces the sphere only where it fits clearly better:
-    // on a round fruit its extra freedom only follows the noise. And only
-    // where it is apple-shaped.
-    let ellipsoid =
-        fit_ellipsoid_robust(&on_sphere, &sphere, rms.max(MIN_NOISE_MM), ELLIPSOID_PRIOR_POINTS)
-            .filter(|e| {
-                let ellipsoid_rms = rms_mm(on_sphere.iter().map(|p| e.distance_mm(p)));
-                ellipsoid_rms * ellipsoid_rms < (1.0 - MIN_SSE_REDUCTION) * rms * rms
-                    && is_apple_shaped(e)
-            });
     Ok(FusedFit {
         sphere,
-        ellipsoid,
+        ellipsoid: None,
         n_points: inliers.len(),
         n_frames,
         rms_mm: rms,
@@ -289,11 +374,6 @@ fn is_apple_shaped(ellipsoid: &Ellipsoid) -> bool {
 /// fruit does not fix its depth semi-axis, so the prior decides it; against
 /// a fit's hundred or more laser points, a few tens leave the rest to them.
 const ELLIPSOID_PRIOR_POINTS: f64 = 20.0;
-
-/// The ellipsoid must cut the sum of squared distances by this fraction: on
-/// a round fruit its five extra parameters fit only noise and cut it by a
-/// quarter at most; on a fruit a few per cent from round, by 40 % or more.
-const MIN_SSE_REDUCTION: f64 = 0.3;
 
 /// Every frame's fruit points, with the frame each came from.
 pub(crate) fn fruit_points(results: &[FrameResult]) -> (Vec<Point3<f64>>, Vec<usize>) {
@@ -570,202 +650,12 @@ fn fit_with_this_outline(
     })
 }
 
-/// The accepted sphere refined by the fruit's outline, where the outline
-/// agrees with the laser: a sphere to the outline's sphere and, where it fits
-/// clearly better, to an ellipsoid; an ellipsoid to the outline's
-/// ellipsoid ([`refine_ellipsoid_with_outline`]). The front of a fruit
-/// that is not quite round fixes its curvature radius, not its size: a
-/// sphere fitted to the front of an ellipsoid with semi-axes a, b across
-/// the line of sight and c along it takes the radius (a^2 + b^2) / 2c and
-/// puts the centre about 2 r (mean(e_a, e_b) - e_c) too far or too near
-/// ([`crate::uncertainty`]).
-/// The silhouette is the fruit seen across the line of sight: its rays
-/// touch the fruit at a and b, so the sphere fitted to the laser points and
-/// the outline together ([`fit_outline_sphere`]) errs by about r (mean(e_a,
-/// e_b) - e_c) along the line of sight, half as much. The outline is
-/// searched around the accepted sphere's image (its radius within
-/// [`OUTLINE_RADIUS_RANGE`] of the sphere's, its centre within a third of
-/// the radius); the outline refines the sphere only where the refinement
-/// still holds [`MIN_REFINED_SHARE`] of its points and passes the checks of
-/// every fitted sphere ([`refinement_agrees`]). Where the outline's sphere
-/// does not, but the outline is the accepted sphere's silhouette within
-/// [`MAX_SILHOUETTE_MISMATCH`], the sphere is refined to the outline's
-/// ellipsoid on the same terms (a fruit 13 % from round, whose front and
-/// silhouette no one sphere holds). Else the accepted sphere stands (a
-/// fruit whose silhouette is far from a circle, an outline that took in a
-/// neighbour or lost a part to a leaf).
-fn refine_with_outline(
-    fit: FusedFit,
-    results: &[FrameResult],
-    context: &FrameContext,
-    views: &[&RgbImage],
-) -> FusedFit {
-    let (camera, options) = (context.camera, context.options);
-    let (fit_centre, fit_radius_mm) = match &fit.ellipsoid {
-        Some(e) => (e.centre, e.equal_volume_radius_mm()),
-        None => (fit.sphere.centre, fit.sphere.radius_mm),
-    };
-    let Ok(centre_px) = camera.project(&fit_centre) else { return fit };
-    let f_px = 0.5 * (camera.fx_px + camera.fy_px);
-    let radius_px = f_px * fit_radius_mm / fit_centre.z;
-    let reach_px = 1.5 * radius_px + 5.0;
-    let area = PixelBox::around(&centre_px, reach_px, camera);
-    let Ok(outline) = find_outline(
-        views,
-        area,
-        (OUTLINE_RADIUS_RANGE.0 * radius_px, OUTLINE_RADIUS_RANGE.1 * radius_px),
-        |c| (c - centre_px).norm() <= radius_px / 3.0,
-        options.seed,
-    ) else {
-        return fit;
-    };
-    let (points, frame_of) = fruit_points(results);
-    if let Some(ellipsoid) = fit.ellipsoid {
-        return refine_ellipsoid_with_outline(
-            fit, ellipsoid, outline, &points, &frame_of, context, false,
-        );
-    }
-    let Ok(joint) = fit_outline_sphere(camera, &outline, &points, options.inlier_threshold_mm)
-    else {
-        return fit;
-    };
-    let on_sphere: Vec<Point3<f64>> = joint.inliers.iter().map(|&i| points[i]).collect();
-    if !refinement_agrees(
-        &fit,
-        &joint.sphere,
-        &on_sphere,
-        joint.rms_mm,
-        joint.outline_rms_mm,
-        context,
-    ) {
-        // No sphere holds both; a fruit not quite round may still be one
-        // ellipsoid with its outline, if the outline is the free fit's
-        // silhouette within the fruit's departure from round.
-        if (outline.radius_px / radius_px - 1.0).abs() > MAX_SILHOUETTE_MISMATCH {
-            return fit;
-        }
-        let start = Ellipsoid::from_sphere(&fit.sphere);
-        return refine_ellipsoid_with_outline(
-            fit, start, outline, &points, &frame_of, context, true,
-        );
-    }
-    let refined = FusedFit {
-        sphere: joint.sphere,
-        ellipsoid: None,
-        n_points: joint.inliers.len(),
-        n_frames: count_frames(&frame_of, joint.inliers.iter().copied()),
-        rms_mm: joint.rms_mm,
-        radius_from_prior: false,
-        outline: Some(outline.clone()),
-        outline_refined: true,
-    };
-    let start = Ellipsoid::from_sphere(&joint.sphere);
-    refine_ellipsoid_with_outline(refined, start, outline, &points, &frame_of, context, true)
-}
-
-/// `fit` refined to an ellipsoid by the fruit's outline: the ellipsoid
-/// fitted from `ellipsoid` to the laser points near it and the outline's
-/// rays together ([`fit_ellipsoid_with_rays`]). The front's curvature
-/// radius is a^2 / c and the silhouette shows a and b, so together they
-/// fix the semi-axis c along the line of sight, which the front alone
-/// leaves to the roundness prior. The outline refines `fit` to it on the
-/// sphere's refinement's terms, if apple-shaped ([`MAX_SEMI_AXIS_RATIO`]),
-/// and, where `must_fit_better` (starting from a sphere: the outline's
-/// sphere, whose refinement is already kept, or the accepted sphere, where
-/// the outline's sphere does not refine it), only where it also cuts the
-/// squared residuals of the points and rays by [`MIN_SSE_REDUCTION`], as
-/// the free fit's ellipsoid must: on a round fruit the extra freedom only
-/// follows the outline's whole-pixel edges. Else `fit` stands.
-fn refine_ellipsoid_with_outline(
-    fit: FusedFit,
-    ellipsoid: Ellipsoid,
-    outline: Outline,
-    points: &[Point3<f64>],
-    frame_of: &[usize],
-    context: &FrameContext,
-    must_fit_better: bool,
-) -> FusedFit {
-    let options = context.options;
-    let threshold = options.inlier_threshold_mm;
-    let near: Vec<Point3<f64>> =
-        points.iter().copied().filter(|p| ellipsoid.distance_mm(p) <= threshold).collect();
-    let rays = Rays { directions: outline_rays(context.camera, &outline), weight: OUTLINE_WEIGHT };
-    let noise = fit.rms_mm.max(MIN_NOISE_MM);
-    let Some(joint) =
-        fit_ellipsoid_with_rays(&near, &rays, &ellipsoid, noise, ELLIPSOID_PRIOR_POINTS)
-    else {
-        return fit;
-    };
-    let radius_mm = joint.equal_volume_radius_mm();
-    let outline_rms_mm =
-        rms_mm(rays.directions.iter().map(|r| joint.tangency_residual(r, radius_mm)));
-    let inliers: Vec<usize> =
-        (0..points.len()).filter(|&i| joint.distance_mm(&points[i]) <= threshold).collect();
-    let on_surface: Vec<Point3<f64>> = inliers.iter().map(|&i| points[i]).collect();
-    let rms = rms_mm(on_surface.iter().map(|p| joint.distance_mm(p)));
-    let sphere = Sphere { centre: joint.centre, radius_mm };
-    let agrees = refinement_agrees(&fit, &sphere, &on_surface, rms, outline_rms_mm, context);
-    let cost = |e: &Ellipsoid| {
-        let r = e.equal_volume_radius_mm();
-        near.iter().map(|p| e.distance_mm(p).powi(2)).sum::<f64>()
-            + rays.weight
-                * rays.directions.iter().map(|d| e.tangency_residual(d, r).powi(2)).sum::<f64>()
-    };
-    let better = !must_fit_better || cost(&joint) < (1.0 - MIN_SSE_REDUCTION) * cost(&ellipsoid);
-    if !(agrees && better && is_apple_shaped(&joint)) {
-        return fit;
-    }
-    FusedFit {
-        ellipsoid: Some(joint),
-        n_points: inliers.len(),
-        n_frames: count_frames(frame_of, inliers.iter().copied()),
-        rms_mm: rms,
-        outline: Some(outline),
-        outline_refined: true,
-        ..fit
-    }
-}
-
-/// Whether the outline refines the accepted sphere `fit`: the refinement's
-/// surface (`sphere`, an ellipsoid's centre and equal-volume radius) holds
-/// [`MIN_REFINED_SHARE`] of the fit's points (`on_surface`, scattering
-/// `rms_mm` about it), the outline's rays miss it by at most
-/// [`MAX_OUTLINE_RMS_MM`], its radius is in range and it passes the checks
-/// of every fitted sphere ([`check_sphere_fit`]).
-fn refinement_agrees(
-    fit: &FusedFit,
-    sphere: &Sphere,
-    on_surface: &[Point3<f64>],
-    rms_mm: f64,
-    outline_rms_mm: f64,
-    context: &FrameContext,
-) -> bool {
-    let (lo, hi) = context.radius_range_mm();
-    (on_surface.len() as f64) >= MIN_REFINED_SHARE * fit.n_points as f64
-        && outline_rms_mm <= MAX_OUTLINE_RMS_MM
-        && (lo..=hi).contains(&sphere.radius_mm)
-        && check_sphere_fit(sphere, on_surface, rms_mm, context.search, context.options).is_ok()
-}
-
 /// The radii, as factors of the accepted sphere's image radius, among which
 /// the outline that refines it is searched: a sphere fitted to a fruit's
 /// front takes its curvature radius a^2 / c (semi-axes a across the line of
 /// sight, c along it), so for semi-axes within 8 % of their mean the
 /// silhouette is 0.85-1.17 of the sphere, further with the stripe's noise.
 const OUTLINE_RADIUS_RANGE: (f64, f64) = (0.7, 1.3);
-
-/// Share of the accepted sphere's points the outline's refinement must keep
-/// on its surface: an outline that agrees with the laser keeps nearly all of
-/// them; a silhouette far from a circle, or partly a leaf's, pulls the
-/// surface off the laser's points and loses a sixth or more.
-const MIN_REFINED_SHARE: f64 = 0.9;
-
-/// Where the outline's sphere does not refine the accepted sphere, the
-/// outline may still refine it into an ellipsoid if its radius is within this
-/// fraction of the sphere's silhouette: an apple's semi-axes lie within about
-/// 8 % of their mean; an outline further off took in a neighbour or lost a
-/// part to a leaf.
-const MAX_SILHOUETTE_MISMATCH: f64 = 0.1;
 
 /// Largest RMS distance of the outline's rays from the fitted sphere, mm: a
 /// pixel is about 0.5 mm at 1.2 m, and a fruit 8 % from round departs a few

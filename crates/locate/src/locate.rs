@@ -36,7 +36,7 @@
 //!   is the answer where it beats every other explanation (and the empty
 //!   scene) by a stated margin and its position is known within the
 //!   harvester's tolerance; the fruit's outline then refines it (to an
-//!   ellipsoid where that fits clearly better). Per-frame steps only
+//!   ellipsoid, under a prior that apples are round to a few per cent). Per-frame steps only
 //!   propose and prune. docs/ACCURACY.md judges it per family of scans.
 //!
 //! An answer that does not pass the acceptance test gives `not_found` with

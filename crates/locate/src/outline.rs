@@ -374,9 +374,49 @@ fn ray_through(camera: &Camera, px: &Point2<f64>) -> Option<Vector3<f64>> {
     Some(Vector3::new(n.x, n.y, 1.0).normalize())
 }
 
+/// The silhouette around `outline` where the fruit is not a circle: every
+/// edge of the fruit-coloured pixels (at half coverage) within `band_px`
+/// of the outline's circle whose fruit side faces its centre. An apple's
+/// silhouette departs from a circle by its semi-axes' spread (a few
+/// pixels), more than the circle's own inlier band.
+pub(crate) fn silhouette_edges(
+    images: &[&RgbImage],
+    outline: &Outline,
+    band_px: f64,
+) -> Vec<Point2<f64>> {
+    let (width, height) = images.first().map_or((0, 0), |i| i.dimensions());
+    let reach = outline.radius_px + band_px + f64::from(EDGE_SIDE_PX);
+    let clip = |x: f64, size: u32| x.clamp(0.0, f64::from(size)) as u32;
+    let c = outline.centre_px;
+    let area = PixelBox {
+        u0: clip(c.x - reach, width),
+        v0: clip(c.y - reach, height),
+        u1: clip(c.x + reach + 1.0, width),
+        v1: clip(c.y + reach + 1.0, height),
+    };
+    if area.u1 <= area.u0 + 2 || area.v1 <= area.v0 + 2 {
+        return Vec::new();
+    }
+    let mask = fruit_mask(images, area);
+    mask_edges(&mask, area)
+        .into_iter()
+        .filter_map(|edge| {
+            let at = half_coverage_px(images, &edge).unwrap_or(edge.at_px);
+            let radial = at - c;
+            (radial.dot(&edge.outward) > 0.0 && (radial.norm() - outline.radius_px).abs() < band_px)
+                .then_some(at)
+        })
+        .collect()
+}
+
 /// The rays through the outline's edge points, which touch the fruit.
 pub(crate) fn outline_rays(camera: &Camera, outline: &Outline) -> Vec<Vector3<f64>> {
-    outline.edges_px.iter().filter_map(|px| ray_through(camera, px)).collect()
+    rays_through(camera, &outline.edges_px)
+}
+
+/// The rays through image points `edges_px`.
+pub(crate) fn rays_through(camera: &Camera, edges_px: &[Point2<f64>]) -> Vec<Vector3<f64>> {
+    edges_px.iter().filter_map(|px| ray_through(camera, px)).collect()
 }
 
 /// Weight of the outline's rays against the laser points: the outline is

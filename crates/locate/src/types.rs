@@ -202,12 +202,11 @@ pub struct FusedFit {
     /// and the laser points together: the last resort, or a refinement of
     /// a free fit (`outline_refined`).
     pub outline: Option<Outline>,
-    /// Whether the laser points alone fixed the fit and the outline then
-    /// refined it: the silhouette fixes the semi-axes across the line of
+    /// Whether the outline refined the accepted sphere to the fruit's
+    /// ellipsoid: the silhouette fixes the semi-axes across the line of
     /// sight, which the front of a fruit that is not quite round does not,
-    /// and with the front's curvature the one along it; the refined fit is
-    /// an ellipsoid where that fits clearly better than a sphere
-    /// ([`crate::fusion`]'s `refine_with_outline`).
+    /// and with the front's curvature the one along it
+    /// ([`crate::fusion`]'s `refine_to_ellipsoid`).
     pub outline_refined: bool,
 }
 
