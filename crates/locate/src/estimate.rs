@@ -28,6 +28,12 @@
 //! within [`MAX_POSITION_STD_MM`]. Otherwise the fruit is not found, and
 //! the reason names the rival and the scores.
 //!
+//! **Refine.** Where two frames or more show it, the accepted sphere then
+//! becomes the fruit's ellipsoid by the laser points it explains and its
+//! whole silhouette, under the roundness prior ([`crate::fusion`]'s
+//! `refine_to_ellipsoid`): a sphere fitted to the front of a fruit a few
+//! per cent from round misplaces its centre by the elongation.
+//!
 //! Per-frame steps (the frame's circle, the unlit points) only prune and
 //! propose; no single frame decides.
 

@@ -119,7 +119,7 @@ pub(crate) fn estimate_fruit(
         let worst = cov.symmetric_eigenvalues().max().max(0.0).sqrt();
         if worst > estimate::MAX_POSITION_STD_MM {
             return Err(format!(
-                "the best sphere ({}) is uncertain by {worst:.1} mm along its worst direction, more than {:.0} mm",
+                "the best sphere ({}) is uncertain by {worst:.1} mm along its worst direction, more than {:.1} mm",
                 best.source.describe(),
                 estimate::MAX_POSITION_STD_MM
             ));

@@ -122,22 +122,24 @@ fn hidden(occlusion: f64) -> OrchardOptions {
 }
 
 /// At most 40 % hidden, sun and shade: 12 scans, at least 11 found, none
-/// wrong, median within 2.5 mm and every answer within 5 mm.
+/// wrong, median within issue 40's 1.5 mm and every answer within 3 mm.
 #[test]
 fn family_up_to_two_fifths_hidden() {
     let f = family(110_000, 12, false, |i| hidden(0.4 * i as f64 / 11.0));
-    f.assert_gate("0-40 % hidden", 11, 2.5, 5.0);
+    f.assert_gate("0-40 % hidden", 11, 1.5, 3.0);
 }
 
-/// 60 % hidden: at least five of eight found, none wrong.
+/// 60 % hidden: at least six of eight found (issue 40's bar: 70 %), none
+/// wrong, median within 2.5 mm.
 #[test]
 fn family_three_fifths_hidden() {
     let f = family(120_000, 8, false, |_| hidden(0.6));
-    f.assert_gate("60 % hidden", 5, 4.0, WRONG_MM);
+    f.assert_gate("60 % hidden", 6, 2.5, WRONG_MM);
 }
 
 /// Clusters of 2-4 apples, 30 % hidden, a branch in front of some: at
-/// least six of eight found, none wrong (never a neighbour).
+/// least six of eight found, none wrong (never a neighbour), median within
+/// 3 mm.
 #[test]
 fn family_clusters_never_a_neighbour() {
     let f = family(130_000, 8, false, |i| OrchardOptions {
@@ -145,25 +147,25 @@ fn family_clusters_never_a_neighbour() {
         front_branches: ((i / 3) % 2) as usize,
         ..hidden(0.3)
     });
-    f.assert_gate("clusters", 6, 5.0, WRONG_MM);
+    f.assert_gate("clusters", 6, 3.0, WRONG_MM);
 }
 
 /// With the renderer randomized (laser, light in the flesh, colours, lens,
-/// sensor, calibration error; crates/sim's `RigVariation`): at least half
-/// found, none wrong. Green fruit mostly stays unfound: the stripe's
-/// colour score sees no red line on green skin (docs/ACCURACY.md).
+/// sensor, calibration error; crates/sim's `RigVariation`): at least three
+/// quarters found, none wrong, median within 3 mm (the calibration error
+/// alone moves the answers by about a millimetre, docs/ACCURACY.md).
 #[test]
 fn family_randomized_rigs_are_never_answered_wrong() {
     let f = family(140_000, 12, true, |i| hidden(0.4 * i as f64 / 11.0));
-    f.assert_gate("randomized, 0-40 % hidden", 6, 4.0, WRONG_MM);
+    f.assert_gate("randomized, 0-40 % hidden", 9, 3.0, WRONG_MM);
 }
 
-/// The issue's bar: an unoccluded fruit at 0.6-1.2 m within 4 mm in 3-D,
+/// Issue 40's bar: an unoccluded fruit at 0.6-1.2 m within 3 mm in 3-D,
 /// spherical or slightly ellipsoidal. Scans whose plan had to be shifted
 /// into the slide's stroke (the fruit at the edge of the scanner's reach,
 /// so the laser never crosses its left half) are not part of the claim.
 #[test]
-fn unoccluded_fruit_within_4_mm() {
+fn unoccluded_fruit_within_3_mm() {
     let mut checked = 0;
     for (seed, ellipticity) in [(0, 0.0), (1, 0.0), (2, 0.08), (3, 0.08), (4, 0.08), (5, 0.08)] {
         let sim = scan(ScanOptions {
@@ -179,7 +181,7 @@ fn unoccluded_fruit_within_4_mm() {
         assert_eq!(answer.status, Status::Ok, "seed {seed}: {}", answer.reason);
         let error = error_mm(scan, &answer).unwrap();
         eprintln!("seed {seed} ellipticity {ellipticity}: {error:.2} mm");
-        assert!(error < 4.0, "seed {seed}: {error:.2} mm");
+        assert!(error < 3.0, "seed {seed}: {error:.2} mm");
         let radius = answer.radius_mm.unwrap();
         assert!((radius - scan.scene.fruit_radius_mm).abs() < 3.0, "seed {seed}: radius {radius}");
         checked += 1;
@@ -218,7 +220,7 @@ fn a_slide_with_a_scale_error_is_located_with_its_k() {
             slides[slides.len() - 1],
             error_mm(&sim.scan, &held)
         );
-        assert!(error < 4.0, "seed {seed}: {error:.2} mm");
+        assert!(error < 3.0, "seed {seed}: {error:.2} mm");
         checked += 1;
     }
     assert!(checked >= 2, "only {checked} scans reached the fruit");
