@@ -1,6 +1,6 @@
 //! The fruit's outline in the image, and a sphere fitted to it and to the
 //! laser points together: a hypothesis for the estimator
-//! ([`crate::estimate`]), which matters most where the laser shows too
+//! (the `estimate` module), which matters most where the laser shows too
 //! little of a fruit (mostly hidden, or in the laser's shadow) for a fit
 //! from the laser alone, and a refinement of the accepted sphere where the
 //! two agree (the silhouette fixes the fruit's size across the line of

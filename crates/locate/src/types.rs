@@ -206,7 +206,7 @@ pub struct FusedFit {
     /// ellipsoid: the silhouette fixes the semi-axes across the line of
     /// sight, which the front of a fruit that is not quite round does not,
     /// and with the front's curvature the one along it
-    /// ([`crate::fusion`]'s `refine_to_ellipsoid`).
+    /// (`fusion::refine_to_ellipsoid`).
     pub outline_refined: bool,
 }
 

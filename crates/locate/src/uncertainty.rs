@@ -4,7 +4,7 @@
 //! 1. The fit's noise: sigma^2 (J^T J)^-1 of the sphere's centre over the
 //!    fruit points on it (J the derivative of each point's distance from
 //!    the sphere by the centre and, where it was fitted, the radius;
-//!    sigma^2 their mean squared distance, at least [`MIN_NOISE_MM`]^2).
+//!    sigma^2 their mean squared distance, at least `MIN_NOISE_MM`^2).
 //! 2. The fruit's shape: an apple is not a sphere. Its semi-axes differ
 //!    from its mean radius r by a relative standard deviation s
 //!    ([`LocateOptions::shape_std`], default 5 %: apples' height over
@@ -31,7 +31,7 @@
 //! 3. The radius, where one cut cannot fix it and the radius prior does:
 //!    the centre moves with the radius as the fit at a fixed radius says,
 //!    `dc/dR = (J^T J)^-1 J^T 1`, times the prior's standard deviation
-//!    ([`crate::estimate`]'s `RADIUS_PRIOR_STD`). For one cut, a circle of
+//!    (`estimate`'s `RADIUS_PRIOR_STD`). For one cut, a circle of
 //!    radius a, that is `R / sqrt(R^2 - a^2)` along the laser plane's
 //!    normal: a cut near the fruit's middle leaves its depth across the
 //!    plane unknown however well the circle is measured.
@@ -43,7 +43,7 @@
 //!    points do not average them away. Each frame's cut gets an offset, a
 //!    tilt and a bend along the stripe (Legendre polynomials 1, t,
 //!    (3t^2 - 1) / 2 of the position along it), each with the standard
-//!    deviation [`SYSTEMATIC_STRIPE_MM`], carried to the centre by the
+//!    deviation `SYSTEMATIC_STRIPE_MM`, carried to the centre by the
 //!    fit's sensitivity `(J^T J)^-1 J^T q`. A long arc barely moves; a
 //!    short one, whose bend is the only thing that says where its centre
 //!    lies, moves by many millimetres.
