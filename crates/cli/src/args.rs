@@ -753,6 +753,14 @@ pub struct SceneArgs {
     /// Render the camera resized by this factor (camera.yaml holds the resized camera).
     #[arg(long, value_name = "F", default_value_t = 1.0, value_parser = positive_up_to(alacs::sim::MAX_SCALE))]
     pub scale: f64,
+    /// Draw from the seed what real rigs and fruit vary in: the laser's
+    /// width and power, light in the flesh, fruit and leaf colours, lens
+    /// blur, sensor noise, exposure, the calibration's error and the rough
+    /// position's (docs/ACCURACY.md lists the ranges). The images show the
+    /// drawn rig; camera.yaml and laser.yaml hold the calibration the
+    /// localizer is given, truth.json what was drawn.
+    #[arg(long)]
+    pub randomize: bool,
 }
 
 /// The truth a simulator renders with.

@@ -899,3 +899,25 @@ fn help_points_to_the_built_in_contract_and_groups_the_simulator() {
     assert!(text.contains("## Exit codes") || text.contains("exit code"), "{}", &text[..200]);
     assert!(text.contains("scan.yaml") && text.contains("laser.yaml"));
 }
+
+/// `--randomize` draws the rig from the seed: truth.json records what was
+/// drawn, the folder holds the calibration the localizer is given (not the
+/// drawn one), and the same seed draws the same rig.
+#[test]
+fn simulate_scan_randomize_records_the_drawn_rig_in_truth_json() {
+    let dir = scratch("randomize");
+    let truth_of = |name: &str, extra: &str| -> Value {
+        let out = dir.join(name);
+        let template = format!("simulate scan --seed 5 --scale 0.25 {extra} --out {{}} --json");
+        let output = alacs(&cmdline(&template, &[&out]));
+        assert!(output.status.success(), "{}", stderr(&output));
+        serde_json::from_str(&std::fs::read_to_string(out.join("truth.json")).unwrap()).unwrap()
+    };
+    let drawn = truth_of("a", "--randomize");
+    let variation = &drawn["variation"];
+    for key in ["fruit_colour", "stripe_sigma_px", "blur_sigma_px", "alpha_error_deg"] {
+        assert!(variation.get(key).is_some(), "missing {key} in {variation}");
+    }
+    assert_eq!(truth_of("b", "--randomize")["variation"], *variation, "one seed, one rig");
+    assert!(truth_of("c", "").get("variation").is_none(), "a fixed renderer draws nothing");
+}

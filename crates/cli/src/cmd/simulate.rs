@@ -114,6 +114,7 @@ impl SceneArgs {
             scale: self.scale,
             neighbours_as_targets: self.all_targets,
             seed: self.seed,
+            randomize: self.randomize,
             ..defaults
         })
     }
