@@ -218,8 +218,7 @@ fn main() {
                             let sight = truth.coords.normalize();
                             let along = (p - truth).dot(&sight);
                             let across = ((p - truth) - sight * along).norm();
-                            let radius =
-                                answer.fused.as_ref().map_or(f64::NAN, |f| f.sphere.radius_mm);
+                            let radius = answer.radius_mm.unwrap_or(f64::NAN);
                             // The outline's radius against the true silhouette's, px.
                             let outline_px = answer
                                 .fused

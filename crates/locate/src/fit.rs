@@ -530,10 +530,10 @@ fn ellipsoid_of(x: &nalgebra::SVector<f64, 9>) -> Ellipsoid {
 /// [`fit_ellipsoid_from`] robust to stray points: iteratively reweighted least
 /// squares with Cauchy weights 1 / (1 + (r / c)^2), c = 3 times the robust
 /// scatter (1.4826 x the median absolute distance, at least `noise_mm` / 2),
-/// from the sphere, on the points and the rays alike. A handful of points a
-/// few millimetres off the surface (the stripe's ends at the silhouette, a
-/// leaf touching the fruit) or edges beside the silhouette would otherwise
-/// pull an ellipsoid, with its extra freedom, far more than a sphere.
+/// from the sphere. A handful of points a few millimetres off the surface
+/// (the stripe's ends at the silhouette, a leaf touching the fruit) would
+/// otherwise pull an ellipsoid, with its extra freedom, far more than a
+/// sphere.
 pub fn fit_ellipsoid_robust(
     points: &[Point3<f64>],
     sphere: &Sphere,
@@ -556,7 +556,9 @@ pub struct Rays {
 }
 
 /// [`fit_ellipsoid_robust`] from an ellipsoid `start`, with rays that touch
-/// the fruit: the outline fixes the fruit's size across the line of sight,
+/// the fruit, robust on the rays too (Cauchy weights on their own scale:
+/// an edge beside the silhouette is a stray): the outline fixes the
+/// fruit's size across the line of sight,
 /// and with it the laser's curvature of the front fixes the depth
 /// semi-axis that neither sees alone (the front's curvature radius is
 /// a^2 / c).
@@ -574,13 +576,19 @@ pub fn fit_ellipsoid_with_rays(
         distances.sort_by(f64::total_cmp);
         let median = distances.get(distances.len() / 2).copied().unwrap_or(noise_mm);
         let c = 3.0 * (1.4826 * median).max(0.5 * noise_mm);
-        let cauchy = |d: f64| 1.0 / (1.0 + (d / c).powi(2));
-        let mut weights: Vec<f64> = weights_from.iter().map(|d| cauchy(*d)).collect();
-        // The rays too: an edge of a leaf beside the silhouette is a stray.
+        let cauchy = |d: f64, c: f64| 1.0 / (1.0 + (d / c).powi(2));
+        let mut weights: Vec<f64> = weights_from.iter().map(|d| cauchy(*d, c)).collect();
+        // The rays too, on a scale of their own (a sphere fitted to a fruit's
+        // front misses its silhouette by millimetres, every ray alike): an
+        // edge of a leaf beside the silhouette is a stray.
         let radius = ellipsoid.equal_volume_radius_mm();
-        weights.extend(
-            rays.directions.iter().map(|r| cauchy(ellipsoid.tangency_residual(r, radius).abs())),
-        );
+        let misses: Vec<f64> =
+            rays.directions.iter().map(|r| ellipsoid.tangency_residual(r, radius).abs()).collect();
+        let mut sorted = misses.clone();
+        sorted.sort_by(f64::total_cmp);
+        let median = sorted.get(sorted.len() / 2).copied().unwrap_or(noise_mm);
+        let c_rays = 3.0 * (1.4826 * median).max(0.5 * noise_mm);
+        weights.extend(misses.iter().map(|d| cauchy(*d, c_rays)));
         ellipsoid =
             fit_weighted(points, Some(&weights), rays, &ellipsoid, noise_mm, prior_weight_points)?;
     }

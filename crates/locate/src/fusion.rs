@@ -134,7 +134,7 @@ pub(crate) fn estimate_fruit(
         if fit.ellipsoid.is_some() { "ellipsoid" } else { "sphere" },
         fit.n_points,
         fit.n_frames,
-        rms,
+        fit.rms_mm,
         best.source.describe(),
         best.score.missing,
         best.score.predicted
@@ -171,8 +171,9 @@ pub(crate) fn answer_fused(
 /// it, which a sphere fitted to the front takes wrong by the fruit's
 /// elongation. The ellipsoid replaces the sphere where it is an apple's
 /// shape and the same explanation (its centre within the estimator's
-/// rival distance); without the outline's rays the sphere stands, as the
-/// front alone does not fix the depth semi-axis.
+/// rival distance, [`MIN_KEPT_SHARE`] of the sphere's points kept);
+/// without the outline's rays the sphere stands, as the front alone does
+/// not fix the depth semi-axis.
 fn refine_to_ellipsoid(
     fit: FusedFit,
     evidence: &crate::estimate::Evidence,
@@ -181,6 +182,10 @@ fn refine_to_ellipsoid(
 ) -> FusedFit {
     use crate::estimate::{RIVAL_DISTANCE, SURFACE_BAND_MM};
     let (camera, options, sphere) = (context.camera, context.options, fit.sphere);
+    // A sphere that came from the outline keeps it as its source: the
+    // ellipsoid then refines it, but the laser saw too little of the fruit
+    // for the outline to be a refinement of what it saw.
+    let from_outline = fit.outline.is_some();
     let outline = match fit.outline.clone() {
         Some(outline) => Some(outline),
         None if options.use_outline => {
@@ -230,8 +235,12 @@ fn refine_to_ellipsoid(
     else {
         return fit;
     };
-    let same =
-        (ellipsoid.centre - sphere.centre).norm() <= RIVAL_DISTANCE * context.prior.fruit_radius_mm;
+    // The same explanation: near the sphere, and on the laser points the
+    // sphere was accepted for.
+    let kept = points.iter().filter(|p| ellipsoid.distance_mm(p) < SURFACE_BAND_MM).count();
+    let same = (ellipsoid.centre - sphere.centre).norm()
+        <= RIVAL_DISTANCE * context.prior.fruit_radius_mm
+        && kept as f64 >= MIN_KEPT_SHARE * points.len() as f64;
     if !(same && is_apple_shaped(&ellipsoid)) {
         return fit;
     }
@@ -252,14 +261,22 @@ fn refine_to_ellipsoid(
         n_frames: count_frames(&on, 0..on.len()),
         rms_mm: rms,
         outline: Some(outline),
-        outline_refined: true,
+        outline_refined: !from_outline,
         ..fit
     }
 }
 
-/// Fewest outline rays that refine the sphere to an ellipsoid: a tenth of
-/// a small fruit's silhouette at 1.6 m and half scale (about 20 px round).
+/// Fewest silhouette rays that refine the sphere to an ellipsoid: the
+/// edges of a few pixels of outline (a small fruit at 1.6 m and half scale
+/// is about 20 px round, 160 edges), too few to show its shape below this.
 const MIN_OUTLINE_RAYS: usize = 12;
+
+/// Share of the sphere's laser points the ellipsoid must keep on its
+/// surface: the refinement moves the surface by the fruit's departure from
+/// round (a millimetre or two), which keeps nearly all of them; an
+/// ellipsoid that pulled off a tenth followed a leaf's or a neighbour's
+/// edge in the silhouette, not the fruit.
+const MIN_KEPT_SHARE: f64 = 0.9;
 
 /// The free fit: one robust sphere over every frame's fruit points. Its
 /// checks decide whether it proposes a sphere to [`estimate_fruit`].

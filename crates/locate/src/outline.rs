@@ -2,10 +2,9 @@
 //! laser points together: a hypothesis for the estimator
 //! (the `estimate` module), which matters most where the laser shows too
 //! little of a fruit (mostly hidden, or in the laser's shadow) for a fit
-//! from the laser alone, and a refinement of the accepted sphere where the
-//! two agree (the silhouette fixes the fruit's size across the line of
-//! sight; [`crate::fit::fit_ellipsoid_with_rays`] takes its rays for an
-//! ellipsoid).
+//! from the laser alone; and the silhouette that refines the accepted
+//! sphere to the fruit's ellipsoid ([`crate::fit::fit_ellipsoid_with_rays`]
+//! takes its rays: it fixes the fruit's size across the line of sight).
 //!
 //! 1. **Fruit colour.** The frames of a scan share one view, and the laser
 //!    only adds light, so the per-pixel minimum over the frames is the view
@@ -41,8 +40,9 @@ pub struct Outline {
     pub centre_px: Point2<f64>,
     /// Radius of the outline's circle, pixels.
     pub radius_px: f64,
-    /// The edge points on the circle, pixels (between a fruit-coloured
-    /// pixel and its neighbour).
+    /// The edge points on the circle, pixels: where the pixels across an
+    /// edge of the fruit-coloured ones are half fruit (up to 2.5 px from
+    /// the border of the colour mask).
     pub edges_px: Vec<Point2<f64>>,
     /// Fraction of the circle's circumference the edges cover.
     pub support: f64,

@@ -60,9 +60,10 @@ pub struct LocateOptions {
     /// and in each of two of them (a fruit behind leaves and in the laser's
     /// shadow shows part of them, a chance fit to clutter few).
     pub min_coverage: f64,
-    /// When the laser alone cannot fix the fruit, fit a sphere to the
-    /// fruit's outline in the image and the laser points together
-    /// ([`crate::outline`]).
+    /// Use the fruit's outline in the image: a sphere fitted to it and the
+    /// laser points together (for a fruit the laser alone cannot fix), and
+    /// the silhouette that refines the accepted sphere to the fruit's
+    /// ellipsoid ([`crate::outline`]).
     pub use_outline: bool,
     /// Relative standard deviation of a fruit's semi-axes about its mean
     /// radius (apples: about 5 %), for the position covariance: the depth
@@ -184,8 +185,8 @@ pub struct FrameResult {
 pub struct FusedFit {
     /// The sphere, camera frame, mm.
     pub sphere: Sphere,
-    /// The ellipsoid refined from the sphere, or fitted to the laser
-    /// points and the fruit's outline together (its centre is the answer).
+    /// The ellipsoid the fruit's silhouette and the laser points refined
+    /// the sphere to (its centre is the answer).
     pub ellipsoid: Option<Ellipsoid>,
     /// Points on it.
     pub n_points: usize,
@@ -196,11 +197,12 @@ pub struct FusedFit {
     /// shadow shows short arcs, which fix a centre for a known radius but
     /// not the radius itself).
     pub radius_from_prior: bool,
-    /// RMS distance of the points from the sphere, mm.
+    /// RMS distance of the points from the fit (the ellipsoid where there
+    /// is one), mm.
     pub rms_mm: f64,
-    /// The fruit's outline in the image, when the sphere was fitted to it
-    /// and the laser points together: the last resort, or a refinement of
-    /// a free fit (`outline_refined`).
+    /// The fruit's outline in the image: the sphere's source, where it was
+    /// fitted to the outline and the laser points together, or the
+    /// accepted sphere's refinement (`outline_refined`).
     pub outline: Option<Outline>,
     /// Whether the outline refined the accepted sphere to the fruit's
     /// ellipsoid: the silhouette fixes the semi-axes across the line of

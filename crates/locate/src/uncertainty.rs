@@ -18,16 +18,15 @@
 //!    (E[sin^2 t cos^2 t] = 2/15 over random tilts): 16/15 (s r)^2 across,
 //!    the two directions together, which is applied to each, a factor of
 //!    two on the large side (a real apple's semi-axes and tilt are not the
-//!    random ones of this argument). Where an ellipsoid replaced the
-//!    sphere, its depth semi-axis comes from the roundness prior, and the
-//!    error is the unseen semi-axis against the mean of the two seen: 3/2
-//!    (s r)^2 along, 4/15 across; the same where the fruit's outline
-//!    refined the fit (its rays fix the two semi-axes across the line of
-//!    sight, and with the front's curvature the one along it: this errs
-//!    on the large side, the measured mean squared distance is 1.0, not
-//!    3). A fruit that needed a fallback (the prior's radius, the
-//!    outline) is not seen from limb to limb, and gets the along-sight
-//!    variance across it too.
+//!    random ones of this argument). Where the fruit's outline refined the
+//!    sphere to an ellipsoid (its rays fix the two semi-axes across the
+//!    line of sight, and with the front's curvature the one along it), the
+//!    variance taken is that of an ellipsoid whose depth semi-axis only
+//!    the roundness prior knew, the unseen semi-axis against the mean of
+//!    the two seen: 3/2 (s r)^2 along, 4/15 across, on the large side. A
+//!    fruit that needed a fallback (the prior's radius, a sphere from the
+//!    outline) is not seen from limb to limb, and gets the sphere's
+//!    along-sight variance in every direction.
 //! 3. The radius, where one cut cannot fix it and the radius prior does:
 //!    the centre moves with the radius as the fit at a fixed radius says,
 //!    `dc/dR = (J^T J)^-1 J^T 1`, times the prior's standard deviation
@@ -104,11 +103,17 @@ pub(crate) fn position_covariance(
     let sight: Vector3<f64> = centre.coords.try_normalize(1e-9)?;
     let along = sight * sight.transpose();
     let shape = (options.shape_std * radius).powi(2);
-    let (along_shape, across_shape) =
-        if fit.ellipsoid.is_some() || fit.outline_refined { ELLIPSOID_SHAPE } else { SPHERE_SHAPE };
-    // A fruit that needed a fallback is not seen from limb to limb.
+    // A fruit that needed a fallback (one cut, or a sphere from the outline
+    // where the laser saw too little) is not seen from limb to limb: the
+    // sphere's along-sight variance, in every direction, whatever refined it.
     let fallback = fit.radius_from_prior || (fit.outline.is_some() && !fit.outline_refined);
-    let across_shape = if fallback { along_shape } else { across_shape };
+    let (along_shape, across_shape) = if fallback {
+        (SPHERE_SHAPE.0, SPHERE_SHAPE.0)
+    } else if fit.ellipsoid.is_some() || fit.outline_refined {
+        ELLIPSOID_SHAPE
+    } else {
+        SPHERE_SHAPE
+    };
     let across = Matrix3::identity() - along;
     let mut covariance = fit_part + (across * across_shape + along * along_shape) * shape;
     if fit.radius_from_prior {

@@ -153,7 +153,7 @@ fn family_clusters_never_a_neighbour() {
 /// With the renderer randomized (laser, light in the flesh, colours, lens,
 /// sensor, calibration error; crates/sim's `RigVariation`): at least three
 /// quarters found, none wrong, median within 3 mm (the calibration error
-/// alone moves the answers by about a millimetre, docs/ACCURACY.md).
+/// alone adds half a millimetre to a millimetre, docs/ACCURACY.md).
 #[test]
 fn family_randomized_rigs_are_never_answered_wrong() {
     let f = family(140_000, 12, true, |i| hidden(0.4 * i as f64 / 11.0));

@@ -59,8 +59,8 @@ pub struct ScanPlan {
 }
 
 impl ScanPlan {
-    /// The first slide position beyond a stroke of `stroke_mm` (or not
-    /// finite), mm: a slide shorter than the strategy's cannot take it.
+    /// The first slide position outside `0..=stroke_mm` (or not finite),
+    /// mm: a slide shorter than the strategy's cannot take it.
     pub fn first_beyond_stroke(&self, stroke_mm: f64) -> Option<f64> {
         self.slides_mm.iter().copied().find(|d| !(d.is_finite() && (0.0..=stroke_mm).contains(d)))
     }

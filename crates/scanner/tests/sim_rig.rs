@@ -387,12 +387,8 @@ fn a_continuous_sweep_localizes_as_stop_and_go_does_in_less_time() {
         assert_localized(&scan, &scene);
         // As accurate as the stop-and-go frames: no more than 1 mm worse
         // (the frames stand up to 0.5 mm from the plan's positions and have
-        // their own noise; measured 3.72 against 3.22 mm from 0 mm, 3.19
-        // against 3.22 mm from 200 mm, before the fruit's outline refined
-        // the sphere; at stop 30, 1.36 against 3.22 mm from 0 mm: the
-        // moving frames' sphere agreed with the outline, the standing ones'
-        // was an ellipsoid, which the outline did not refine then).
-        // Over 20 scans the medians agree (the `scan_modes` example).
+        // their own noise). Over 20 scans the medians agree (the
+        // `scan_modes` example).
         let error = |scan: &CapturedScan| {
             (localize(scan, &scene).position_mm.unwrap() - scene.scene.fruit_centre).norm()
         };

@@ -52,7 +52,8 @@ fn build_scene(scene: &SceneArgs) -> CmdResult<Arc<SimulatedScan>> {
 /// Opens the rig of `args`: the simulated rig (`--sim`) or rig.toml's
 /// (`--rig`), whose "sim" devices show the simulated scene. The camera
 /// and laser are `--camera` / `--laser`, else (with a simulated camera)
-/// the simulation's true ones. `note` prints what the user should know.
+/// the simulation's (its true ones, or with `--randomize` the nominal ones
+/// the drawn rig is off). `note` prints what the user should know.
 pub fn open(args: &RigArgs, note: &mut dyn FnMut(&str)) -> CmdResult<OpenRig> {
     let config = match (&args.rig_file, args.sim) {
         (Some(path), _) => Some(RigConfig::from_file(path)?),

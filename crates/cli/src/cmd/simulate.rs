@@ -286,6 +286,11 @@ pub fn scan(args: &SimulateScanArgs) -> CmdResult {
 
 /// Runs `alacs simulate rgbd`.
 pub fn rgbd(args: &SimulateRgbdArgs) -> CmdResult {
+    if args.scene.randomize {
+        return Err(Failure::bad_input(anyhow!(
+            "--randomize draws the laser scanner's rig; the RGB-D camera's view is rendered without it"
+        )));
+    }
     let options = args.scene.options()?;
     let alacs_from_rgbd = crate::cmd::scan::parse_pose(&args.alacs_from_rgbd)?;
     let bar = output::progress_bar(args.json, "building the scene");
