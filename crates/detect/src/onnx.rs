@@ -113,15 +113,7 @@ impl OnnxDetector {
         }
         // A regular file within the limit: tract reads the path itself (an
         // ONNX file may keep its weights beside it), and a FIFO would block.
-        let file = alacs_model::io::open_input(path)?;
-        if file.metadata().is_ok_and(|m| m.len() > MAX_MODEL_BYTES) {
-            return Err(alacs_model::Error::TooLarge {
-                path: path.to_path_buf(),
-                limit: MAX_MODEL_BYTES,
-            }
-            .into());
-        }
-        drop(file);
+        drop(alacs_model::io::open_bounded(path, MAX_MODEL_BYTES)?);
         let model = tract_onnx::onnx()
             .model_for_path(path)
             .map_err(|e| bad_model(path, format!("not an ONNX model tract can read: {e}")))?;

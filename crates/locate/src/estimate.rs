@@ -327,7 +327,7 @@ fn crosses(sphere: &Sphere, from: &Point3<f64>, point: &Point3<f64>) -> bool {
 
 /// The distance of `centre` from the line through the camera along `ray`
 /// (a unit vector), mm.
-fn ray_distance_mm(centre: &Point3<f64>, ray: &Vector3<f64>) -> f64 {
+pub(crate) fn ray_distance_mm(centre: &Point3<f64>, ray: &Vector3<f64>) -> f64 {
     (centre.coords - ray * ray.dot(&centre.coords)).norm()
 }
 

@@ -349,6 +349,34 @@ mod tests {
         assert!((ellipsoid.tangency_residual(&Vector3::z(), 40.0) + 40.0).abs() < 1e-9);
     }
 
+    /// The ellipsoid of semi-axes `axes` turned by `rotation` about `centre`.
+    fn rotated_ellipsoid(
+        centre: Point3<f64>,
+        rotation: &nalgebra::Rotation3<f64>,
+        axes: &Vector3<f64>,
+    ) -> Ellipsoid {
+        let shape = rotation.matrix()
+            * Matrix3::from_diagonal(&axes.map(|a| 1.0 / (a * a)))
+            * rotation.matrix().transpose();
+        Ellipsoid { centre, shape }
+    }
+
+    /// Points on `truth` (of semi-axes `axes` turned by `rotation`) on an
+    /// `n` x `n` grid of polar and azimuth angles, numbered row by row.
+    fn surface_grid<'a>(
+        truth: &'a Ellipsoid,
+        rotation: &'a nalgebra::Rotation3<f64>,
+        axes: &'a Vector3<f64>,
+        n: usize,
+    ) -> impl Iterator<Item = (usize, Point3<f64>)> + 'a {
+        (0..n * n).map(move |k| {
+            let theta = std::f64::consts::PI * (k / n) as f64 / n as f64;
+            let phi = std::f64::consts::TAU * (k % n) as f64 / n as f64;
+            let body = Vector3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos());
+            (k, truth.centre + rotation * body.component_mul(axes))
+        })
+    }
+
     /// An elongated fruit seen from the front only, its silhouette's rays
     /// with a tenth of them edges beside it (a leaf's, 3 mm out): with
     /// the rays the robust ellipsoid finds the centre the front alone
@@ -357,27 +385,15 @@ mod tests {
     fn the_silhouettes_rays_fix_the_depth_semi_axis_despite_stray_edges() {
         let rotation = nalgebra::Rotation3::from_euler_angles(0.2, 0.6, -0.4);
         let axes = Vector3::new(43.0, 38.0, 36.0);
-        let truth = Ellipsoid {
-            centre: Point3::new(-30.0, 15.0, 900.0),
-            shape: rotation.matrix()
-                * Matrix3::from_diagonal(&axes.map(|a| 1.0 / (a * a)))
-                * rotation.matrix().transpose(),
-        };
+        let truth = rotated_ellipsoid(Point3::new(-30.0, 15.0, 900.0), &rotation, &axes);
         let radius = truth.equal_volume_radius_mm();
         // The front: points whose normal faces the camera well (the stripe
         // thins out towards the limb).
         let mut points = Vec::new();
-        for i in 0..30 {
-            for j in 0..30 {
-                let theta = std::f64::consts::PI * i as f64 / 30.0;
-                let phi = std::f64::consts::TAU * j as f64 / 30.0;
-                let body =
-                    Vector3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos());
-                let p = truth.centre + rotation * body.component_mul(&axes);
-                let normal = (truth.shape * (p - truth.centre)).normalize();
-                if normal.dot(&(-p.coords).normalize()) > 0.5 {
-                    points.push(p);
-                }
+        for (_, p) in surface_grid(&truth, &rotation, &axes, 30) {
+            let normal = (truth.shape * (p - truth.centre)).normalize();
+            if normal.dot(&(-p.coords).normalize()) > 0.5 {
+                points.push(p);
             }
         }
         // The silhouette: for each azimuth, the ray that touches (bisection
@@ -417,25 +433,13 @@ mod tests {
     fn robust_ellipsoid_recovers_an_elongated_fruit_from_its_front() {
         let rotation = nalgebra::Rotation3::from_euler_angles(0.3, -0.5, 0.8);
         let axes = Vector3::new(41.0, 37.5, 39.0);
-        let truth = Ellipsoid {
-            centre: Point3::new(20.0, -10.0, 800.0),
-            shape: rotation.matrix()
-                * Matrix3::from_diagonal(&axes.map(|a| 1.0 / (a * a)))
-                * rotation.matrix().transpose(),
-        };
+        let truth = rotated_ellipsoid(Point3::new(20.0, -10.0, 800.0), &rotation, &axes);
         let mut points = Vec::new();
-        for i in 0..40 {
-            for j in 0..40 {
-                let theta = std::f64::consts::PI * i as f64 / 40.0;
-                let phi = std::f64::consts::TAU * j as f64 / 40.0;
-                let body =
-                    Vector3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos());
-                let p = truth.centre + rotation * body.component_mul(&axes);
-                let normal = truth.shape * (p - truth.centre);
-                if normal.dot(&(-p.coords)) > 0.0 {
-                    let stray = if (i * 40 + j) % 97 == 0 { 4.0 } else { 0.0 };
-                    points.push(p + normal.normalize() * stray);
-                }
+        for (k, p) in surface_grid(&truth, &rotation, &axes, 40) {
+            let normal = truth.shape * (p - truth.centre);
+            if normal.dot(&(-p.coords)) > 0.0 {
+                let stray = if k % 97 == 0 { 4.0 } else { 0.0 };
+                points.push(p + normal.normalize() * stray);
             }
         }
         let sphere = fit_sphere(&points).unwrap();
@@ -571,28 +575,29 @@ pub fn fit_ellipsoid_with_rays(
 ) -> Option<Ellipsoid> {
     let mut ellipsoid = *start;
     for _ in 0..ROBUST_ROUNDS {
-        let mut distances: Vec<f64> = points.iter().map(|p| ellipsoid.distance_mm(p)).collect();
-        let weights_from = distances.clone();
-        distances.sort_by(f64::total_cmp);
-        let median = distances.get(distances.len() / 2).copied().unwrap_or(noise_mm);
-        let c = 3.0 * (1.4826 * median).max(0.5 * noise_mm);
-        let cauchy = |d: f64, c: f64| 1.0 / (1.0 + (d / c).powi(2));
-        let mut weights: Vec<f64> = weights_from.iter().map(|d| cauchy(*d, c)).collect();
+        let distances: Vec<f64> = points.iter().map(|p| ellipsoid.distance_mm(p)).collect();
+        let mut weights = cauchy_weights(&distances, noise_mm);
         // The rays too, on a scale of their own (a sphere fitted to a fruit's
         // front misses its silhouette by millimetres, every ray alike): an
         // edge of a leaf beside the silhouette is a stray.
         let radius = ellipsoid.equal_volume_radius_mm();
         let misses: Vec<f64> =
             rays.directions.iter().map(|r| ellipsoid.tangency_residual(r, radius).abs()).collect();
-        let mut sorted = misses.clone();
-        sorted.sort_by(f64::total_cmp);
-        let median = sorted.get(sorted.len() / 2).copied().unwrap_or(noise_mm);
-        let c_rays = 3.0 * (1.4826 * median).max(0.5 * noise_mm);
-        weights.extend(misses.iter().map(|d| cauchy(*d, c_rays)));
+        weights.extend(cauchy_weights(&misses, noise_mm));
         ellipsoid =
             fit_weighted(points, Some(&weights), rays, &ellipsoid, noise_mm, prior_weight_points)?;
     }
     Some(ellipsoid)
+}
+
+/// Cauchy weights 1 / (1 + (d / c)^2) of absolute residuals `d`, c = 3
+/// times their robust scatter (1.4826 x the median, at least `noise_mm` / 2).
+fn cauchy_weights(distances: &[f64], noise_mm: f64) -> Vec<f64> {
+    let mut sorted = distances.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted.get(sorted.len() / 2).copied().unwrap_or(noise_mm);
+    let c = 3.0 * (1.4826 * median).max(0.5 * noise_mm);
+    distances.iter().map(|d| 1.0 / (1.0 + (d / c).powi(2))).collect()
 }
 
 /// Reweighting rounds of [`fit_ellipsoid_robust`].

@@ -180,7 +180,7 @@ fn refine_to_ellipsoid(
     context: &FrameContext,
     views: &[&RgbImage],
 ) -> FusedFit {
-    use crate::estimate::{RIVAL_DISTANCE, SURFACE_BAND_MM};
+    use crate::estimate::{RIVAL_DISTANCE, SURFACE_BAND_MM, ray_distance_mm};
     let (camera, options, sphere) = (context.camera, context.options, fit.sphere);
     // A sphere that came from the outline keeps it as its source: the
     // ellipsoid then refines it, but the laser saw too little of the fruit
@@ -212,10 +212,7 @@ fn refine_to_ellipsoid(
     let directions: Vec<Vector3<f64>> =
         rays_through(camera, &silhouette_edges(views, &outline, band_px))
             .into_iter()
-            .filter(|ray| {
-                let c = sphere.centre.coords;
-                ((c - ray * ray.dot(&c)).norm() - sphere.radius_mm).abs() < band
-            })
+            .filter(|ray| (ray_distance_mm(&sphere.centre, ray) - sphere.radius_mm).abs() < band)
             .collect();
     if directions.len() < MIN_OUTLINE_RAYS {
         return fit;
@@ -244,22 +241,17 @@ fn refine_to_ellipsoid(
     if !(same && is_apple_shaped(&ellipsoid)) {
         return fit;
     }
-    let on: Vec<usize> = near
+    // The points on the ellipsoid: their frames and distances.
+    let (frame_of, distances): (Vec<usize>, Vec<f64>) = near
         .iter()
-        .filter(|(_, p)| ellipsoid.distance_mm(p) < options.inlier_threshold_mm)
-        .map(|(k, _)| *k)
-        .collect();
-    let rms = rms_mm(
-        points
-            .iter()
-            .map(|p| ellipsoid.distance_mm(p))
-            .filter(|d| *d < options.inlier_threshold_mm),
-    );
+        .map(|(k, p)| (*k, ellipsoid.distance_mm(p)))
+        .filter(|(_, d)| *d < options.inlier_threshold_mm)
+        .unzip();
     FusedFit {
         ellipsoid: Some(ellipsoid),
-        n_points: on.len(),
-        n_frames: count_frames(&on, 0..on.len()),
-        rms_mm: rms,
+        n_points: distances.len(),
+        n_frames: count_frames(&frame_of, 0..frame_of.len()),
+        rms_mm: rms_mm(distances.into_iter()),
         outline: Some(outline),
         outline_refined: !from_outline,
         ..fit

@@ -98,13 +98,23 @@ impl PixelBox {
     /// The pixels within `half_px` of `centre_px` along each axis, clipped
     /// to the camera's image.
     pub(crate) fn around(centre_px: &Point2<f64>, half_px: f64, camera: &Camera) -> PixelBox {
+        Self::within(centre_px, half_px, (camera.width_px, camera.height_px))
+    }
+
+    /// [`PixelBox::around`] in an image of `(width, height)` pixels.
+    fn within(centre_px: &Point2<f64>, half_px: f64, (width, height): (u32, u32)) -> PixelBox {
         let clip = |x: f64, size: u32| x.clamp(0.0, f64::from(size)) as u32;
         PixelBox {
-            u0: clip(centre_px.x - half_px, camera.width_px),
-            v0: clip(centre_px.y - half_px, camera.height_px),
-            u1: clip(centre_px.x + half_px + 1.0, camera.width_px),
-            v1: clip(centre_px.y + half_px + 1.0, camera.height_px),
+            u0: clip(centre_px.x - half_px, width),
+            v0: clip(centre_px.y - half_px, height),
+            u1: clip(centre_px.x + half_px + 1.0, width),
+            v1: clip(centre_px.y + half_px + 1.0, height),
         }
+    }
+
+    /// Too small (or outside the image) to hold an outline.
+    fn is_empty(&self) -> bool {
+        self.u1 <= self.u0 + 2 || self.v1 <= self.v0 + 2
     }
 }
 
@@ -236,6 +246,17 @@ fn half_coverage_px(images: &[&RgbImage], edge: &Edge) -> Option<Point2<f64>> {
     ((at - 0.5).abs() <= f64::from(EDGE_SIDE_PX) - 1.5).then(|| fruit + step * at)
 }
 
+/// The fruit mask of `area` and its edges, each moved to half coverage
+/// ([`half_coverage_px`]) where it can be.
+fn edges_at_half_coverage(images: &[&RgbImage], area: PixelBox) -> (Vec<bool>, Vec<Edge>) {
+    let mask = fruit_mask(images, area);
+    let mut edges = mask_edges(&mask, area);
+    for edge in &mut edges {
+        edge.at_px = half_coverage_px(images, edge).unwrap_or(edge.at_px);
+    }
+    (mask, edges)
+}
+
 /// Circles through edge points whose edges face outwards, for RANSAC.
 struct OutlineEstimator<'a> {
     edges: &'a [Edge],
@@ -287,14 +308,10 @@ pub(crate) fn find_outline(
     centre_ok: impl Fn(&Point2<f64>) -> bool,
     seed: u64,
 ) -> std::result::Result<Outline, String> {
-    if images.is_empty() || area.u1 <= area.u0 + 2 || area.v1 <= area.v0 + 2 {
+    if images.is_empty() || area.is_empty() {
         return Err("the search region is outside the image".into());
     }
-    let mask = fruit_mask(images, area);
-    let mut edges = mask_edges(&mask, area);
-    for edge in &mut edges {
-        edge.at_px = half_coverage_px(images, edge).unwrap_or(edge.at_px);
-    }
+    let (mask, edges) = edges_at_half_coverage(images, area);
     let estimator = OutlineEstimator {
         points: edges.iter().map(|e| e.at_px).collect(),
         edges: &edges,
@@ -384,27 +401,20 @@ pub(crate) fn silhouette_edges(
     outline: &Outline,
     band_px: f64,
 ) -> Vec<Point2<f64>> {
-    let (width, height) = images.first().map_or((0, 0), |i| i.dimensions());
+    let size = images.first().map_or((0, 0), |i| i.dimensions());
     let reach = outline.radius_px + band_px + f64::from(EDGE_SIDE_PX);
-    let clip = |x: f64, size: u32| x.clamp(0.0, f64::from(size)) as u32;
     let c = outline.centre_px;
-    let area = PixelBox {
-        u0: clip(c.x - reach, width),
-        v0: clip(c.y - reach, height),
-        u1: clip(c.x + reach + 1.0, width),
-        v1: clip(c.y + reach + 1.0, height),
-    };
-    if area.u1 <= area.u0 + 2 || area.v1 <= area.v0 + 2 {
+    let area = PixelBox::within(&c, reach, size);
+    if area.is_empty() {
         return Vec::new();
     }
-    let mask = fruit_mask(images, area);
-    mask_edges(&mask, area)
+    edges_at_half_coverage(images, area)
+        .1
         .into_iter()
         .filter_map(|edge| {
-            let at = half_coverage_px(images, &edge).unwrap_or(edge.at_px);
-            let radial = at - c;
+            let radial = edge.at_px - c;
             (radial.dot(&edge.outward) > 0.0 && (radial.norm() - outline.radius_px).abs() < band_px)
-                .then_some(at)
+                .then_some(edge.at_px)
         })
         .collect()
 }

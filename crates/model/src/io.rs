@@ -272,13 +272,20 @@ pub fn open_input(path: &Path) -> Result<File> {
     File::open(path).map_err(io_error(path))
 }
 
-/// Reads a binary input whole (an image), refusing one larger than
-/// `max_bytes` or one that is not a regular file.
-pub fn read_bytes_bounded(path: &Path, max_bytes: u64) -> Result<Vec<u8>> {
+/// [`open_input`], refusing a file larger than `max_bytes` (naming the
+/// file and the limit).
+pub fn open_bounded(path: &Path, max_bytes: u64) -> Result<File> {
     let file = open_input(path)?;
     if file.metadata().is_ok_and(|m| m.len() > max_bytes) {
         return Err(Error::TooLarge { path: path.to_path_buf(), limit: max_bytes });
     }
+    Ok(file)
+}
+
+/// Reads a binary input whole (an image), refusing one larger than
+/// `max_bytes` or one that is not a regular file.
+pub fn read_bytes_bounded(path: &Path, max_bytes: u64) -> Result<Vec<u8>> {
+    let file = open_bounded(path, max_bytes)?;
     let mut bytes = Vec::new();
     let read = file.take(max_bytes + 1).read_to_end(&mut bytes).map_err(io_error(path))?;
     if read as u64 > max_bytes {

@@ -103,20 +103,18 @@ pub fn open(args: &RigArgs, note: &mut dyn FnMut(&str)) -> CmdResult<OpenRig> {
     let (camera, laser) = match &sim {
         Some(sim) if simulated_camera => {
             if camera_file.is_none() || laser_file.is_none() {
+                let (which, drawn) = match sim.variation {
+                    Some(_) => ("nominal", " (--randomize rendered a rig drawn off them)"),
+                    None => ("true", ""),
+                };
                 note(&format!(
-                    "note: localizing with the simulation's {} {}{}; a real rig loads its \
-                     calibrated camera.yaml and laser.yaml (--camera, --laser)",
-                    if sim.variation.is_some() { "nominal" } else { "true" },
+                    "note: localizing with the simulation's {which} {}{drawn}; a real rig loads \
+                     its calibrated camera.yaml and laser.yaml (--camera, --laser)",
                     match (camera_file.is_none(), laser_file.is_none()) {
                         (true, true) => "camera and laser",
                         (true, false) => "camera",
                         _ => "laser",
                     },
-                    if sim.variation.is_some() {
-                        " (--randomize rendered a rig drawn off them)"
-                    } else {
-                        ""
-                    }
                 ));
             }
             (
