@@ -210,6 +210,9 @@ pub struct GrblController {
     pending: Vec<u8>,
     /// The work coordinate offset of the last report that carried one.
     work_offset: [f64; 3],
+    /// The controller's settings (`$$`), read once by the first device
+    /// that checks them.
+    settings: Option<BTreeMap<u32, String>>,
 }
 
 impl std::fmt::Debug for GrblController {
@@ -226,8 +229,13 @@ impl GrblController {
             serialport::new(&config.port, config.baud).timeout(READ_SLICE).open().map_err(|e| {
                 Fault::Failed(format!("cannot open the serial port {}: {e}", config.port))
             })?;
-        let mut controller =
-            Self { port, name: config.port.clone(), pending: Vec::new(), work_offset: [0.0; 3] };
+        let mut controller = Self {
+            port,
+            name: config.port.clone(),
+            pending: Vec::new(),
+            work_offset: [0.0; 3],
+            settings: None,
+        };
         controller.reset(BANNER_WAIT.max(config.command_timeout()))?;
         Ok(controller)
     }
@@ -413,13 +421,32 @@ impl GrblController {
         Ok(settings)
     }
 
+    /// The value of setting `number` (`None` where the controller has no
+    /// such setting), reading `$$` the first time.
+    fn setting(&mut self, number: u32, timeout: Duration) -> Result<Option<String>, Fault> {
+        if self.settings.is_none() {
+            self.settings = Some(self.settings(timeout)?);
+        }
+        Ok(self.settings.as_ref().and_then(|s| s.get(&number).cloned()))
+    }
+
+    /// Refuses settings that break the slide's positions: report inches
+    /// (`$13=1`) would read every position 25.4 times too small.
+    fn check_slide_settings(&mut self, timeout: Duration) -> Result<(), Fault> {
+        match self.setting(REPORT_INCHES_SETTING, timeout)?.as_deref() {
+            Some("0") | None => Ok(()),
+            Some(value) => Err(self.failed(format!(
+                "${REPORT_INCHES_SETTING}={value} (report inches) gives the slide's positions in inches, read as mm; set ${REPORT_INCHES_SETTING}=0"
+            ))),
+        }
+    }
+
     /// Refuses settings that break a scan with the laser on the spindle
     /// output: laser mode (`$32=1`) powers the output only while the axes
     /// move, so the laser would be dark in every frame taken at a standing
     /// slide.
     fn check_spindle_laser_settings(&mut self, timeout: Duration) -> Result<(), Fault> {
-        let settings = self.settings(timeout)?;
-        match settings.get(&LASER_MODE_SETTING).map(String::as_str) {
+        match self.setting(LASER_MODE_SETTING, timeout)?.as_deref() {
             Some("0") | None => Ok(()),
             Some(value) => Err(self.failed(format!(
                 "${LASER_MODE_SETTING}={value} (laser mode) powers the spindle output only while the slide moves, so the laser would be dark in every frame; set ${LASER_MODE_SETTING}=0"
@@ -573,6 +600,9 @@ fn lock(controller: &Mutex<GrblController>) -> MutexGuard<'_, GrblController> {
 /// only while the axes move, for laser cutters).
 const LASER_MODE_SETTING: u32 = 32;
 
+/// GRBL 1.1's report-inches setting (`$13`; 1: status reports in inches).
+const REPORT_INCHES_SETTING: u32 = 13;
+
 /// Opens the GRBL controller of `config` (a soft reset and its banner);
 /// the slide and the laser on it share it.
 pub fn connect(config: &SlideConfig) -> Result<Arc<Mutex<GrblController>>, DeviceError> {
@@ -604,6 +634,13 @@ impl GrblSlide {
         lock(&self.controller)
             .home(self.config.homing_timeout(), timeout)
             .map_err(|f| f.on(Device::Slide))
+    }
+
+    /// Reads the controller's settings (`$$`) and refuses those that break
+    /// the slide's positions (`$13=1`, inches), naming the setting.
+    pub fn check_settings(&mut self) -> Result<(), DeviceError> {
+        let timeout = self.config.command_timeout();
+        lock(&self.controller).check_slide_settings(timeout).map_err(|f| f.on(Device::Slide))
     }
 
     /// Whether the controller reports an alarm (it needs homing or `$X`).
@@ -699,8 +736,8 @@ pub struct GrblLaser {
 
 impl GrblLaser {
     /// The laser of `config` on `controller`; `timeout` for each command.
-    /// The controller's settings (`$$`) are read first: laser mode
-    /// (`$32=1`) is refused, naming the setting.
+    /// The controller's settings (`$$`, read once per controller) are
+    /// checked first: laser mode (`$32=1`) is refused, naming the setting.
     pub fn new(
         controller: Arc<Mutex<GrblController>>,
         config: LaserConfig,

@@ -256,6 +256,7 @@ impl<'a> Parts<'a> {
             SlideDriver::Grbl => {
                 let controller = grbl::connect(slide)?;
                 let mut grbl_slide = GrblSlide::new(Arc::clone(&controller), slide.clone());
+                grbl_slide.check_settings()?;
                 let state = grbl_slide.state()?;
                 let detail = format!(
                     "GRBL 1.1 on {} at {} baud, axis {}, state {state}",

@@ -205,7 +205,7 @@ fn a_continuous_sweep_on_the_emulated_slide_takes_each_frame_where_grbl_reported
 
 #[test]
 fn a_lost_ok_and_a_garbage_line_do_not_stop_the_scan() {
-    // Line 1 is $H, 2 $$ (the laser's settings), 3 the first M5, 4 the first
+    // Line 1 is $$ (the settings), 2 $H, 3 the first M5, 4 the first
     // move: its `ok` is lost and a garbage line follows the next move's `ok`.
     let emulator = Emulator::start(&["--drop-ok", "4", "--garbage-after", "6"]);
     let mut rig = RealRig::open(&emulator.rig(""), Some(scene())).unwrap();
@@ -214,7 +214,7 @@ fn a_lost_ok_and_a_garbage_line_do_not_stop_the_scan() {
 
 #[test]
 fn a_controller_that_stops_answering_mid_scan_ends_in_a_slide_error_with_m5_last() {
-    // Silent after the first frame's M3 (line 5, after $H, $$, M5 and the
+    // Silent after the first frame's M3 (line 5, after $$, $H, M5 and the
     // first move): the second move hangs.
     let emulator = Emulator::start(&["--silent-after", "5"]);
     let mut rig = RealRig::open(&emulator.rig(""), Some(scene())).unwrap();
@@ -292,4 +292,19 @@ fn grbl_laser_mode_is_refused_naming_the_setting() {
     let message = error.to_string();
     assert!(message.contains("$32=1") && message.contains("$32=0"), "{message}");
     assert!(emulator.received().contains(&"$$".to_string()));
+}
+
+#[test]
+fn grbl_reporting_inches_is_refused_naming_the_setting() {
+    // $13=1: status reports in inches, which the slide would read as mm.
+    let emulator = Emulator::start(&["--setting", "13=1"]);
+    let Err(alacs_rig::Error::Device(error)) = RealRig::open(&emulator.rig(""), Some(scene()))
+    else {
+        panic!("a controller reporting inches was accepted, or refused for another reason");
+    };
+    assert_eq!(error.device(), Some(Device::Slide), "{error}");
+    let message = error.to_string();
+    assert!(message.contains("$13=1") && message.contains("$13=0"), "{message}");
+    // The settings are read once for the slide and the laser.
+    assert_eq!(emulator.received().iter().filter(|l| *l == "$$").count(), 1);
 }
