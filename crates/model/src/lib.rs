@@ -45,7 +45,7 @@ mod scan_plan;
 mod session;
 
 pub use camera::*;
-pub use error::{Error, ErrorClass, Num, Result};
+pub use error::{Error, ErrorClass, Num, Result, yaml_message};
 pub use geometry::{Plane, Ray};
 pub use laser::{
     Fidelity, LaserFile, LaserModel, PreparedLaser, SLIDE_SCALE_RANGE, SLIDE_STROKE_MM, SlideTarget,
@@ -58,6 +58,7 @@ pub use samples::{
 pub use scan::{
     DEFAULT_FRUIT_RADIUS_MM, FRUIT_RADIUS_RANGE_MM, FrameExposure, MAX_ABS_SLIDE_MM,
     MAX_ROUGH_DISTANCE_MM, MAX_SCAN_TARGETS, SCAN_FILE, Scan, ScanFrameSpec, ScanTarget,
+    checked_fruit_radius_mm, checked_rough_position_mm,
 };
 pub use scan_plan::{SHARED_FRAME_MM, ScanPlan, ScanStrategy};
 pub use session::{

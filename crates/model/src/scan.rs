@@ -180,6 +180,43 @@ fn xyz(p: &Point3<f64>) -> Vec<f64> {
     vec![p.x, p.y, p.z]
 }
 
+/// A rough position as every reader of a scan holds it (scan.yaml, a bag's
+/// goal): `[x, y, z]` in mm, each within [`MAX_ROUGH_DISTANCE_MM`], and in
+/// front of the camera (`z > 0`) where `in_front` (the ALACS camera's frame;
+/// the RGB-D camera's may differ). The error completes "`key` ...".
+pub fn checked_rough_position_mm(
+    values: &[f64],
+    in_front: bool,
+) -> std::result::Result<Point3<f64>, String> {
+    match *values {
+        [x, y, z]
+            if [x, y, z].iter().all(|c| c.abs() <= MAX_ROUGH_DISTANCE_MM)
+                && (z > 0.0 || !in_front) =>
+        {
+            Ok(Point3::new(x, y, z))
+        }
+        _ => Err(format!(
+            "must be [x, y, z] in mm, each within +-{MAX_ROUGH_DISTANCE_MM} mm{}, got [{}]",
+            if in_front { ", with z > 0 (in front of the camera)" } else { "" },
+            values.iter().map(|v| crate::Num(*v).to_string()).collect::<Vec<_>>().join(", "),
+        )),
+    }
+}
+
+/// A fruit radius prior as every reader of a scan holds it: within
+/// [`FRUIT_RADIUS_RANGE_MM`]. The error completes "`key` ...".
+pub fn checked_fruit_radius_mm(radius_mm: f64) -> std::result::Result<f64, String> {
+    let (low, high) = FRUIT_RADIUS_RANGE_MM;
+    if (low..=high).contains(&radius_mm) {
+        Ok(radius_mm)
+    } else {
+        Err(format!(
+            "is {} mm; a fruit radius prior must lie within {low}-{high} mm",
+            crate::Num(radius_mm)
+        ))
+    }
+}
+
 impl Scan {
     /// Reads `dir/scan.yaml`. Checks every value; does not open the images.
     pub fn read(dir: &Path) -> Result<Scan> {
@@ -240,29 +277,14 @@ impl Scan {
     pub fn parse(text: &str, dir: &Path, path: &Path) -> Result<Scan> {
         let parse_error = |message: String| Error::Parse { path: path.to_path_buf(), message };
         let file: ScanFile = serde_saphyr::from_str(text)
-            .map_err(|e| parse_error(e.without_snippet().to_string()))?;
-        let point = |key: &str, values: &[f64], in_front: bool| match *values {
-            [x, y, z]
-                if [x, y, z].iter().all(|c| c.abs() <= MAX_ROUGH_DISTANCE_MM)
-                    && (z > 0.0 || !in_front) =>
-            {
-                Ok(Point3::new(x, y, z))
-            }
-            _ => Err(parse_error(format!(
-                "`{key}` must be [x, y, z] in mm, each within +-{MAX_ROUGH_DISTANCE_MM} mm{}, got {values:?}",
-                if in_front { ", with z > 0 (in front of the camera)" } else { "" }
-            ))),
+            .map_err(|e| parse_error(crate::error::yaml_message(&e)))?;
+        let point = |key: &str, values: &[f64], in_front: bool| {
+            checked_rough_position_mm(values, in_front)
+                .map_err(|e| parse_error(format!("`{key}` {e}")))
         };
-        let (r_lo, r_hi) = FRUIT_RADIUS_RANGE_MM;
         let radius = |key: &str, value: Option<f64>| {
-            let fruit_radius_mm = value.unwrap_or(DEFAULT_FRUIT_RADIUS_MM);
-            if (r_lo..=r_hi).contains(&fruit_radius_mm) {
-                Ok(fruit_radius_mm)
-            } else {
-                Err(parse_error(format!(
-                    "`{key}` is {fruit_radius_mm}; a fruit radius prior must lie within {r_lo}-{r_hi} mm"
-                )))
-            }
+            checked_fruit_radius_mm(value.unwrap_or(DEFAULT_FRUIT_RADIUS_MM))
+                .map_err(|e| parse_error(format!("`{key}` {e}")))
         };
         let top_radius_mm = radius("fruit_radius_mm", file.fruit_radius_mm)?;
         let target = |key: &str, t: &TargetFile, default_radius_mm: f64| {

@@ -577,8 +577,8 @@ struct ScanReader {
 impl ScanReader {
     /// Reads the bag up to scan `index`'s goal and rough position.
     fn open(path: &Path, index: usize, whole_bag: bool) -> Result<(Self, CapturedScan)> {
-        let bad = |message: String| Error::Bag { path: path.to_path_buf(), message };
-        let file = std::fs::File::open(path).map_err(|e| bad(format!("cannot be read: {e}")))?;
+        // A FIFO or a device would hang the reader or never end: a regular file only.
+        let file = alacs_model::io::open_input(path)?;
         // A chunk whose CRC does not match is refused before any of its
         // messages is used: a corrupted byte is an error, never an image.
         let options = mcap::sans_io::LinearReaderOptions::default()
@@ -698,7 +698,11 @@ impl ScanReader {
             "geometry_msgs/msg/PointStamped" if topic.ends_with("/rough_position") => {
                 if let Some(scan) = self.scan.as_mut().filter(|_| ours && self.pending.is_none()) {
                     let rough: PointStamped = from_cdr(&message.data).map_err(|e| at(&e))?;
-                    scan.rough_position_in_rgbd_mm = mm(&rough.point);
+                    scan.rough_position_in_rgbd_mm = alacs_model::checked_rough_position_mm(
+                        mm(&rough.point).coords.as_slice(),
+                        false,
+                    )
+                    .map_err(|e| at(&format!("the rough position {e}")))?;
                 }
             }
             "sensor_msgs/msg/JointState" => {
@@ -805,23 +809,14 @@ fn mm(point: &crate::msgs::Point) -> Point3<f64> {
 /// folder's bounds (FORMATS.md, scan.yaml).
 fn empty_scan(goal: &LocalizeFruitGoal) -> std::result::Result<CapturedScan, String> {
     let rough = mm(&goal.rough_position.point);
-    let limit = alacs_model::MAX_ROUGH_DISTANCE_MM;
-    if !rough.iter().all(|c| c.is_finite() && c.abs() <= limit) {
-        return Err(format!(
-            "rough position ({}, {}, {}) mm is not within +-{limit} mm",
-            rough.x, rough.y, rough.z
-        ));
-    }
+    let rough = alacs_model::checked_rough_position_mm(rough.coords.as_slice(), true)
+        .map_err(|e| format!("the goal's rough position {e}"))?;
     let radius_mm = goal.fruit_radius_m * MM_PER_M;
-    let (low, high) = alacs_model::FRUIT_RADIUS_RANGE_MM;
     let fruit_radius_mm = if radius_mm == 0.0 {
         alacs_model::DEFAULT_FRUIT_RADIUS_MM
-    } else if (low..=high).contains(&radius_mm) {
-        radius_mm
     } else {
-        return Err(format!(
-            "fruit radius {radius_mm} mm is not within {low}-{high} mm (0: unknown)"
-        ));
+        alacs_model::checked_fruit_radius_mm(radius_mm)
+            .map_err(|e| format!("the goal's fruit radius {e} (0: unknown)"))?
     };
     Ok(CapturedScan {
         rough_position_in_rgbd_mm: rough,
@@ -864,8 +859,8 @@ mod tests {
     }
 
     /// A recorded goal is held to a scan folder's bounds: the radius 0
-    /// (unknown) is the default prior; 5 m and a position of 1e303 m are
-    /// refused, naming the value.
+    /// (unknown) is the default prior; 5 m, a position of 1e303 m and one
+    /// behind the camera are refused, naming the value.
     #[test]
     fn a_recorded_goal_is_held_to_a_scan_folders_bounds() {
         let scan = empty_scan(&goal(0.03, 0.0)).unwrap();
@@ -876,5 +871,10 @@ mod tests {
         let e = empty_scan(&goal(1e303, 0.04)).unwrap_err();
         assert!(e.contains("rough position"), "{e}");
         assert!(empty_scan(&goal(f64::NAN, 0.04)).is_err());
+        // Behind the camera, as a scan folder refuses it.
+        let mut behind = goal(0.03, 0.04);
+        behind.rough_position.point.z = -0.8;
+        let e = empty_scan(&behind).unwrap_err();
+        assert!(e.contains("z > 0"), "{e}");
     }
 }
