@@ -176,7 +176,7 @@ pub fn read_params_file(
         .map_err(|e| format!("--params-file: {e}"))?;
     let text = String::from_utf8(bytes).map_err(|_| format!("--params-file {name}: not UTF-8"))?;
     let root: Value = serde_saphyr::from_str(&text).map_err(|e| {
-        format!("--params-file {name}: not YAML: {}", e.to_string().lines().next().unwrap_or(""))
+        format!("--params-file {name}: not YAML: {}", alacs::model::yaml_message(&e))
     })?;
     let Value::Object(sections) = root else {
         return Err(format!(

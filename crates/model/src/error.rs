@@ -207,9 +207,22 @@ impl Error {
     }
 }
 
-/// A number as a message shows it: as written for everyday magnitudes,
-/// in scientific notation beyond them, so that a value like 1e300 in a
-/// file reads `1e300` in its error and not as 301 digits.
+/// The message of a YAML parse error as a user reads it: one line with the
+/// parser's location, in the parser's wording for users, without its advice
+/// to programmers (which names the parser's own options).
+pub fn yaml_message(error: &serde_saphyr::Error) -> String {
+    let text = error.without_snippet().render_with_formatter(&serde_saphyr::UserMessageFormatter);
+    text.lines().map(str::trim).filter(|l| !l.is_empty()).collect::<Vec<_>>().join("; ")
+}
+
+/// Significant digits of a number in engineering notation: enough for any
+/// value a message quotes from a file or an option.
+const NUM_SIGNIFICANT_DIGITS: i32 = 6;
+
+/// A number as a message shows it: as written for everyday magnitudes, in
+/// engineering notation beyond them (a mantissa of 1 to 999 and an exponent
+/// that is a multiple of three), so that a value like 1e300 in a file reads
+/// `1e300` in its error and not as 301 digits.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Num(pub f64);
 
@@ -217,10 +230,32 @@ impl std::fmt::Display for Num {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let x = self.0;
         if !x.is_finite() || x == 0.0 || (1e-4..1e7).contains(&x.abs()) {
-            write!(f, "{x}")
-        } else {
-            write!(f, "{x:e}")
+            return write!(f, "{x}");
         }
+        let mut exponent = (x.abs().log10() / 3.0).floor() as i32 * 3;
+        let mut mantissa = x / 10f64.powi(exponent);
+        let integer_digits = |m: f64| {
+            if m.abs() >= 100.0 {
+                3
+            } else if m.abs() >= 10.0 {
+                2
+            } else {
+                1
+            }
+        };
+        let mut decimals = (NUM_SIGNIFICANT_DIGITS - integer_digits(mantissa)).max(0) as usize;
+        let mut text = format!("{mantissa:.decimals$}");
+        // Rounding may carry the mantissa to 1000: one step up.
+        if text.trim_start_matches('-').starts_with("1000") {
+            exponent += 3;
+            mantissa /= 1000.0;
+            decimals = (NUM_SIGNIFICANT_DIGITS - 1) as usize;
+            text = format!("{mantissa:.decimals$}");
+        }
+        if text.contains('.') {
+            text = text.trim_end_matches('0').trim_end_matches('.').to_string();
+        }
+        write!(f, "{text}e{exponent}")
     }
 }
 
@@ -229,11 +264,28 @@ mod num_tests {
     use super::Num;
 
     #[test]
-    fn a_huge_or_tiny_number_prints_in_scientific_notation() {
+    fn a_huge_or_tiny_number_prints_in_engineering_notation() {
         assert_eq!(Num(1e300).to_string(), "1e300");
+        assert_eq!(Num(1e301).to_string(), "10e300");
         assert_eq!(Num(-2.5e-9).to_string(), "-2.5e-9");
+        assert_eq!(Num(1.23456789e8).to_string(), "123.457e6");
+        assert_eq!(Num(999_999_999.0).to_string(), "1e9");
+        assert_eq!(Num(4.5e-5).to_string(), "45e-6");
         assert_eq!(Num(412.5).to_string(), "412.5");
         assert_eq!(Num(0.0).to_string(), "0");
         assert_eq!(Num(f64::NAN).to_string(), "NaN");
+    }
+}
+
+#[cfg(test)]
+mod yaml_tests {
+    #![allow(clippy::unwrap_used)]
+
+    #[test]
+    fn a_duplicate_key_is_named_without_the_parsers_advice() {
+        let error = serde_saphyr::from_str::<serde_json::Value>("a: 1\na: 2\n").unwrap_err();
+        let message = super::yaml_message(&error);
+        assert!(message.contains("duplicate"), "{message}");
+        assert!(!message.contains("Options") && !message.contains('\n'), "{message}");
     }
 }

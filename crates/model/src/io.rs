@@ -582,6 +582,16 @@ impl OutputDir {
         &self.dir
     }
 
+    /// A hidden scratch folder inside this one for intermediate files (a
+    /// rendered session read back as a user's is), removed when dropped, on
+    /// error paths too: work in progress stays inside the output folder.
+    pub fn scratch(&self) -> Result<tempfile::TempDir> {
+        tempfile::Builder::new()
+            .prefix(".scratch-")
+            .tempdir_in(&self.dir)
+            .map_err(io_error(&self.dir))
+    }
+
     /// The path of `name` (relative, `/`-separated, no `..`) inside the
     /// folder, creating its parent folders; a parent that is a link is refused.
     pub fn file(&mut self, name: &str) -> Result<PathBuf> {

@@ -341,7 +341,7 @@ impl LaserModel {
     fn parse_yaml(text: &str, path: &Path) -> Result<Self> {
         let parse_error = |message: String| Error::Parse { path: path.to_path_buf(), message };
         let file: LaserFile = serde_saphyr::from_str(text)
-            .map_err(|e| parse_error(e.without_snippet().to_string()))?;
+            .map_err(|e| parse_error(crate::error::yaml_message(&e)))?;
         let beta_deg = match (file.model, file.beta_deg) {
             (Fidelity::High, None) => {
                 return Err(parse_error(

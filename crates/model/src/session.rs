@@ -424,7 +424,7 @@ impl Session {
     pub fn parse(text: &str, dir: &Path, path: &Path) -> Result<Session> {
         let parse_error = |message: String| Error::Parse { path: path.to_path_buf(), message };
         let file: SessionFile = serde_saphyr::from_str(text)
-            .map_err(|e| parse_error(e.without_snippet().to_string()))?;
+            .map_err(|e| parse_error(crate::error::yaml_message(&e)))?;
         let board = parse_board(file.board).map_err(parse_error)?;
         if file.views.is_empty() {
             return Err(parse_error("`views` is empty".into()));

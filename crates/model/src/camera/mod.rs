@@ -17,7 +17,7 @@ mod yaml;
 
 use nalgebra::{Matrix2, Matrix2x3, Point2, Point3, Vector2, Vector3};
 
-use crate::{Error, Result};
+use crate::{Error, Num, Result};
 
 pub use distortion::{Distortion, DistortionModel};
 pub use yaml::CameraFileFormat;
@@ -130,7 +130,7 @@ impl Camera {
             ("skew_px", self.skew_px),
         ];
         if let Some((name, value)) = intrinsics.iter().find(|(_, value)| !value.is_finite()) {
-            return invalid(format!("{name} must be finite, got {}", crate::Num(*value)));
+            return invalid(format!("{name} must be finite, got {}", Num(*value)));
         }
         if !(self.fx_px > 0.0 && self.fy_px > 0.0) {
             return invalid(format!(
@@ -155,20 +155,25 @@ impl Camera {
         if self.fx_px.max(self.fy_px) > MAX_FOCAL_SIDES * side {
             return invalid(format!(
                 "focal length fx {} px, fy {} px is more than {MAX_FOCAL_SIDES} image sides ({side} px): a field of view under 0.6 deg (a unit or typing error)",
-                self.fx_px, self.fy_px
+                Num(self.fx_px),
+                Num(self.fy_px)
             ));
         }
         let (w, h) = (f64::from(self.width_px), f64::from(self.height_px));
         if !((-w..=2.0 * w).contains(&self.cx_px) && (-h..=2.0 * h).contains(&self.cy_px)) {
             return invalid(format!(
                 "principal point ({}, {}) px lies more than an image size outside the {} x {} px image",
-                self.cx_px, self.cy_px, self.width_px, self.height_px
+                Num(self.cx_px),
+                Num(self.cy_px),
+                self.width_px,
+                self.height_px
             ));
         }
         if self.skew_px.abs() > self.fx_px {
             return invalid(format!(
                 "skew {} px exceeds fx {} px (pixels skewed by more than 45 deg)",
-                self.skew_px, self.fx_px
+                Num(self.skew_px),
+                Num(self.fx_px)
             ));
         }
         let max_size_px = MAX_IMAGE_SIDE_PX;

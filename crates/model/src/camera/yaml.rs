@@ -442,7 +442,7 @@ impl Camera {
         let parse_error = |message: String| Error::Parse { path: path.to_path_buf(), message };
         let file: CameraFile = serde_saphyr::from_str(&strip_opencv_syntax(text))
             // One line ("line L column C: ..."), without the source snippet.
-            .map_err(|e| parse_error(e.without_snippet().to_string()))?;
+            .map_err(|e| parse_error(crate::error::yaml_message(&e)))?;
         file.into_camera().map_err(parse_error)
     }
 
