@@ -49,31 +49,38 @@ pub struct RgbdCalibration {
     pub translation_rms_mm: f64,
 }
 
+/// Why a view gave no board pose: an image of another size than its camera
+/// (bad input: the wrong camera file), or no board found in it.
+enum PoseFailure {
+    WrongSize(String),
+    NoPose(String),
+}
+
 /// The board's pose in `camera` from the image at `path`.
 fn pose_in(
     session: &Session,
     camera: &Camera,
     image: &std::path::Path,
-) -> std::result::Result<(Isometry3<f64>, f64), String> {
+) -> std::result::Result<(Isometry3<f64>, f64), PoseFailure> {
     let path = session.path_of(image);
-    let decoded = read_image(&path).map_err(|e| e.to_string())?;
+    let decoded = read_image(&path).map_err(|e| PoseFailure::NoPose(e.to_string()))?;
     if (decoded.width(), decoded.height()) != (camera.width_px, camera.height_px) {
-        return Err(format!(
-            "{} is {} x {} px, its camera {} x {} px",
+        return Err(PoseFailure::WrongSize(format!(
+            "{} is {} x {} px, its camera {} x {} px: the camera file does not belong to these images",
             image.display(),
             decoded.width(),
             decoded.height(),
             camera.width_px,
             camera.height_px
-        ));
+        )));
     }
     let corners = detect_board_precise(&board_gray(&decoded), &session.board)
-        .map_err(|e| format!("{}: {e}", image.display()))?;
+        .map_err(|e| PoseFailure::NoPose(format!("{}: {e}", image.display())))?;
     let (points_in_board, pixels) =
         corners.found().map(|(i, p)| (session.board.corner_in_board(i), p)).unzip();
     let observation =
         BoardObservation { name: image.display().to_string(), points_in_board, pixels };
-    board_pose(camera, &observation).map_err(|e| e.to_string())
+    board_pose(camera, &observation).map_err(|e| PoseFailure::NoPose(e.to_string()))
 }
 
 /// Calibrates `alacs_from_rgbd` from the session's views that have an
@@ -102,7 +109,7 @@ pub fn calibrate_rgbd(
                 .into(),
         }));
     }
-    let results: Vec<std::result::Result<RgbdPose, (String, String)>> = pairs
+    let results: Vec<std::result::Result<RgbdPose, (String, PoseFailure)>> = pairs
         .par_iter()
         .map(|(image, image_rgbd)| {
             let name = image_rgbd.display().to_string();
@@ -124,7 +131,10 @@ pub fn calibrate_rgbd(
     for result in results {
         match result {
             Ok(pose) => poses.push(pose),
-            Err(reason) => rejected.push(reason),
+            Err((_, PoseFailure::WrongSize(message))) => {
+                return Err(Error::Vision(alacs_vision::Error::Mismatch { message }));
+            }
+            Err((name, PoseFailure::NoPose(reason))) => rejected.push((name, reason)),
         }
     }
     if poses.is_empty() {

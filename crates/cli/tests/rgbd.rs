@@ -53,6 +53,21 @@ fn calibrate_rgbd_recovers_the_simulated_pose_within_1_mm_and_0_1_deg() {
     assert!(result["poses"].as_array().unwrap().len() >= 5, "{result}");
     assert!(translation_mm < 1.0, "{translation_mm:.3} mm off\n{result}");
     assert!(rotation_deg < 0.1, "{rotation_deg:.4} deg off\n{result}");
+
+    // The ALACS camera's file given for the RGB-D camera (another image
+    // size): bad input naming the image and both sizes, not "too degenerate".
+    let output = Command::new(ALACS)
+        .args(["calibrate", "rgbd", "--session"])
+        .arg(&session)
+        .arg("--camera")
+        .arg(session.join("camera.yaml"))
+        .arg("--rgbd-camera")
+        .arg(session.join("camera.yaml"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("does not belong") && stderr.contains("1280 x 720"), "{stderr}");
 }
 
 #[test]
