@@ -43,9 +43,15 @@ impl Failure {
         serde_json::Value::Object(object)
     }
 
-    /// This failure with `context` (a file or folder) in front of its message.
+    /// This failure with `context` (a file or folder) in front of its
+    /// message, unless the message names it already ("ro/s: ro/s: ..." says
+    /// nothing more).
     pub fn with_context(self, context: &std::path::Path) -> Self {
-        Self { error: self.error.context(context.display().to_string()), ..self }
+        let name = context.display().to_string();
+        if format!("{:#}", self.error).contains(&name) {
+            return self;
+        }
+        Self { error: self.error.context(name), ..self }
     }
 
     /// Unreadable or invalid input (exit 2).
@@ -95,5 +101,20 @@ impl<E: Classified> From<E> for Failure {
             alacs::model::ErrorClass::BadInput => Self::bad_input(error),
             alacs::model::ErrorClass::JobFailed => Self::job_failed(error),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Failure;
+
+    #[test]
+    fn a_path_the_message_names_is_not_repeated_in_front_of_it() {
+        let path = std::path::Path::new("ro/s");
+        let named =
+            Failure::bad_input(anyhow::anyhow!("ro/s: Permission denied")).with_context(path);
+        assert_eq!(format!("{:#}", named.error), "ro/s: Permission denied");
+        let unnamed = Failure::bad_input(anyhow::anyhow!("Permission denied")).with_context(path);
+        assert_eq!(format!("{:#}", unnamed.error), "ro/s: Permission denied");
     }
 }

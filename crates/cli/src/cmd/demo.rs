@@ -145,10 +145,12 @@ fn image_pipeline(
         ..SessionOptions::default()
     };
     let session = simulate_session(&true_camera, truth, &session_options)?;
-    let dir = std::env::temp_dir().join(format!("alacs-demo-{}", std::process::id()));
-    session.write(&dir)?;
+    // The session's images live in a folder of the output's own, removed
+    // when it drops (on every error path too): nothing outside `--out`.
+    let scratch = out.scratch()?;
+    session.write(scratch.path())?;
     bar.inc(1);
-    let session = Session::read(&dir)?;
+    let session = Session::read(scratch.path())?;
     bar.set_message("calibrating the camera from the board views");
     let fit = calibrate_camera_session(&session, &IntrinsicsOptions::default(), &|| {})?;
     bar.inc(1);
@@ -183,7 +185,7 @@ fn image_pipeline(
         report_out.finish()?;
         Ok(files)
     });
-    std::fs::remove_dir_all(&dir).ok();
+    drop(scratch);
     let mut report_files = report_files?;
     let mut reports = vec![args.out.join("report_calibration").join("index.html")];
     bar.inc(1);
@@ -199,18 +201,18 @@ fn image_pipeline(
         ..SessionOptions::default()
     };
     let accuracy_session = simulate_session(&true_camera, truth, &accuracy_options)?;
-    let dir = std::env::temp_dir().join(format!("alacs-demo-accuracy-{}", std::process::id()));
-    accuracy_session.write(&dir)?;
+    let scratch = out.scratch()?;
+    accuracy_session.write(scratch.path())?;
     bar.inc(1);
     bar.set_message("accuracy: every stripe point against its board plane");
     let accuracy = evaluate_accuracy(
-        &Session::read(&dir)?,
+        &Session::read(scratch.path())?,
         &fit.camera,
         &laser_fit.calibration.laser,
         &AccuracyOptions::default(),
         &|| {},
     );
-    std::fs::remove_dir_all(&dir).ok();
+    drop(scratch);
     let accuracy = accuracy?;
     bar.inc(1);
 
