@@ -25,6 +25,11 @@ fn main() -> ExitCode {
         Ok(cli) => cli,
         Err(error) => return usage_error(&error),
     };
+    // `ros` handles SIGINT and SIGTERM itself (its summary, the contract's
+    // JSON); every other command removes what it was writing.
+    if !matches!(cli.command, args::Command::Ros(_)) {
+        remove_temporaries_on_signals();
+    }
     let json = cli.command.json();
     match run(cli.command) {
         Ok(()) => ExitCode::SUCCESS,
@@ -51,6 +56,24 @@ fn main() -> ExitCode {
             ExitCode::from(failure.code)
         }
     }
+}
+
+/// On SIGINT, SIGTERM or SIGHUP: the temporary files and scratch folders
+/// being written are removed (every target keeps its old contents), one
+/// line says so, and the process exits as a shell reports the signal
+/// (128 + its number: 130, 143, 129).
+fn remove_temporaries_on_signals() {
+    use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
+    let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP]) else {
+        return;
+    };
+    std::thread::spawn(move || {
+        if let Some(signal) = signals.forever().next() {
+            alacs::model::io::remove_temporaries();
+            errln!("error: interrupted by signal {signal}; no file was left half-written");
+            std::process::exit(128 + signal);
+        }
+    });
 }
 
 /// docs/FORMATS.md, the contract, for users of the binary alone.

@@ -269,6 +269,35 @@ fn a_file_size_limit_fails_the_write_and_leaves_no_temporary_file() {
     assert!(names(&dir).iter().all(|n| !n.starts_with(".alacs-")), "{:?}", names(&dir));
 }
 
+/// A signal in the middle of a write (SIGTERM while frames are being
+/// encoded) leaves no temporary file behind and exits 143 (128 + 15).
+#[test]
+fn a_signal_mid_write_leaves_no_temporary_file() {
+    let dir = scratch("outputs-signal");
+    let out = dir.join("scan");
+    let mut child = Command::new(ALACS)
+        .args(["simulate", "scan", "--scale", "1", "--out", &arg(&out)])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Wait for a frame being written (its temporary file), then stop it.
+    let writing =
+        |d: &Path| names(d).iter().any(|n| n.starts_with(".alacs-") && n.ends_with(".tmp"));
+    let start = std::time::Instant::now();
+    while !(out.is_dir() && writing(&out)) {
+        assert!(start.elapsed().as_secs() < 60, "no temporary file seen in {}", out.display());
+        assert!(child.try_wait().unwrap().is_none(), "the scan ended before a frame was seen");
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+    let pid = child.id().to_string();
+    assert!(Command::new("kill").args(["-TERM", &pid]).status().unwrap().success());
+    let o = child.wait_with_output().unwrap();
+    assert_eq!(o.status.code(), Some(143), "{}", context(&o));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("interrupted"), "{}", context(&o));
+    assert!(!writing(&out), "{:?}", names(&out));
+}
+
 /// Issue 43 item 10: an error is one line on standard error whatever its
 /// text holds: a newline in a path is escaped, a rig.toml syntax error
 /// names its line and column instead of quoting the file over five lines.

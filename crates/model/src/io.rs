@@ -79,6 +79,63 @@ fn kind_of(file_type: std::fs::FileType) -> &'static str {
     }
 }
 
+/// A scratch folder ([`OutputDir::scratch`]), removed when dropped.
+#[derive(Debug)]
+pub struct ScratchDir {
+    dir: tempfile::TempDir,
+    _registered: Temporary,
+}
+
+impl ScratchDir {
+    /// The folder.
+    pub fn path(&self) -> &Path {
+        self.dir.path()
+    }
+}
+
+/// Temporary files and scratch folders being written now, which
+/// [`remove_temporaries`] removes when a signal ends the process.
+static TEMPORARIES: std::sync::Mutex<std::collections::BTreeSet<PathBuf>> =
+    std::sync::Mutex::new(std::collections::BTreeSet::new());
+
+/// A temporary file or folder registered in [`TEMPORARIES`] while it lives.
+#[derive(Debug)]
+struct Temporary(PathBuf);
+
+impl Temporary {
+    fn register(path: &Path) -> Self {
+        if let Ok(mut set) = TEMPORARIES.lock() {
+            set.insert(path.to_path_buf());
+        }
+        Self(path.to_path_buf())
+    }
+}
+
+impl Drop for Temporary {
+    fn drop(&mut self) {
+        if let Ok(mut set) = TEMPORARIES.lock() {
+            set.remove(&self.0);
+        }
+    }
+}
+
+/// Removes every temporary file and scratch folder being written now: for
+/// a signal handler that then ends the process, so that an interrupted
+/// write leaves nothing behind (the targets keep their old contents).
+pub fn remove_temporaries() {
+    let paths: Vec<PathBuf> = match TEMPORARIES.lock() {
+        Ok(set) => set.iter().cloned().collect(),
+        Err(poisoned) => poisoned.into_inner().iter().cloned().collect(),
+    };
+    for path in paths {
+        if std::fs::symlink_metadata(&path).is_ok_and(|m| m.is_dir()) {
+            let _ = std::fs::remove_dir_all(&path);
+        } else {
+            let _ = std::fs::remove_file(&path);
+        }
+    }
+}
+
 /// A temporary file in `dir` for an output that will be renamed into place:
 /// readable by everyone, as files a program writes usually are (tempfile's
 /// own default, 0600, would keep a recording or a report from the user
@@ -138,6 +195,8 @@ pub struct OutputFile {
     /// The file that is replaced (the named path with its links followed).
     real: PathBuf,
     temp: BufWriter<tempfile::NamedTempFile>,
+    /// The temporary file's registration for [`remove_temporaries`].
+    _registered: Temporary,
 }
 
 impl OutputFile {
@@ -174,10 +233,16 @@ impl OutputFile {
             _ => Path::new("."),
         };
         let temp = temp_file_in(dir, ".tmp").map_err(io_error(path))?;
+        let registered = Temporary::register(temp.path());
         if let Some(meta) = meta {
             keep_mode_and_owner(temp.as_file(), meta).map_err(io_error(path))?;
         }
-        Ok(Self { path: path.to_path_buf(), real, temp: BufWriter::new(temp) })
+        Ok(Self {
+            path: path.to_path_buf(),
+            real,
+            temp: BufWriter::new(temp),
+            _registered: registered,
+        })
     }
 
     /// The path the caller named.
@@ -585,11 +650,13 @@ impl OutputDir {
     /// A hidden scratch folder inside this one for intermediate files (a
     /// rendered session read back as a user's is), removed when dropped, on
     /// error paths too: work in progress stays inside the output folder.
-    pub fn scratch(&self) -> Result<tempfile::TempDir> {
-        tempfile::Builder::new()
+    pub fn scratch(&self) -> Result<ScratchDir> {
+        let dir = tempfile::Builder::new()
             .prefix(".scratch-")
             .tempdir_in(&self.dir)
-            .map_err(io_error(&self.dir))
+            .map_err(io_error(&self.dir))?;
+        let registered = Temporary::register(dir.path());
+        Ok(ScratchDir { dir, _registered: registered })
     }
 
     /// The path of `name` (relative, `/`-separated, no `..`) inside the
