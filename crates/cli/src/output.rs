@@ -306,7 +306,7 @@ pub fn localization_summary(answer: &Localization) -> String {
         let _ = writeln!(
             out,
             "{:>5} {:>9.1} {:>7} {:>6}  {:<28} {:>7}",
-            k + 1,
+            k,
             frame.slide_mm,
             frame.stripe.len(),
             frame.fruit.len(),

@@ -363,7 +363,7 @@ fn demo_json_reports_four_methods_and_accuracy() {
     let reports: Vec<&str> =
         json["reports"].as_array().unwrap().iter().map(|r| r.as_str().unwrap()).collect();
     assert_eq!(reports.len(), 2, "{reports:?}");
-    for (page, images) in [("report_calibration", "view01.jpg"), ("report_scan", "frame01.jpg")] {
+    for (page, images) in [("report_calibration", "view01.jpg"), ("report_scan", "frame00.jpg")] {
         let index = out.join(page).join("index.html");
         assert!(reports.contains(&index.to_str().unwrap()), "{reports:?}");
         let html = std::fs::read_to_string(&index).unwrap();

@@ -420,9 +420,9 @@ impl Source {
     pub(crate) fn describe(self) -> String {
         match self {
             Source::Points => "a sphere through the laser points".into(),
-            Source::Arc { frame, mirrored: false } => format!("frame {}'s arc", frame + 1),
+            Source::Arc { frame, mirrored: false } => format!("frame {frame}'s arc"),
             Source::Arc { frame, mirrored: true } => {
-                format!("frame {}'s arc mirrored across its laser plane", frame + 1)
+                format!("frame {frame}'s arc mirrored across its laser plane")
             }
             Source::FreeFit => "the free sphere fit".into(),
             Source::PriorRadiusFit => "the sphere of the prior radius".into(),

@@ -190,8 +190,8 @@ pub(crate) fn slide_contradiction(results: &[FrameResult]) -> Option<String> {
             };
             return Some(format!(
                 "frames {} and {} claim one slide position ({:.1} mm) but the stripe moved between them ({}): the slide positions contradict the images",
-                i + 1,
-                j + 1,
+                i,
+                j,
                 a.slide_mm,
                 match moved {
                     Some(px) => format!("{px:.0} px along its rows"),
@@ -480,7 +480,7 @@ pub(crate) fn no_candidate_reason(results: &[FrameResult]) -> String {
     let reasons: Vec<String> = results
         .iter()
         .enumerate()
-        .filter_map(|(k, r)| r.rejected.as_ref().map(|why| format!("frame {}: {why}", k + 1)))
+        .filter_map(|(k, r)| r.rejected.as_ref().map(|why| format!("frame {k}: {why}")))
         .collect();
     if reasons.is_empty() {
         "no frame shows the fruit".into()

@@ -170,8 +170,7 @@ pub(crate) fn check_frame(camera: &Camera, i: usize, frame: &FrameImages) -> Res
     let invalid = |m: String| Err(Error::InvalidInput(m));
     if frame.image.dimensions() != (camera.width_px, camera.height_px) {
         return invalid(format!(
-            "frame {} is {} x {} px, the camera {} x {} px",
-            i + 1,
+            "frame {i} is {} x {} px, the camera {} x {} px",
             frame.image.width(),
             frame.image.height(),
             camera.width_px,
@@ -182,8 +181,7 @@ pub(crate) fn check_frame(camera: &Camera, i: usize, frame: &FrameImages) -> Res
         && off.dimensions() != frame.image.dimensions()
     {
         return invalid(format!(
-            "frame {}: the laser-off image is {} x {} px, the frame {} x {} px",
-            i + 1,
+            "frame {i}: the laser-off image is {} x {} px, the frame {} x {} px",
             off.width(),
             off.height(),
             frame.image.width(),
@@ -191,7 +189,7 @@ pub(crate) fn check_frame(camera: &Camera, i: usize, frame: &FrameImages) -> Res
         ));
     }
     if !frame.slide_mm.is_finite() {
-        return invalid(format!("frame {}: slide_mm {} is not finite", i + 1, frame.slide_mm));
+        return invalid(format!("frame {i}: slide_mm {} is not finite", frame.slide_mm));
     }
     Ok(())
 }

@@ -79,7 +79,7 @@ pub(crate) fn answer_holistic(answer: &mut Localization, prior: &Prior) {
             answer.selected = Some(i);
             answer.reason = format!(
                 "frame {} selected from {} candidates (score {:.2}); {apart:.1} mm from the fruit all frames support",
-                best.frame + 1,
+                best.frame,
                 answer.candidates.len(),
                 best.score
             );
@@ -87,14 +87,13 @@ pub(crate) fn answer_holistic(answer: &mut Localization, prior: &Prior) {
         Some(apart) => {
             answer.reason = format!(
                 "frame {}'s candidate (score {:.2}) lies {apart:.0} mm from the fruit all frames support, more than {same_fruit:.0} mm: the frames contradict it",
-                best.frame + 1,
-                best.score
+                best.frame, best.score
             );
         }
         None => {
             answer.reason = format!(
                 "frame {}'s candidate (score {:.2}) is not confirmed by the frames together: {}",
-                best.frame + 1,
+                best.frame,
                 best.score,
                 answer.fused_rejected.as_deref().unwrap_or("no fruit accepted")
             );

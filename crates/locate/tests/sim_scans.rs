@@ -254,7 +254,7 @@ fn frames_that_do_not_fit_the_camera_are_refused() {
     let frames = [FrameImages { image: &image, image_laser_off: None, slide_mm: 0.0 }];
     let prior = Prior { rough_position_mm: Point3::new(0.0, 0.0, 800.0), fruit_radius_mm: 40.0 };
     let error = locate(&camera, &laser(), &prior, &frames, &LocateOptions::default()).unwrap_err();
-    assert!(matches!(error, Error::InvalidInput(ref m) if m.contains("frame 1")), "{error}");
+    assert!(matches!(error, Error::InvalidInput(ref m) if m.contains("frame 0")), "{error}");
     let error = locate(&camera, &laser(), &prior, &[], &LocateOptions::default()).unwrap_err();
     assert!(error.to_string().contains("no frames"), "{error}");
     let fits = image::RgbImage::new(camera.width_px, camera.height_px);
@@ -273,7 +273,7 @@ fn an_empty_scan_is_not_found_with_a_reason() {
     let answer = locate_in_black_frames(5, 60.0);
     assert_eq!(answer.status, Status::NotFound);
     assert!(answer.position_mm.is_none());
-    assert!(answer.reason.contains("frame 1"), "{}", answer.reason);
+    assert!(answer.reason.contains("frame 0"), "{}", answer.reason);
 }
 
 /// Scans located with inputs that contradict their images (issue 43): the

@@ -166,7 +166,7 @@ pub fn write_scan_html(out: &mut OutputDir, report: &ScanReport) -> Result<Vec<P
     let names: Vec<String> = (n > 0)
         .then(|| "images/overview.jpg".to_string())
         .into_iter()
-        .chain((0..n).map(|i| format!("images/frame{:02}.jpg", i + 1)))
+        .chain((0..n).map(|i| format!("images/frame{i:02}.jpg")))
         .collect();
     let images: Vec<Vec<u8>> = names
         .par_iter()
@@ -217,16 +217,15 @@ pub fn write_scan_html(out: &mut OutputDir, report: &ScanReport) -> Result<Vec<P
     if n > 0 {
         page.figure(
             &["images/overview.jpg"],
-            &format!("Overview: frame {} with every frame's search region", n / 2 + 1),
+            &format!("Overview: frame {} with every frame's search region", n / 2),
             None,
         );
     }
     page.grid_start();
     for (i, frame) in answer.frames.iter().enumerate().take(n) {
-        let name = format!("images/frame{:02}.jpg", i + 1);
+        let name = format!("images/frame{i:02}.jpg");
         let caption = format!(
-            "Frame {} ({}, slide {:.1} mm): {} stripe points, {} triangulated, {} on the fruit{}",
-            i + 1,
+            "Frame {i} ({}, slide {:.1} mm): {} stripe points, {} triangulated, {} on the fruit{}",
             report.frames[i].name,
             frame.slide_mm,
             frame.stripe.len(),
@@ -344,7 +343,7 @@ fn candidates(page: &mut Page, answer: &Localization) {
             };
             (
                 vec![
-                    num((c.frame + 1).to_string()),
+                    num(c.frame.to_string()),
                     num(format!("{:.1}", c.slide_mm)),
                     num(xyz(&c.position_mm)),
                     num(format!("{:.2}", c.circle_radius_mm)),
