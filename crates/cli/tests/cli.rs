@@ -181,9 +181,14 @@ fn evaluate_calibration_writes_table_1_and_residual_plots() {
     let out = dir.join("evaluation");
     let output = alacs(&evaluate_calibration(&samples, &out));
     assert!(output.status.success(), "{}", stderr(&output));
-    let text = String::from_utf8(output.stdout).unwrap();
+    let text = String::from_utf8(output.stdout.clone()).unwrap();
     assert!(text.contains("Method 4 (High-fidelity model + RANSAC)"), "{text}");
-    assert!(text.contains("wrote 10 files"), "{text}");
+    // Every written file is named on standard error, with --json too.
+    assert!(stderr(&output).contains("wrote 10 files"), "{}", stderr(&output));
+    let json_out = dir.join("evaluation_json");
+    let output = alacs(&with(evaluate_calibration(&samples, &json_out), &["--json"]));
+    assert!(output.status.success(), "{}", stderr(&output));
+    assert!(stderr(&output).contains("wrote 10 files"), "{}", stderr(&output));
     let json: Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("calibration.json")).unwrap())
             .unwrap();

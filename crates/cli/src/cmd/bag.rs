@@ -34,16 +34,15 @@ pub fn export(args: &BagExportArgs) -> CmdResult {
             "camera": summary.camera.is_some(),
             "messages": summary.messages,
         }))?;
-    } else {
-        outln!(
-            "wrote scan {} of {} ({} frames{}) to {}",
-            args.scan_index,
-            args.bag.display(),
-            scan.frames.len(),
-            if summary.camera.is_some() { ", camera.yaml from its CameraInfo" } else { "" },
-            args.out.display()
-        );
     }
+    errln!(
+        "wrote scan {} of {} ({} frames{}) to {}",
+        args.scan_index,
+        args.bag.display(),
+        scan.frames.len(),
+        if summary.camera.is_some() { ", camera.yaml from its CameraInfo" } else { "" },
+        args.out.display()
+    );
     Ok(())
 }
 
@@ -106,14 +105,13 @@ pub fn import(args: &BagImportArgs) -> CmdResult {
             "images": captured.image_count(),
             "camera": camera_file.map(|p| p.display().to_string()),
         }))?;
-    } else {
-        outln!(
-            "recorded {} ({} frames, {} images) as {}",
-            args.scan.display(),
-            captured.frames.len(),
-            captured.image_count(),
-            args.bag.display()
-        );
     }
+    errln!(
+        "wrote {} ({} frames, {} images of {})",
+        args.bag.display(),
+        captured.frames.len(),
+        captured.image_count(),
+        args.scan.display()
+    );
     Ok(())
 }

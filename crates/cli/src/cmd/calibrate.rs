@@ -128,9 +128,9 @@ pub fn laser(args: &CalibrateLaserArgs) -> CmdResult {
             outln!();
         }
         out!("{}", output::summary(fit));
-        if let Some(path) = &args.output {
-            outln!("wrote {}", path.display());
-        }
+    }
+    if let Some(path) = &args.output {
+        errln!("wrote {}", path.display());
     }
     Ok(())
 }
@@ -179,6 +179,7 @@ fn session_samples(
     }
     if let Some(path) = &args.export_samples {
         write_samples_csv(path, &result.samples)?;
+        errln!("wrote {} ({} samples)", path.display(), result.samples.len());
     }
     Ok((result.samples, result.calibration))
 }
@@ -292,9 +293,9 @@ pub fn camera(args: &CalibrateCameraArgs) -> CmdResult {
                 Some(reason) => outln!("  {:<24} {rms} rejected: {reason}", view.name),
             }
         }
-        if let Some(path) = &args.output {
-            outln!("wrote {}", path.display());
-        }
+    }
+    if let Some(path) = &args.output {
+        errln!("wrote {}", path.display());
     }
     Ok(())
 }

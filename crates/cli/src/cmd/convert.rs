@@ -26,14 +26,13 @@ pub fn camera(args: &ConvertCameraArgs) -> CmdResult {
             "width_px": camera.width_px, "height_px": camera.height_px,
             "distortion_model": camera.distortion.ros_model().0,
         }))?;
-    } else {
-        outln!(
-            "wrote {} ({layout} layout): {} x {} px, {}",
-            args.output.display(),
-            camera.width_px,
-            camera.height_px,
-            camera.distortion.ros_model().0
-        );
     }
+    errln!(
+        "wrote {} ({layout} layout): {} x {} px, {}",
+        args.output.display(),
+        camera.width_px,
+        camera.height_px,
+        camera.distortion.ros_model().0
+    );
     Ok(())
 }

@@ -120,8 +120,8 @@ pub fn calibration(args: &EvaluateCalibrationArgs) -> CmdResult {
                 );
             }
         }
-        outln!("{}", output::files_written(&args.out, &files));
     }
+    errln!("{}", output::files_written(&args.out, &files));
     Ok(())
 }
 
@@ -176,7 +176,7 @@ pub fn accuracy(args: &EvaluateAccuracyArgs) -> CmdResult {
             eval.points_per_view.as_str()
         );
         out!("{}", output::accuracy_table(&eval));
-        outln!("{}", output::files_written(&args.out, &files));
     }
+    errln!("{}", output::files_written(&args.out, &files));
     Ok(())
 }

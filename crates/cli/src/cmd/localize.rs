@@ -60,7 +60,7 @@ pub fn run(args: &LocalizeArgs) -> CmdResult {
         for (k, answer) in answers.iter().enumerate() {
             let file = target_cloud_path(path, k);
             alacs::locate::write_points(&file, answer)?;
-            errln!("wrote fruit {}'s laser points and fitted centre to {}", k + 1, file.display());
+            errln!("wrote fruit {k}'s laser points and fitted centre to {}", file.display());
         }
     }
     if args.json {

@@ -73,8 +73,8 @@ pub fn calibration(args: &ReportCalibrationArgs) -> CmdResult {
             if flagged.is_empty() { String::new() } else { format!(": {}", flagged.join(", ")) },
             args.out.join("index.html").display()
         );
-        outln!("{}", output::files_written(&args.out, &files));
     }
+    errln!("{}", output::files_written(&args.out, &files));
     Ok(())
 }
 
@@ -129,11 +129,8 @@ pub fn scan(args: &ReportScanArgs) -> CmdResult {
         ))?;
     } else {
         output::print_text(&output::localization_summary(&answer))?;
-        outln!(
-            "Scan report: {}\n{}",
-            args.out.join("index.html").display(),
-            output::files_written(&args.out, &files)
-        );
+        outln!("Scan report: {}", args.out.join("index.html").display());
     }
+    errln!("{}", output::files_written(&args.out, &files));
     Ok(())
 }

@@ -163,7 +163,10 @@ pub fn run(args: &ScanArgs) -> CmdResult {
             .map_err(|f| f.with_context(dir))?;
     }
     if let Some(out) = folder.take() {
-        out.finish()?;
+        let files = out.finish()?;
+        if let Some(dir) = &args.out {
+            errln!("{}", output::files_written(dir, &files));
+        }
     }
     let mut answers = answer?;
     bar.finish_and_clear();
@@ -295,14 +298,6 @@ fn print_targets(
                 );
             }
         }
-        if let Some(dir) = &args.out {
-            out!(
-                "wrote {} (scan.yaml naming {} fruit, {} frames)\n",
-                dir.display(),
-                answers.len(),
-                scan.image_count()
-            );
-        }
     }
     Ok(())
 }
@@ -393,14 +388,6 @@ fn summary(
                 );
             }
         }
-    }
-    if let Some(dir) = &args.out {
-        out += &format!(
-            "  wrote {} (scan.yaml, {} frames, camera.yaml, laser.yaml{})\n",
-            dir.display(),
-            scan.image_count(),
-            if sim.is_some() { ", truth.json" } else { "" }
-        );
     }
     out
 }

@@ -80,17 +80,16 @@ pub fn init(args: &SessionInitArgs) -> CmdResult {
             "n_views": session.views.len(),
             "images": images,
         }))?;
-    } else {
-        outln!(
-            "wrote {} ({} views, {}x{} board of {} x {} mm squares, slide {} mm)",
-            path.display(),
-            session.views.len(),
-            cols,
-            rows,
-            square_x_mm,
-            square_y_mm,
-            args.slide_mm
-        );
     }
+    errln!(
+        "wrote {} ({} views, {}x{} board of {} x {} mm squares, slide {} mm)",
+        path.display(),
+        session.views.len(),
+        cols,
+        rows,
+        square_x_mm,
+        square_y_mm,
+        args.slide_mm
+    );
     Ok(())
 }

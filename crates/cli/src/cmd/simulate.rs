@@ -150,14 +150,13 @@ pub fn samples(args: &SimulateSamplesArgs) -> CmdResult {
             "n_samples": sim.samples.len(),
             "outliers": sim.outliers,
         }))?;
-    } else {
-        outln!(
-            "wrote {} samples ({} outliers) to {} (samples.csv, truth.json)",
-            sim.samples.len(),
-            sim.outliers.len(),
-            args.out.display()
-        );
     }
+    errln!(
+        "wrote {} samples ({} outliers) to {} (samples.csv, truth.json)",
+        sim.samples.len(),
+        sim.outliers.len(),
+        args.out.display()
+    );
     Ok(())
 }
 
@@ -221,18 +220,17 @@ pub fn session(args: &SimulateSessionArgs) -> CmdResult {
             "image_height": session.camera.height_px,
             "images": images,
         }))?;
-    } else {
-        outln!(
-            "wrote {} views ({} images, {} x {} px) to {} (session.yaml, camera.yaml, truth.json, {}{})",
-            session.views.len(),
-            session.image_count(),
-            session.camera.width_px,
-            session.camera.height_px,
-            args.out.display(),
-            images.first().copied().unwrap_or_default(),
-            if images.len() > 1 { ", ..." } else { "" },
-        );
     }
+    errln!(
+        "wrote {} views ({} images, {} x {} px) to {} (session.yaml, camera.yaml, truth.json, {}{})",
+        session.views.len(),
+        session.image_count(),
+        session.camera.width_px,
+        session.camera.height_px,
+        args.out.display(),
+        images.first().copied().unwrap_or_default(),
+        if images.len() > 1 { ", ..." } else { "" },
+    );
     Ok(())
 }
 
@@ -266,21 +264,20 @@ pub fn scan(args: &SimulateScanArgs) -> CmdResult {
             "fruit": {"position_mm": [c.x, c.y, c.z], "radius_mm": scan.scene.fruit_radius_mm},
             "occlusion": scan.scene.occlusion,
         }))?;
-    } else {
-        outln!(
-            "wrote {} frames ({} x {} px, slides {} mm) of a {:.1} mm apple at ({:.1}, {:.1}, {:.1}) mm, {:.0} % hidden, to {} (scan.yaml, camera.yaml, laser.yaml, truth.json)",
-            scan.frames.len(),
-            scan.camera.width_px,
-            scan.camera.height_px,
-            scan.plan.slides_mm.iter().map(|d| format!("{d:.1}")).collect::<Vec<_>>().join(", "),
-            scan.scene.fruit_radius_mm,
-            c.x,
-            c.y,
-            c.z,
-            scan.scene.occlusion * 100.0,
-            args.out.display()
-        );
     }
+    errln!(
+        "wrote {} frames ({} x {} px, slides {} mm) of a {:.1} mm apple at ({:.1}, {:.1}, {:.1}) mm, {:.0} % hidden, to {} (scan.yaml, camera.yaml, laser.yaml, truth.json)",
+        scan.frames.len(),
+        scan.camera.width_px,
+        scan.camera.height_px,
+        scan.plan.slides_mm.iter().map(|d| format!("{d:.1}")).collect::<Vec<_>>().join(", "),
+        scan.scene.fruit_radius_mm,
+        c.x,
+        c.y,
+        c.z,
+        scan.scene.occlusion * 100.0,
+        args.out.display()
+    );
     Ok(())
 }
 
@@ -305,19 +302,18 @@ pub fn rgbd(args: &SimulateRgbdArgs) -> CmdResult {
         output::print_json(
             &json!({"out": args.out.display().to_string(), "truth": view.truth_json()}),
         )?;
-    } else {
-        let target = view.apples.iter().find(|a| a.target);
-        outln!(
-            "wrote the RGB-D view ({} x {} px) of {} apple(s){} to {} (color.png, depth.png, camera.yaml, truth.json)",
-            camera.width_px,
-            camera.height_px,
-            view.apples.len(),
-            target.map_or(String::new(), |t| format!(
-                ", the target at ({:.1}, {:.1}, {:.1}) mm",
-                t.centre_mm.x, t.centre_mm.y, t.centre_mm.z
-            )),
-            args.out.display()
-        );
     }
+    let target = view.apples.iter().find(|a| a.target);
+    errln!(
+        "wrote the RGB-D view ({} x {} px) of {} apple(s){} to {} (color.png, depth.png, camera.yaml, truth.json)",
+        camera.width_px,
+        camera.height_px,
+        view.apples.len(),
+        target.map_or(String::new(), |t| format!(
+            ", the target at ({:.1}, {:.1}, {:.1}) mm",
+            t.centre_mm.x, t.centre_mm.y, t.centre_mm.z
+        )),
+        args.out.display()
+    );
     Ok(())
 }
