@@ -255,6 +255,21 @@ fn main() {
                         truth_radius,
                         100.0 * scan.scene.occlusion
                     );
+                    // Each frame's stripe points, those on the fruit's colour, and
+                    // those within 2.5 mm of the true fruit.
+                    let frames: Vec<String> = answer
+                        .frames
+                        .iter()
+                        .map(|r| {
+                            let on = r
+                                .points_in_camera
+                                .iter()
+                                .filter(|(_, p)| ((p - truth).norm() - truth_radius).abs() < 2.5)
+                                .count();
+                            format!("{}/{}/{on}", r.stripe.len(), r.fruit.len())
+                        })
+                        .collect();
+                    println!("    frames (stripe/fruit/on the true fruit): {}", frames.join(" "));
                 }
                 eprint!(
                     "\r{} ({}): {}/{n}   ",
