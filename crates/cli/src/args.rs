@@ -552,8 +552,8 @@ pub struct StripeArgs {
     #[arg(long, value_name = "FILE")]
     pub laser_off: Option<PathBuf>,
     /// Search only this rectangle: u0,v0,u1,v1 (pixels, inclusive).
-    #[arg(long, value_name = "U0,V0,U1,V1")]
-    pub roi: Option<String>,
+    #[arg(long, value_name = "U0,V0,U1,V1", allow_hyphen_values = true, value_parser = crate::values::roi)]
+    pub roi: Option<[u32; 4]>,
     /// Smallest peak score counted as laser (DN); default 12, or 10 with --orchard.
     #[arg(long, value_name = "DN")]
     pub min_strength: Option<f32>,
@@ -622,8 +622,8 @@ pub struct SimulateSamplesArgs {
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=alacs::sim::MAX_SAMPLES as i64))]
     pub points_per_view: u32,
     /// Board distance range MIN,MAX in mm.
-    #[arg(long, value_name = "MIN,MAX", default_value = "600,1200")]
-    pub depth_mm: String,
+    #[arg(long, value_name = "MIN,MAX", default_value = "600,1200", value_parser = crate::values::distance_range_mm)]
+    pub depth_mm: (f64, f64),
     /// Standard deviation of the depth noise, mm.
     #[arg(long, default_value_t = 0.5, value_parser = number_in(0.0, 1000.0))]
     pub noise_mm: f64,
@@ -669,11 +669,11 @@ pub struct SimulateSessionArgs {
     /// 720, 70 deg) at this pose in the ALACS camera frame: x,y,z mm, roll,
     /// pitch, yaw deg (as --alacs-from-rgbd); writes viewNN_rgbd.png,
     /// rgbd_camera.yaml and the truth (`alacs calibrate rgbd`).
-    #[arg(long, value_name = "X,Y,Z,ROLL,PITCH,YAW", allow_hyphen_values = true)]
-    pub rgbd_pose: Option<String>,
+    #[arg(long, value_name = "X,Y,Z,ROLL,PITCH,YAW", allow_hyphen_values = true, value_parser = crate::values::pose)]
+    pub rgbd_pose: Option<nalgebra::Isometry3<f64>>,
     /// Board centre distance range MIN,MAX in mm.
-    #[arg(long, value_name = "MIN,MAX", default_value = "600,1200")]
-    pub depth_mm: String,
+    #[arg(long, value_name = "MIN,MAX", default_value = "600,1200", value_parser = crate::values::distance_range_mm)]
+    pub depth_mm: (f64, f64),
     /// Largest board tilt away from facing the camera, degrees.
     #[arg(long, default_value_t = 40.0, value_parser = number_in(0.0, 89.0))]
     pub max_tilt_deg: f64,
@@ -748,8 +748,8 @@ pub struct SceneArgs {
     #[arg(long)]
     pub all_targets: bool,
     /// Fruit distance range MIN,MAX in mm.
-    #[arg(long, value_name = "MIN,MAX", default_value = "600,1200")]
-    pub depth_mm: String,
+    #[arg(long, value_name = "MIN,MAX", default_value = "600,1200", value_parser = crate::values::distance_range_mm)]
+    pub depth_mm: (f64, f64),
     /// Render the camera resized by this factor (camera.yaml holds the resized camera).
     #[arg(long, value_name = "F", default_value_t = 1.0, value_parser = positive_up_to(alacs::sim::MAX_SCALE))]
     pub scale: f64,
@@ -859,9 +859,10 @@ pub struct SimulateRgbdArgs {
         long,
         value_name = "X,Y,Z,ROLL,PITCH,YAW",
         default_value = "0,0,0,0,0,0",
-        allow_hyphen_values = true
+        allow_hyphen_values = true,
+        value_parser = crate::values::pose
     )]
-    pub alacs_from_rgbd: String,
+    pub alacs_from_rgbd: nalgebra::Isometry3<f64>,
     /// Print a JSON summary on standard output.
     #[arg(long)]
     pub json: bool,
@@ -1032,8 +1033,8 @@ pub struct RigArgs {
     /// settle, capture, per frame) or continuous (one run through the
     /// positions, frames captured on the way, each at the slide's position
     /// at mid-exposure). Default: rig.toml's [scan] mode, else stop_and_go.
-    #[arg(long, value_name = "MODE", value_parser = alacs::scanner::ScanMode::NAMES)]
-    pub scan_mode: Option<String>,
+    #[arg(long, value_name = "MODE", value_parser = crate::values::scan_mode)]
+    pub scan_mode: Option<alacs::rig::ScanModeName>,
     /// Pose of the RGB-D camera in the ALACS camera frame: translation in mm,
     /// then roll, pitch, yaw in degrees (R = Rz(yaw) Ry(pitch) Rx(roll));
     /// point_in_alacs = R point_in_rgbd + (x, y, z). The simulated RGB-D camera
@@ -1043,9 +1044,10 @@ pub struct RigArgs {
         long,
         alias = "rgbd-to-alacs",
         value_name = "X,Y,Z,ROLL,PITCH,YAW",
-        allow_hyphen_values = true
+        allow_hyphen_values = true,
+        value_parser = crate::values::pose
     )]
-    pub alacs_from_rgbd: Option<String>,
+    pub alacs_from_rgbd: Option<nalgebra::Isometry3<f64>>,
     #[command(flatten)]
     pub rough_error: RoughErrorArgs,
     /// Localize with this calibrated camera.yaml instead of the simulation's true camera.
@@ -1066,8 +1068,8 @@ pub struct ScanArgs {
     /// detector gave). Default with a simulated camera: the simulated
     /// RGB-D camera's; required otherwise.
     /// Repeat it for several fruit: one sweep covers them all.
-    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
-    pub rough_mm: Vec<String>,
+    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true, value_parser = crate::values::point_mm)]
+    pub rough_mm: Vec<nalgebra::Point3<f64>>,
     /// Write the scan folder (scan.yaml, frames, camera.yaml, laser.yaml)
     /// here, and truth.json when the camera is simulated.
     #[arg(long, value_name = "DIR")]
@@ -1232,9 +1234,10 @@ pub struct RosArgs {
         long,
         value_name = "X,Y,Z,ROLL,PITCH,YAW",
         default_value = "0,0,0,-90,0,-90",
-        allow_hyphen_values = true
+        allow_hyphen_values = true,
+        value_parser = crate::values::pose
     )]
-    pub mount_from_camera: String,
+    pub mount_from_camera: nalgebra::Isometry3<f64>,
     /// Publish no static transform (the robot's URDF mounts the camera).
     #[arg(long)]
     pub no_static_tf: bool,

@@ -10,6 +10,7 @@ mod output;
 mod cmd;
 mod failure;
 mod ros_args;
+mod values;
 
 use std::process::ExitCode;
 

@@ -66,7 +66,7 @@ pub fn open(args: &RigArgs, note: &mut dyn FnMut(&str)) -> CmdResult<OpenRig> {
         }
     };
     let alacs_from_rgbd = match (&args.alacs_from_rgbd, &config) {
-        (Some(text), _) => crate::cmd::scan::parse_pose(text)?,
+        (Some(given), _) => *given,
         (None, Some(config)) => pose(config.rgbd.alacs_from_rgbd),
         (None, None) => Isometry3::identity(),
     };
@@ -147,8 +147,8 @@ pub fn open(args: &RigArgs, note: &mut dyn FnMut(&str)) -> CmdResult<OpenRig> {
         controller.metering = Some(metering);
     }
     let scan_config = config.as_ref().map(|c| c.scan.clone()).unwrap_or_default();
-    let mode = match &args.scan_mode {
-        Some(name) => ScanModeName::parse(name).map_err(|e| Failure::bad_input(anyhow!(e)))?,
+    let mode = match args.scan_mode {
+        Some(mode) => mode,
         None => scan_config.mode,
     };
     if mode == ScanModeName::Continuous {

@@ -35,10 +35,7 @@ pub fn run(args: &RosArgs) -> CmdResult {
         mount: if args.no_static_tf {
             None
         } else {
-            Some((
-                args.mount_frame.clone(),
-                crate::cmd::scan::parse_pose_of(&args.mount_from_camera, "--mount-from-camera")?,
-            ))
+            Some((args.mount_frame.clone(), args.mount_from_camera))
         },
         remaps: args.remap.iter().map(|r| parse_remap(r)).collect::<CmdResult<_>>()?,
         rgbd_ns: (args.rgbd_detector != RgbdDetectorArg::None).then(|| args.rgbd_ns.clone()),

@@ -26,41 +26,13 @@ use serde_json::{Value, json};
 
 use crate::args::ScanArgs;
 use crate::cmd::rig::{self, OpenRig};
-use crate::cmd::simulate::parse_list;
 use crate::failure::{CmdResult, Failure};
 use crate::output;
-
-/// Parses `X,Y,Z,ROLL,PITCH,YAW` (mm, degrees) into the pose of the RGB-D
-/// camera in the ALACS camera frame.
-pub fn parse_pose(text: &str) -> CmdResult<Isometry3<f64>> {
-    parse_pose_of(text, "--alacs-from-rgbd")
-}
-
-/// Parses the pose `text` of the option `option`: X,Y,Z,ROLL,PITCH,YAW
-/// (mm, degrees; R = Rz(yaw) Ry(pitch) Rx(roll)).
-pub fn parse_pose_of(text: &str, option: &str) -> CmdResult<Isometry3<f64>> {
-    let limit_mm = alacs::model::MAX_ROUGH_DISTANCE_MM;
-    match *parse_list(text, option)?.as_slice() {
-        [x, y, z, ..] if [x, y, z].iter().any(|t| t.abs() > limit_mm) => Err(Failure::bad_input(
-            anyhow!("{option} `{text}`: the translation must lie within +-{limit_mm} mm"),
-        )),
-        [_, _, _, roll, pitch, yaw] if [roll, pitch, yaw].iter().any(|a| a.abs() > 360.0) => {
-            Err(Failure::bad_input(anyhow!(
-                "{option} `{text}`: roll, pitch and yaw must lie within +-360 deg"
-            )))
-        }
-        [x, y, z, roll, pitch, yaw] => Ok(rig::pose([x, y, z, roll, pitch, yaw])),
-        _ => Err(Failure::bad_input(anyhow!(
-            "{option} takes X,Y,Z,ROLL,PITCH,YAW (mm, degrees), got `{text}`"
-        ))),
-    }
-}
 
 /// Runs `alacs scan`.
 pub fn run(args: &ScanArgs) -> CmdResult {
     let bar = output::progress_bar(args.json, "opening the rig");
-    let given =
-        args.rough_mm.iter().map(|text| parse_rough(text)).collect::<CmdResult<Vec<_>>>()?;
+    let given = args.rough_mm.clone();
     if given.len() > MAX_SCAN_TARGETS {
         return Err(Failure::bad_input(anyhow!(
             "{} --rough-mm: a scan covers 1-{MAX_SCAN_TARGETS} fruit",
@@ -300,17 +272,6 @@ fn print_targets(
         }
     }
     Ok(())
-}
-
-/// Parses `--rough-mm X,Y,Z`.
-fn parse_rough(text: &str) -> CmdResult<Point3<f64>> {
-    let limit = alacs::model::MAX_ROUGH_DISTANCE_MM;
-    match *parse_list(text, "--rough-mm")?.as_slice() {
-        [x, y, z] if [x, y, z].iter().all(|v| v.abs() <= limit) => Ok(Point3::new(x, y, z)),
-        _ => Err(Failure::bad_input(anyhow!(
-            "--rough-mm takes X,Y,Z in mm, each within +-{limit}, got `{text}`"
-        ))),
-    }
 }
 
 fn point(p: &Point3<f64>) -> [f64; 3] {

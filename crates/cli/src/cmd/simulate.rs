@@ -50,19 +50,6 @@ fn parse_slides(text: &str, laser: &LaserModel) -> CmdResult<Vec<f64>> {
     }
 }
 
-/// Parses a distance range `MIN,MAX` in mm for option `name`: positive,
-/// ordered and within [`alacs::model::MAX_ROUGH_DISTANCE_MM`].
-pub fn parse_range(text: &str, name: &str) -> CmdResult<(f64, f64)> {
-    let limit = alacs::model::MAX_ROUGH_DISTANCE_MM;
-    match *parse_list(text, name)?.as_slice() {
-        [min, max] if 0.0 < min && min <= max && max <= limit => Ok((min, max)),
-        [_, _] => Err(Failure::bad_input(anyhow!(
-            "{name} `{text}`: MIN,MAX must satisfy 0 < MIN <= MAX <= {limit} mm"
-        ))),
-        _ => Err(Failure::bad_input(anyhow!("{name} takes MIN,MAX, got `{text}`"))),
-    }
-}
-
 impl TruthArgs {
     /// The camera of `--camera FILE`, or the default 5 MP camera, and the
     /// laser of `--laser FILE` or of `--alpha-deg`, `--beta-deg`, `--l0-mm`.
@@ -104,7 +91,7 @@ impl SceneArgs {
         let defaults = ScanOptions::default();
         Ok(ScanOptions {
             orchard: OrchardOptions {
-                depth_mm: parse_range(&self.depth_mm, "--depth-mm")?,
+                depth_mm: self.depth_mm,
                 occlusion: self.occlusion,
                 cluster: usize::from(self.cluster),
                 front_branches: usize::from(self.front_branches),
@@ -135,7 +122,7 @@ pub fn samples(args: &SimulateSamplesArgs) -> CmdResult {
     let options = SampleOptions {
         n_views: args.views as usize,
         points_per_view: args.points_per_view as usize,
-        depth_mm: parse_range(&args.depth_mm, "--depth-mm")?,
+        depth_mm: args.depth_mm,
         depth_noise_mm: args.noise_mm,
         outlier_fraction: args.outliers,
         slides_mm: parse_slides(&args.slides, &laser)?,
@@ -182,22 +169,16 @@ pub fn session(args: &SimulateSessionArgs) -> CmdResult {
     let options = SessionOptions {
         n_views: args.views as usize,
         slides_mm: parse_slides(&args.slides, &laser)?,
-        depth_mm: parse_range(&args.depth_mm, "--depth-mm")?,
+        depth_mm: args.depth_mm,
         max_tilt_deg: args.max_tilt_deg,
         laser_off: args.laser_off,
         scale: args.scale,
         render,
         seed: args.seed,
-        rgbd: args
-            .rgbd_pose
-            .as_deref()
-            .map(|pose| -> CmdResult<RgbdOptions> {
-                Ok(RgbdOptions {
-                    camera: RgbdOptions::colour_camera_720p(),
-                    alacs_from_rgbd: crate::cmd::scan::parse_pose_of(pose, "--rgbd-pose")?,
-                })
-            })
-            .transpose()?,
+        rgbd: args.rgbd_pose.map(|alacs_from_rgbd| RgbdOptions {
+            camera: RgbdOptions::colour_camera_720p(),
+            alacs_from_rgbd,
+        }),
         slide: SlideError::from(&args.slide),
         board: charuco_board(args.charuco.as_deref())?,
         cut_by_border: args.cut_by_border,
@@ -289,7 +270,7 @@ pub fn rgbd(args: &SimulateRgbdArgs) -> CmdResult {
         )));
     }
     let options = args.scene.options()?;
-    let alacs_from_rgbd = crate::cmd::scan::parse_pose(&args.alacs_from_rgbd)?;
+    let alacs_from_rgbd = args.alacs_from_rgbd;
     let bar = output::progress_bar(args.json, "building the scene");
     // The scene of `scan --sim --seed N`: the rig's camera and laser.
     let scan = simulate_scan(&Camera::blackfly_s_5mp(), &LaserModel::seed_paper(), &options)?;

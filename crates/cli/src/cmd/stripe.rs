@@ -10,24 +10,6 @@ use crate::args::StripeArgs;
 use crate::failure::{CmdResult, Failure};
 use crate::output;
 
-/// Parses `u0,v0,u1,v1`.
-fn parse_roi(text: &str) -> CmdResult<[u32; 4]> {
-    let values: Vec<u32> =
-        text.split(',').map(|v| v.trim().parse::<u32>()).collect::<Result<_, _>>().map_err(
-            |_| {
-                Failure::bad_input(anyhow!(
-                    "--roi `{text}`: takes u0,v0,u1,v1, whole pixels from 0 (the top-left pixel)"
-                ))
-            },
-        )?;
-    match values.as_slice() {
-        &[u0, v0, u1, v1] if u0 <= u1 && v0 <= v1 => Ok([u0, v0, u1, v1]),
-        _ => Err(Failure::bad_input(anyhow!(
-            "--roi `{text}`: takes u0,v0,u1,v1 with u0 <= u1 and v0 <= v1"
-        ))),
-    }
-}
-
 /// Runs `alacs stripe`.
 pub fn run(args: &StripeArgs) -> CmdResult {
     let mut options =
@@ -41,7 +23,7 @@ pub fn run(args: &StripeArgs) -> CmdResult {
         options.min_strength = min_strength;
     }
     // The command line is checked before any image is read.
-    let roi = args.roi.as_deref().map(parse_roi).transpose()?;
+    let roi = args.roi;
     let on = read_colour_image(&args.image, args.laser_off.is_some())?;
     let off = match &args.laser_off {
         Some(path) => Some(read_laser_off_image(path, &on, &args.image)?),
