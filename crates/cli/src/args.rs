@@ -160,19 +160,19 @@ pub struct SessionInitArgs {
     /// The folder of board images; session.yaml is written into it.
     pub dir: PathBuf,
     /// Inner corners of the checkerboard, COLSxROWS (as OpenCV counts them, e.g. 9x6).
-    #[arg(long, value_name = "COLSxROWS")]
-    pub board: String,
+    #[arg(long, value_name = "COLSxROWS", value_parser = crate::values::board_corners)]
+    pub board: (usize, usize),
     /// Square size in mm, or X,Y for squares that are not exactly square.
-    #[arg(long, value_name = "S")]
-    pub square_mm: String,
+    #[arg(long, value_name = "S", allow_hyphen_values = true, value_parser = crate::values::square_mm)]
+    pub square_mm: (f64, f64),
     /// Slide travel d of every view, mm (edit session.yaml for views taken
     /// at different slide positions).
     #[arg(long, value_name = "D", default_value_t = 0.0, value_parser = slide_mm)]
     pub slide_mm: f64,
     /// A ChArUco board: its markers' OpenCV dictionary (e.g. DICT_5X5_100);
     /// --board still counts inner corners (squares - 1 each way).
-    #[arg(long, value_name = "DICTIONARY", requires = "marker_mm")]
-    pub charuco: Option<String>,
+    #[arg(long, value_name = "DICTIONARY", requires = "marker_mm", value_parser = crate::values::dictionary)]
+    pub charuco: Option<alacs::model::ArucoDictionary>,
     /// A ChArUco marker's side in mm (OpenCV's markerLength).
     #[arg(long, value_name = "M", requires = "charuco")]
     pub marker_mm: Option<f64>,
@@ -631,8 +631,8 @@ pub struct SimulateSamplesArgs {
     #[arg(long, default_value_t = 0.0, value_parser = number_in(0.0, 1.0))]
     pub outliers: f64,
     /// Slide positions in mm, cycled over the views, e.g. 0,50,100.
-    #[arg(long, value_name = "D,D,...", default_value = "0")]
-    pub slides: String,
+    #[arg(long, value_name = "D,D,...", default_value = "0", value_delimiter = ',', allow_hyphen_values = true, value_parser = slide_mm)]
+    pub slides: Vec<f64>,
     /// The true camera and laser.
     #[command(flatten)]
     pub truth: TruthArgs,
@@ -657,8 +657,8 @@ pub struct SimulateSessionArgs {
     #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..=alacs::sim::MAX_SESSION_VIEWS as i64))]
     pub views: u32,
     /// Slide positions in mm; every pose is rendered at each, e.g. 0,50,100,150,200.
-    #[arg(long, value_name = "D,D,...", default_value = "0")]
-    pub slides: String,
+    #[arg(long, value_name = "D,D,...", default_value = "0", value_delimiter = ',', allow_hyphen_values = true, value_parser = slide_mm)]
+    pub slides: Vec<f64>,
     /// Also render every pose with the laser off (viewNN_off.png).
     #[arg(long)]
     pub laser_off: bool,
@@ -679,8 +679,8 @@ pub struct SimulateSessionArgs {
     pub max_tilt_deg: f64,
     /// Render a ChArUco board: an ArUco marker of this OpenCV dictionary
     /// (e.g. DICT_5X5_100) in every white square, its side 0.75 of a square.
-    #[arg(long, value_name = "DICTIONARY")]
-    pub charuco: Option<String>,
+    #[arg(long, value_name = "DICTIONARY", value_parser = crate::values::dictionary)]
+    pub charuco: Option<alacs::model::ArucoDictionary>,
     /// Let the board reach past the image's border, poses anywhere in the
     /// image: a ChArUco board with at least 40 % of its inner corners in it,
     /// a checkerboard with every inner corner 8 px inside (its outer squares
@@ -1274,4 +1274,34 @@ pub struct RosArgs {
     /// {"goals", "found", "rejected", "errors", "cancelled"}.
     #[arg(long)]
     pub json: bool,
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::panic)]
+    use clap::Parser as _;
+
+    use super::Cli;
+
+    /// Every option parsed into its type is read back as that type (clap
+    /// checks the field's type only when the option is given).
+    #[test]
+    fn every_typed_option_parses_into_its_field() {
+        <Cli as clap::CommandFactory>::command().debug_assert();
+        for line in [
+            "alacs stripe --image f.png --roi 0,0,9,9",
+            "alacs simulate samples --out d --slides 0,100 --depth-mm 600,900",
+            "alacs simulate session --out d --rgbd-pose 0,0,0,0,0,90 --charuco DICT_5X5_100 --slides 0,100 --depth-mm 600,900",
+            "alacs simulate scan --out d --depth-mm 600,900",
+            "alacs simulate rgbd --out d --alacs-from-rgbd 1,2,3,0,0,0",
+            "alacs session init d --board 9x6 --square-mm 25,24 --charuco DICT_5X5_100 --marker-mm 18",
+            "alacs scan --sim --rough-mm 0,0,800 --rough-mm 50,0,800 --alacs-from-rgbd 0,0,0,0,0,0 --scan-mode continuous",
+            "alacs ros --sim --mount-from-camera 0,0,0,0,0,0",
+        ] {
+            let cli = Cli::try_parse_from(line.split_whitespace())
+                .unwrap_or_else(|e| panic!("{line}: {e}"));
+            // Reading every field: a type mismatch would have panicked above.
+            let _ = format!("{cli:?}");
+        }
+    }
 }

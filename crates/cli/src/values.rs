@@ -54,6 +54,45 @@ pub fn pose(text: &str) -> Result<Isometry3<f64>, String> {
     }
 }
 
+/// A checkerboard's inner corners `COLSxROWS` (`--board`, e.g. 9x6), each
+/// within [`alacs::model::INNER_CORNERS_RANGE`].
+pub fn board_corners(text: &str) -> Result<(usize, usize), String> {
+    let parsed = text.split_once(['x', 'X']).and_then(|(c, r)| {
+        Some((c.trim().parse::<usize>().ok()?, r.trim().parse::<usize>().ok()?))
+    });
+    let range = alacs::model::INNER_CORNERS_RANGE;
+    match parsed {
+        Some((cols, rows)) if range.contains(&cols) && range.contains(&rows) => Ok((cols, rows)),
+        Some(_) => Err(format!(
+            "a board has {}-{} inner corners along each side",
+            range.start(),
+            range.end()
+        )),
+        None => Err("takes COLSxROWS inner corners (e.g. 9x6)".into()),
+    }
+}
+
+/// A board's square `S` or `X,Y` in mm (`--square-mm`), each within
+/// (0, [`alacs::model::MAX_SQUARE_MM`]].
+pub fn square_mm(text: &str) -> Result<(f64, f64), String> {
+    let (x, y) = match *numbers(text)?.as_slice() {
+        [s] => (s, s),
+        [x, y] => (x, y),
+        _ => return Err("takes S or X,Y in mm".into()),
+    };
+    let limit = alacs::model::MAX_SQUARE_MM;
+    if [x, y].iter().all(|s| *s > 0.0 && *s <= limit) {
+        Ok((x, y))
+    } else {
+        Err(format!("a square must lie in (0, {limit}] mm"))
+    }
+}
+
+/// One of OpenCV's ArUco dictionary names (`--charuco`, e.g. DICT_5X5_100).
+pub fn dictionary(text: &str) -> Result<alacs::model::ArucoDictionary, String> {
+    alacs::model::ArucoDictionary::parse(text).map_err(|e| e.to_string())
+}
+
 /// A scan mode's name (`--scan-mode`), as rig.toml's `[scan] mode` names it.
 pub fn scan_mode(text: &str) -> Result<alacs::rig::ScanModeName, String> {
     alacs::rig::ScanModeName::parse(text)
@@ -90,5 +129,9 @@ mod tests {
         assert_eq!(roi("0,1,2,3").unwrap(), [0, 1, 2, 3]);
         assert!(roi("-5,0,1,2").unwrap_err().contains("whole pixels"));
         assert!(roi("3,0,1,2").unwrap_err().contains("u0 <= u1"));
+        assert_eq!(board_corners("9x6").unwrap(), (9, 6));
+        assert!(board_corners("1x8").unwrap_err().contains("inner corners"));
+        assert_eq!(square_mm("25").unwrap(), (25.0, 25.0));
+        assert!(square_mm("25,nan").is_err() && square_mm("1e308").is_err());
     }
 }

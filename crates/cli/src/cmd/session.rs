@@ -7,52 +7,15 @@ use anyhow::anyhow;
 use serde_json::json;
 
 use crate::args::SessionInitArgs;
-use crate::cmd::simulate::{parse_dictionary, parse_list};
 use crate::failure::{CmdResult, Failure};
 use crate::output;
 
-/// Parses `COLSxROWS` (e.g. `9x6`).
-fn parse_board(text: &str) -> CmdResult<(usize, usize)> {
-    let parsed = text.split_once(['x', 'X']).and_then(|(c, r)| {
-        Some((c.trim().parse::<usize>().ok()?, r.trim().parse::<usize>().ok()?))
-    });
-    let range = alacs::model::INNER_CORNERS_RANGE;
-    match parsed {
-        Some((cols, rows)) if range.contains(&cols) && range.contains(&rows) => Ok((cols, rows)),
-        Some(_) => Err(Failure::bad_input(anyhow!(
-            "--board `{text}`: a board has {}-{} inner corners along each side",
-            range.start(),
-            range.end()
-        ))),
-        None => Err(Failure::bad_input(anyhow!(
-            "--board takes COLSxROWS inner corners (e.g. 9x6), got `{text}`"
-        ))),
-    }
-}
-
 /// Runs `alacs session init`.
 pub fn init(args: &SessionInitArgs) -> CmdResult {
-    let (cols, rows) = parse_board(&args.board)?;
-    let (square_x_mm, square_y_mm) = match *parse_list(&args.square_mm, "--square-mm")?.as_slice() {
-        [s] => (s, s),
-        [x, y] => (x, y),
-        _ => {
-            return Err(Failure::bad_input(anyhow!(
-                "--square-mm takes S or X,Y in mm, got `{}`",
-                args.square_mm
-            )));
-        }
-    };
-    let limit = alacs::model::MAX_SQUARE_MM;
-    if ![square_x_mm, square_y_mm].iter().all(|s| *s > 0.0 && *s <= limit) {
-        return Err(Failure::bad_input(anyhow!(
-            "--square-mm `{}`: a square must lie in (0, {limit}] mm",
-            args.square_mm
-        )));
-    }
+    let (cols, rows) = args.board;
+    let (square_x_mm, square_y_mm) = args.square_mm;
     let mut board = BoardSpec::checkerboard(cols, rows, square_x_mm, square_y_mm);
-    if let (Some(name), Some(marker_mm)) = (&args.charuco, args.marker_mm) {
-        let dictionary = parse_dictionary(name)?;
+    if let (Some(dictionary), Some(marker_mm)) = (args.charuco, args.marker_mm) {
         board.markers = Some(CharucoMarkers { marker_mm, dictionary });
     }
     let session = Session::from_image_folder(&args.dir, board, args.slide_mm)?;

@@ -18,22 +18,9 @@ use crate::args::{
 use crate::failure::{CmdResult, Failure};
 use crate::output;
 
-/// Parses a comma-separated list of numbers for option `name`.
-pub fn parse_list(text: &str, name: &str) -> CmdResult<Vec<f64>> {
-    text.split(',')
-        .map(|item| {
-            item.trim().parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| {
-                Failure::bad_input(anyhow!("{name}: `{}` is not a finite number", item.trim()))
-            })
-        })
-        .collect()
-}
-
-/// Parses `--slides`: 1 to [`alacs::sim::MAX_SLIDE_POSITIONS`] slide
-/// travels d in mm, each with the laser in front of the camera's baseline
-/// (0 <= d < L0, so that L = L0 - d > 0).
-fn parse_slides(text: &str, laser: &LaserModel) -> CmdResult<Vec<f64>> {
-    let slides = parse_list(text, "--slides")?;
+/// Checks `--slides`: at most [`alacs::sim::MAX_SLIDE_POSITIONS`], each slide travel d with the laser
+/// in front of the camera's baseline (0 <= d < L0, so that L = L0 - d > 0).
+fn check_slides(slides: &[f64], laser: &LaserModel) -> CmdResult<Vec<f64>> {
     let max = alacs::sim::MAX_SLIDE_POSITIONS;
     if slides.len() > max {
         return Err(Failure::bad_input(anyhow!(
@@ -46,7 +33,7 @@ fn parse_slides(text: &str, laser: &LaserModel) -> CmdResult<Vec<f64>> {
         Some(d) => Err(Failure::bad_input(anyhow!(
             "--slides: {d} mm is outside 0 <= d < L0 = {l0_mm} mm (L = L0 - d must stay positive)"
         ))),
-        None => Ok(slides),
+        None => Ok(slides.to_vec()),
     }
 }
 
@@ -125,7 +112,7 @@ pub fn samples(args: &SimulateSamplesArgs) -> CmdResult {
         depth_mm: args.depth_mm,
         depth_noise_mm: args.noise_mm,
         outlier_fraction: args.outliers,
-        slides_mm: parse_slides(&args.slides, &laser)?,
+        slides_mm: check_slides(&args.slides, &laser)?,
         seed: args.seed,
         ..SampleOptions::default()
     };
@@ -147,19 +134,10 @@ pub fn samples(args: &SimulateSamplesArgs) -> CmdResult {
     Ok(())
 }
 
-/// Parses `--charuco`: one of OpenCV's dictionary names.
-pub fn parse_dictionary(name: &str) -> CmdResult<alacs::model::ArucoDictionary> {
-    alacs::model::ArucoDictionary::parse(name)
-        .map_err(|e| Failure::bad_input(anyhow!("--charuco: {e}")))
-}
-
 /// The simulated board: the default checkerboard, with markers of
 /// `dictionary` (`--charuco`) if given.
-fn charuco_board(dictionary: Option<&str>) -> CmdResult<Checkerboard> {
-    Ok(match dictionary {
-        Some(name) => Checkerboard::charuco(parse_dictionary(name)?),
-        None => Checkerboard::default(),
-    })
+fn charuco_board(dictionary: Option<alacs::model::ArucoDictionary>) -> Checkerboard {
+    dictionary.map_or_else(Checkerboard::default, Checkerboard::charuco)
 }
 
 /// Runs `alacs simulate session`.
@@ -168,7 +146,7 @@ pub fn session(args: &SimulateSessionArgs) -> CmdResult {
     let render = args.render.options(RenderOptions::default());
     let options = SessionOptions {
         n_views: args.views as usize,
-        slides_mm: parse_slides(&args.slides, &laser)?,
+        slides_mm: check_slides(&args.slides, &laser)?,
         depth_mm: args.depth_mm,
         max_tilt_deg: args.max_tilt_deg,
         laser_off: args.laser_off,
@@ -180,7 +158,7 @@ pub fn session(args: &SimulateSessionArgs) -> CmdResult {
             alacs_from_rgbd,
         }),
         slide: SlideError::from(&args.slide),
-        board: charuco_board(args.charuco.as_deref())?,
+        board: charuco_board(args.charuco),
         cut_by_border: args.cut_by_border,
         ..SessionOptions::default()
     };
