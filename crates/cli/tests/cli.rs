@@ -47,6 +47,44 @@ fn simulated_samples(dir: &Path, seed: &str) -> String {
     dir.join("samples.csv").to_str().unwrap().to_owned()
 }
 
+/// Issue 42, item 2: a laser whose beta is 20 deg is beyond the
+/// low-fidelity model; `calibrate laser --compare` and `evaluate
+/// calibration` still exit 0 with four rows, the method that cannot fit a
+/// row with its reason.
+#[test]
+fn a_method_that_cannot_fit_is_a_row_with_its_reason_not_a_failure() {
+    let dir = scratch("compare_beta_20");
+    let data = dir.join("data");
+    let output = alacs(&[
+        "simulate",
+        "samples",
+        "--beta-deg",
+        "20",
+        "--views",
+        "10",
+        "--outliers",
+        "0.2",
+        "--out",
+        data.to_str().unwrap(),
+    ]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let samples = data.join("samples.csv");
+    let samples = samples.to_str().unwrap();
+    let out = dir.join("evaluation");
+    for args in [
+        vec!["calibrate", "laser", "--samples", samples, "--compare"],
+        vec!["evaluate", "calibration", "--samples", samples, "--out", out.to_str().unwrap()],
+    ] {
+        let output = alacs(&args);
+        assert!(output.status.success(), "{args:?}: {}", stderr(&output));
+        let text = String::from_utf8_lossy(&output.stdout);
+        let rows: Vec<&str> = text.lines().filter(|l| l.starts_with("Method ")).collect();
+        assert!(rows.len() >= 4, "{args:?}: {text}");
+        assert!(rows.iter().any(|r| r.contains("cannot fit")), "{args:?}: {text}");
+        assert!(rows.iter().any(|r| r.starts_with("Method 4") && !r.contains("cannot")), "{text}");
+    }
+}
+
 /// Samples at one slide position (the default of `simulate samples`) do
 /// not fix the slide scale: the summary and laser.yaml say it is held,
 /// so that k = 1 is not taken for a measurement.
