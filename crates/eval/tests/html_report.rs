@@ -118,6 +118,8 @@ fn calibration_report_is_self_contained_and_flags_a_bad_view() {
     assert!(html.contains("k1 ") && html.contains("p2 "), "coefficient names");
     assert!(report.camera_std.is_some() && html.contains(" +- "), "standard deviations");
     assert!(report.laser_std.is_none() && html.contains("fewer than 5 board poses"));
+    // Two slide positions fit k: no warning that it was held.
+    assert!(!html.contains("held at 1"), "a k-held warning on a two-slide session");
     // The quarter-scale images are narrower than the page's: no full-size copies.
     assert!(!refs.iter().any(|r| r.ends_with("_full.jpg")));
     assert!(html.contains("session &lt;&amp;&gt;") && !html.contains("session <&>"));

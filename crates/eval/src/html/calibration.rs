@@ -644,6 +644,12 @@ fn summary(page: &mut Page, report: &CalibrationReport, coverage: &CornerCoverag
                     Some("flag"),
                 );
             }
+            if eval.methods.iter().any(|m| !m.calibration.slide_scale_fitted) {
+                page.paragraph(
+                    "The slide scale k was held at 1, not fitted: the samples lie at one slide position (or k was held on purpose). A slide whose steps are off by a fraction of a percent then moves every answer by that fraction of the slide travel; take the session at three or more slide positions to fit it.",
+                    Some("flag"),
+                );
+            }
             page.paragraph(
                 &format!(
                     "Mean error over each method's inliers (all samples for methods without RANSAC); inlier threshold {} mm.",
