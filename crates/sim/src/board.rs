@@ -337,3 +337,47 @@ impl Scene for BoardScene {
         self.board.reflectance_at(x, y).is_some()
     }
 }
+
+/// Boards in one view: the calibration target and, where a session has one,
+/// a second board beside it (a distractor for the board detector, as a
+/// ChArUco board lying in front of a checkerboard in photographs of real
+/// rigs). Each ray meets the nearest board; every board casts shadows.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BoardsScene {
+    boards: Vec<BoardScene>,
+}
+
+impl BoardsScene {
+    /// The boards of one view (the nearest hit wins where they overlap).
+    pub fn new(boards: Vec<BoardScene>) -> BoardsScene {
+        BoardsScene { boards }
+    }
+}
+
+impl Scene for BoardsScene {
+    fn intersect(&self, ray: &Ray) -> Option<SurfaceHit> {
+        let along = |hit: &SurfaceHit| (hit.point - ray.origin).dot(&ray.direction);
+        self.boards
+            .iter()
+            .filter_map(|b| b.intersect(ray))
+            .min_by(|a, b| along(a).total_cmp(&along(b)))
+    }
+
+    #[inline]
+    fn intersect_camera_ray(&self, x_n: f64, y_n: f64) -> Option<SurfaceHit> {
+        // Camera rays run along +z from the origin: the nearest hit has the least z.
+        let mut nearest: Option<SurfaceHit> = None;
+        for board in &self.boards {
+            if let Some(hit) = board.intersect_camera_ray(x_n, y_n)
+                && nearest.as_ref().is_none_or(|n| hit.point.z < n.point.z)
+            {
+                nearest = Some(hit);
+            }
+        }
+        nearest
+    }
+
+    fn blocked(&self, from: &Point3<f64>, to: &Point3<f64>) -> bool {
+        self.boards.iter().any(|b| b.blocked(from, to))
+    }
+}

@@ -52,7 +52,7 @@ mod slide;
 mod truth;
 mod variation;
 
-pub use board::{BoardScene, CHARUCO_MARKER_PER_SQUARE, Checkerboard};
+pub use board::{BoardScene, BoardsScene, CHARUCO_MARKER_PER_SQUARE, Checkerboard};
 pub use error::{
     Error, MAX_SAMPLE_ROW_BYTES, MAX_SAMPLES, MAX_SCALE, MAX_SESSION_VIEWS, MAX_SLIDE_POSITIONS,
     Result,

@@ -288,8 +288,7 @@ impl RgbdView {
                 json!({"position_mm": [c.x, c.y, c.z], "radius_mm": a.radius_mm, "hidden": a.hidden, "target": a.target})
             })
             .collect();
-        let pose = self.alacs_from_rgbd.to_homogeneous();
-        let rows: Vec<Vec<f64>> = (0..4).map(|r| (0..4).map(|c| pose[(r, c)]).collect()).collect();
+        let rows = crate::truth::matrix_rows(&self.alacs_from_rgbd);
         json!({
             "frame": "the RGB-D colour camera's optical frame, mm",
             "apples": apples,

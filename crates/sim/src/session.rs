@@ -14,11 +14,12 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde_json::{Value, json};
 
-use crate::board::{BoardScene, Checkerboard};
+use crate::board::{BoardScene, BoardsScene, Checkerboard};
 use crate::error::{MAX_SESSION_VIEWS, check_positive_range, check_scale, check_slides, save_json};
 use crate::progress::ImageWriter;
-use crate::render::{LaserStripe, RayMap, RenderOptions, mix_seed};
+use crate::render::{LaserStripe, RayMap, RenderOptions, Scene, mix_seed};
 use crate::samples::random_tilt;
+use crate::truth::matrix_rows;
 use crate::{Error, Result, SlideError, camera_to_json, laser_to_json};
 
 /// How to generate a calibration session. `Default`: 10 poses at 0.6-1.2 m,
@@ -62,6 +63,12 @@ pub struct SessionOptions {
     /// [`MIN_CORNER_BORDER_PX`] inside (its white border and outer squares
     /// may be cut, as in photographs taken near the image's edge).
     pub cut_by_border: bool,
+    /// A second board in every view, beside the target and nearer the
+    /// camera, leaning back 50-70 deg (as a board lying on a table in front
+    /// of the target in photographs of real rigs): a distractor for the
+    /// board detector that never hides the target's squares around its
+    /// inner corners; the laser may cross it and it may shade the target.
+    pub second_board: Option<Checkerboard>,
 }
 
 /// A second camera beside the ALACS camera: an RGB-D camera's colour camera.
@@ -107,6 +114,7 @@ impl Default for SessionOptions {
             rgbd: None,
             slide: SlideError::default(),
             cut_by_border: false,
+            second_board: None,
         }
     }
 }
@@ -132,6 +140,9 @@ impl SessionOptions {
         check_scale(self.scale)?;
         self.slide.validate()?;
         self.board.validate()?;
+        if let Some(second) = &self.second_board {
+            second.validate()?;
+        }
         self.render.validate()
     }
 }
@@ -153,6 +164,8 @@ pub struct SessionView {
     pub image_rgbd: Option<String>,
     /// The board's true pose.
     pub camera_from_board: Isometry3<f64>,
+    /// The second board's true pose ([`SessionOptions::second_board`]).
+    pub camera_from_second_board: Option<Isometry3<f64>>,
 }
 
 /// A simulated session: the poses and how to render them. Images are
@@ -168,6 +181,8 @@ pub struct SimulatedSession {
     pub slide: SlideError,
     /// The target.
     pub board: Checkerboard,
+    /// The second board in every view, if any.
+    pub second_board: Option<Checkerboard>,
     /// How views are rendered.
     pub render: RenderOptions,
     /// The images, pose by pose, each pose at every slide position.
@@ -227,7 +242,8 @@ pub fn simulate_session(
     let multi_slide = options.slides_mm.len() > 1;
     let mut views = Vec::new();
     for pose in 0..options.n_views {
-        let camera_from_board = sample_pose(&camera, laser, options, &mut rng).ok_or_else(|| {
+        let poses = sample_poses(&camera, laser, options, &mut rng);
+        let (camera_from_board, camera_from_second_board) = poses.ok_or_else(|| {
             Error::Infeasible(format!(
                 "view {}: no board pose in {MAX_POSE_TRIES} tries puts the {:.0} x {:.0} mm board \
                  fully in the image at {:.0}-{:.0} mm with the laser line across it at slides {:?} mm",
@@ -254,6 +270,7 @@ pub fn simulate_session(
                 pose,
                 image_rgbd: image_rgbd.clone(),
                 camera_from_board,
+                camera_from_second_board,
             });
         }
     }
@@ -278,6 +295,7 @@ pub fn simulate_session(
         laser: *laser,
         slide: options.slide,
         board: options.board,
+        second_board: options.second_board,
         render: options.render,
         views,
         seed: options.seed,
@@ -285,6 +303,110 @@ pub fn simulate_session(
         ray_map,
         rgbd_ray_map,
     })
+}
+
+/// Target poses drawn before a view with a second board is declared
+/// infeasible (each gets [`SECOND_BOARD_TRIES`] tries to place the second board).
+const SECOND_BOARD_TARGET_TRIES: usize = 50;
+
+/// Second-board poses tried beside one target pose.
+const SECOND_BOARD_TRIES: usize = 200;
+
+/// The second board's lean away from facing the camera, degrees: a board
+/// lying on a table seen from a camera above and in front of it.
+const SECOND_BOARD_LEAN_DEG: (f64, f64) = (50.0, 70.0);
+
+/// The second board's centre depth as a fraction of the target's: nearer
+/// the camera, so that it may hide the target's border and outer squares.
+const SECOND_BOARD_DEPTH_FRACTION: (f64, f64) = (0.75, 0.95);
+
+/// Draws the target's pose ([`sample_pose`]) and, with
+/// [`SessionOptions::second_board`], the second board's beside it; a target
+/// pose that leaves the second board no place is drawn again.
+fn sample_poses(
+    camera: &Camera,
+    laser: &LaserModel,
+    options: &SessionOptions,
+    rng: &mut ChaCha8Rng,
+) -> Option<(Isometry3<f64>, Option<Isometry3<f64>>)> {
+    let Some(second) = &options.second_board else {
+        return sample_pose(camera, laser, options, rng).map(|pose| (pose, None));
+    };
+    for _ in 0..SECOND_BOARD_TARGET_TRIES {
+        let target = sample_pose(camera, laser, options, rng)?;
+        if let Some(beside) = sample_second_pose(camera, &options.board, &target, second, rng) {
+            return Some((target, Some(beside)));
+        }
+    }
+    None
+}
+
+/// A pose of `second` beside the target at `camera_from_board`: its centre
+/// in the image under the target and nearer the camera, leaning back, its
+/// printed side to the camera, not behind the target, and hiding none of
+/// the target's inner corners nor the centres of the four squares around
+/// each (what a corner detector needs to see).
+fn sample_second_pose(
+    camera: &Camera,
+    board: &Checkerboard,
+    camera_from_board: &Isometry3<f64>,
+    second: &Checkerboard,
+    rng: &mut ChaCha8Rng,
+) -> Option<Isometry3<f64>> {
+    let target = BoardScene::new(*board, *camera_from_board);
+    let (x0, x1, _, y1) = board.extent_mm();
+    let (_, _, second_y0, second_y1) = second.extent_mm();
+    let (sx, sy) = board.square_mm;
+    let guarded: Vec<Point3<f64>> = board
+        .object_points()
+        .iter()
+        .flat_map(|c| {
+            [(0.0, 0.0), (1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)].map(|(a, b)| {
+                camera_from_board * Point3::new(c.x + 0.5 * a * sx, c.y + 0.5 * b * sy, 0.0)
+            })
+        })
+        .collect();
+    let origin = Point3::origin();
+    let (width, height) = (f64::from(camera.width_px), f64::from(camera.height_px));
+    for _ in 0..SECOND_BOARD_TRIES {
+        // Below the target in its own plane (up to half the second board's
+        // height below its lower edge), then towards the camera along that
+        // point's ray: in front of the target, under it in the image.
+        let below = Point3::new(
+            rng.random_range(x0..=x1),
+            y1 + rng.random_range(0.0..=0.5) * (second_y1 - second_y0),
+            0.0,
+        );
+        let depth_fraction =
+            rng.random_range(SECOND_BOARD_DEPTH_FRACTION.0..=SECOND_BOARD_DEPTH_FRACTION.1);
+        let lean = rng.random_range(SECOND_BOARD_LEAN_DEG.0..=SECOND_BOARD_LEAN_DEG.1).to_radians();
+        let (heading, roll) = (rng.random_range(-0.35..=0.35), rng.random_range(-0.2..=0.2));
+        let centre = Point3::from((camera_from_board * below).coords * depth_fraction);
+        let in_image = camera
+            .project(&centre)
+            .is_ok_and(|p| (0.0..width).contains(&p.x) && (0.0..height).contains(&p.y));
+        if !in_image {
+            continue;
+        }
+        // Leaning back: the board's z axis (into it) turns from the optical
+        // axis towards +y (down), its near edge at the bottom of the image.
+        let rotation = Rotation3::from_axis_angle(&Vector3::y_axis(), heading)
+            * Rotation3::from_axis_angle(&Vector3::x_axis(), -lean)
+            * Rotation3::from_axis_angle(&Vector3::z_axis(), roll);
+        let pose = Isometry3::from_parts(
+            Translation3::from(centre - rotation * second.centre_in_board()),
+            UnitQuaternion::from_rotation_matrix(&rotation),
+        );
+        let scene = BoardScene::new(*second, pose);
+        let faces_camera = (rotation * Vector3::z()).dot(&centre.coords) > 0.0;
+        if faces_camera
+            && !target.blocked(&origin, &centre)
+            && !guarded.iter().any(|p| scene.blocked(&origin, p))
+        {
+            return Some(pose);
+        }
+    }
+    None
 }
 
 /// Draws board poses until one passes every check of [`simulate_session`].
@@ -464,10 +586,23 @@ impl SimulatedSession {
         &self.ray_map
     }
 
-    /// The scene of view `index`'s pose.
+    /// The target board's scene of view `index`'s pose (without the second board).
     pub fn scene(&self, index: usize) -> Result<BoardScene> {
         let view = self.view(index)?;
         Ok(BoardScene::new(self.board, view.camera_from_board))
+    }
+
+    /// Everything view `index` shows, as seen from a camera at
+    /// `camera_from_alacs` (the identity for the ALACS camera): the target
+    /// and the second board, if the session has one.
+    fn view_scene(&self, index: usize, camera_from_alacs: &Isometry3<f64>) -> Result<BoardsScene> {
+        let view = self.view(index)?;
+        let mut boards =
+            vec![BoardScene::new(self.board, camera_from_alacs * view.camera_from_board)];
+        if let (Some(second), Some(pose)) = (self.second_board, view.camera_from_second_board) {
+            boards.push(BoardScene::new(second, camera_from_alacs * pose));
+        }
+        Ok(BoardsScene::new(boards))
     }
 
     /// The laser stripe of view `index`.
@@ -490,7 +625,7 @@ impl SimulatedSession {
 
     /// Renders view `index` with the laser on.
     pub fn render_view(&self, index: usize) -> Result<RgbImage> {
-        let scene = self.scene(index)?;
+        let scene = self.view_scene(index, &Isometry3::identity())?;
         let stripe = self.laser_stripe(index)?;
         let seed = mix_seed(self.seed, index as u64);
         Ok(self.ray_map.render(
@@ -504,7 +639,7 @@ impl SimulatedSession {
 
     /// Renders view `index`'s pose with the laser off (its own sensor noise).
     pub fn render_laser_off(&self, index: usize) -> Result<RgbImage> {
-        let scene = self.scene(index)?;
+        let scene = self.view_scene(index, &Isometry3::identity())?;
         let pose = self.view(index)?.pose as u64;
         let seed = mix_seed(self.seed, LASER_OFF_STREAM + pose);
         Ok(self.ray_map.render(&scene, &self.render.lighting, None, &self.render.sensor, seed))
@@ -517,8 +652,7 @@ impl SimulatedSession {
             return Ok(None);
         };
         let view = self.view(index)?;
-        let rgbd_from_board = rgbd.alacs_from_rgbd.inverse() * view.camera_from_board;
-        let scene = BoardScene::new(self.board, rgbd_from_board);
+        let scene = self.view_scene(index, &rgbd.alacs_from_rgbd.inverse())?;
         let seed = mix_seed(self.seed, RGBD_STREAM + view.pose as u64);
         Ok(Some(ray_map.render(&scene, &self.render.lighting, None, &self.render.sensor, seed)))
     }
@@ -552,27 +686,26 @@ impl SimulatedSession {
             .views
             .iter()
             .map(|view| {
-                let matrix = view.camera_from_board.to_homogeneous();
-                let rows: Vec<Vec<f64>> =
-                    (0..4).map(|r| (0..4).map(|c| matrix[(r, c)]).collect()).collect();
                 let mut entry = json!({
                     "image": view.image,
                     "slide_mm": view.slide_mm,
                     "pose": view.pose,
-                    "camera_from_board": rows,
+                    "camera_from_board": matrix_rows(&view.camera_from_board),
                 });
                 if let (Some(off), Some(map)) = (&view.image_laser_off, entry.as_object_mut()) {
                     map.insert("image_laser_off".into(), json!(off));
+                }
+                if let (Some(pose), Some(map)) =
+                    (view.camera_from_second_board, entry.as_object_mut())
+                {
+                    map.insert("camera_from_second_board".into(), json!(matrix_rows(&pose)));
                 }
                 entry
             })
             .collect();
         let board = &self.board;
         let rgbd = self.rgbd.as_ref().map(|rgbd| {
-            let matrix = rgbd.alacs_from_rgbd.to_homogeneous();
-            let rows: Vec<Vec<f64>> =
-                (0..4).map(|r| (0..4).map(|c| matrix[(r, c)]).collect()).collect();
-            json!({"camera": camera_to_json(&rgbd.camera), "alacs_from_rgbd": rows})
+            json!({"camera": camera_to_json(&rgbd.camera), "alacs_from_rgbd": matrix_rows(&rgbd.alacs_from_rgbd)})
         });
         json!({
             "rgbd": rgbd,
@@ -588,6 +721,12 @@ impl SimulatedSession {
                 "marker_mm": board.markers.map(|m| m.marker_mm),
                 "dictionary": board.markers.map(|m| m.dictionary.as_str()),
             },
+            "second_board": self.second_board.map(|b| json!({
+                "inner_corners": [b.inner_corners.0, b.inner_corners.1],
+                "square_mm": [b.square_mm.0, b.square_mm.1],
+                "marker_mm": b.markers.map(|m| m.marker_mm),
+                "dictionary": b.markers.map(|m| m.dictionary.as_str()),
+            })),
             "seed": self.seed,
             "supersampling": self.render.supersampling,
             "stripe_sigma_px": self.render.laser.stripe_sigma_px,
