@@ -13,7 +13,7 @@ use alacs_calib::{
     IntrinsicsOptions, LaserSessionOptions, calibrate_camera_session, calibrate_laser_session,
     detect_session_boards,
 };
-use alacs_model::{ArucoDictionary, Camera, CharucoMarkers, LaserModel, Session};
+use alacs_model::{Camera, LaserModel, Session};
 use alacs_sim::{Checkerboard, SessionOptions, simulate_session};
 use nalgebra::Point2;
 use serde_json::json;
@@ -21,16 +21,6 @@ use serde_json::json;
 // The calibration peers are the other tests'.
 #[allow(dead_code)]
 mod peers;
-
-/// The second board: a 6 x 4 ChArUco board (7 x 5 squares of 30 mm), of
-/// another size than the target so that only one of them is the board asked for.
-fn second_board() -> Checkerboard {
-    Checkerboard {
-        inner_corners: (6, 4),
-        markers: Some(CharucoMarkers { marker_mm: 22.5, dictionary: ArucoDictionary::Dict5x5_100 }),
-        ..Checkerboard::default()
-    }
-}
 
 /// Distance to the truth below which a detected corner is that corner, px:
 /// a wrong label is a square (15+ px at half scale) away.
@@ -44,7 +34,7 @@ fn every_board_opencv_finds_at_steep_angles_beside_a_second_board_alacs_finds() 
         seed: 3,
         max_tilt_deg: 60.0,
         cut_by_border: true,
-        second_board: Some(second_board()),
+        second_board: Some(Checkerboard::second_charuco(&Checkerboard::default())),
         ..SessionOptions::default()
     };
     let simulated =

@@ -687,6 +687,13 @@ pub struct SimulateSessionArgs {
     /// may be cut).
     #[arg(long)]
     pub cut_by_border: bool,
+    /// Put a second board in every view, as in photographs of real rigs: a
+    /// 6 x 4 ChArUco board (30 mm squares, DICT_5X5_100 or, where the target
+    /// uses that, DICT_4X4_50) leaning back 50-70
+    /// deg in front of and under the target, hiding none of its corners
+    /// (truth.json: second_board, camera_from_second_board).
+    #[arg(long)]
+    pub second_board: bool,
     /// The simulated slide.
     #[command(flatten)]
     pub slide: SlideArgs,

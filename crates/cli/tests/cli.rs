@@ -452,6 +452,34 @@ fn simulate_session_writes_a_formats_md_session() {
     assert!(stderr(&output).contains("scale"), "{}", stderr(&output));
 }
 
+#[test]
+fn simulate_session_second_board_is_in_the_truth_and_not_taken_for_the_target() {
+    let dir = scratch("sim_session_second");
+    let out = dir.to_str().unwrap();
+    let template = "simulate session --out {} --seed 5 --views 3 --scale 0.5 --charuco DICT_5X5_100 \
+                    --second-board --max-tilt-deg 60 --json";
+    let json = stdout_json(&alacs(&cmdline(template, &[&out])));
+    assert_eq!(json["n_views"], 3);
+    let truth: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("truth.json")).unwrap()).unwrap();
+    // The same keys for both boards; no marker id on both.
+    let keys = |v: &Value| v.as_object().unwrap().keys().cloned().collect::<Vec<_>>();
+    assert_eq!(keys(&truth["board"]), keys(&truth["second_board"]));
+    assert_eq!(truth["board"]["dictionary"], "DICT_5X5_100");
+    assert_eq!(truth["second_board"]["dictionary"], "DICT_4X4_50");
+    assert_eq!(truth["second_board"]["inner_corners"], serde_json::json!([6, 4]));
+    for view in truth["views"].as_array().unwrap() {
+        assert_eq!(view["camera_from_second_board"].as_array().map(Vec::len), Some(4), "{view}");
+    }
+    // Every view's target is found, its camera near the truth.
+    let calibrated = alacs(&["calibrate", "camera", "--session", out, "--json"]);
+    let camera = stdout_json(&calibrated);
+    assert_eq!(camera["views_used"], 3, "{camera}");
+    let fx = camera["fx_px"].as_f64().unwrap();
+    let fx_true = truth["camera"]["camera_matrix"]["data"][0].as_f64().unwrap();
+    assert!((fx - fx_true).abs() < 0.01 * fx_true, "fx {fx} against {fx_true}");
+}
+
 fn opencv_right() -> String {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../../testdata/opencv_right")

@@ -86,6 +86,23 @@ impl Checkerboard {
         Checkerboard { markers: Some(CharucoMarkers { marker_mm, dictionary }), ..board }
     }
 
+    /// A second board for [`crate::SessionOptions::second_board`] beside
+    /// `target`: 6 x 4 inner corners of 30 mm squares, another size than the
+    /// default target so that only one of them is the board asked for (as
+    /// the ChArUco board lying in front of the target in the real
+    /// photographs of issue 42). Its markers are DICT_5X5_100, or
+    /// DICT_4X4_50 where the target's markers are DICT_5X5_100, so that no
+    /// marker id is on both boards.
+    pub fn second_charuco(target: &Checkerboard) -> Checkerboard {
+        let dictionary = match target.markers {
+            Some(m) if m.dictionary == ArucoDictionary::Dict5x5_100 => ArucoDictionary::Dict4x4_50,
+            _ => ArucoDictionary::Dict5x5_100,
+        };
+        let board = Checkerboard { inner_corners: (6, 4), ..Checkerboard::default() };
+        let marker_mm = CHARUCO_MARKER_PER_SQUARE * board.square_mm.0.min(board.square_mm.1);
+        Checkerboard { markers: Some(CharucoMarkers { marker_mm, dictionary }), ..board }
+    }
+
     /// Checks that the board is printable: at least 2 x 2 inner corners,
     /// positive squares, a non-negative border, reflectances in 0..1.
     pub fn validate(&self) -> Result<()> {

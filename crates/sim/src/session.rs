@@ -19,7 +19,7 @@ use crate::error::{MAX_SESSION_VIEWS, check_positive_range, check_scale, check_s
 use crate::progress::ImageWriter;
 use crate::render::{LaserStripe, RayMap, RenderOptions, Scene, mix_seed};
 use crate::samples::random_tilt;
-use crate::truth::matrix_rows;
+use crate::truth::{checkerboard_to_json, matrix_rows};
 use crate::{Error, Result, SlideError, camera_to_json, laser_to_json};
 
 /// How to generate a calibration session. `Default`: 10 poses at 0.6-1.2 m,
@@ -246,13 +246,18 @@ pub fn simulate_session(
         let (camera_from_board, camera_from_second_board) = poses.ok_or_else(|| {
             Error::Infeasible(format!(
                 "view {}: no board pose in {MAX_POSE_TRIES} tries puts the {:.0} x {:.0} mm board \
-                 fully in the image at {:.0}-{:.0} mm with the laser line across it at slides {:?} mm",
+                 fully in the image at {:.0}-{:.0} mm with the laser line across it at slides {:?} mm{}",
                 pose + 1,
                 options.board.extent_mm().1 - options.board.extent_mm().0,
                 options.board.extent_mm().3 - options.board.extent_mm().2,
                 options.depth_mm.0,
                 options.depth_mm.1,
                 options.slides_mm,
+                if options.second_board.is_some() {
+                    " and room for the second board in front of it, under it, hiding none of its corners"
+                } else {
+                    ""
+                },
             ))
         })?;
         let image_laser_off = options.laser_off.then(|| format!("view{:02}_off.png", pose + 1));
@@ -703,7 +708,6 @@ impl SimulatedSession {
                 entry
             })
             .collect();
-        let board = &self.board;
         let rgbd = self.rgbd.as_ref().map(|rgbd| {
             json!({"camera": camera_to_json(&rgbd.camera), "alacs_from_rgbd": matrix_rows(&rgbd.alacs_from_rgbd)})
         });
@@ -712,21 +716,8 @@ impl SimulatedSession {
             "camera": camera_to_json(&self.camera),
             "laser": laser_to_json(&self.laser),
             "slide": self.slide.to_json(),
-            "board": {
-                "inner_corners": [board.inner_corners.0, board.inner_corners.1],
-                "square_mm": [board.square_mm.0, board.square_mm.1],
-                "border_mm": board.border_mm,
-                "black_reflectance": board.black_reflectance,
-                "white_reflectance": board.white_reflectance,
-                "marker_mm": board.markers.map(|m| m.marker_mm),
-                "dictionary": board.markers.map(|m| m.dictionary.as_str()),
-            },
-            "second_board": self.second_board.map(|b| json!({
-                "inner_corners": [b.inner_corners.0, b.inner_corners.1],
-                "square_mm": [b.square_mm.0, b.square_mm.1],
-                "marker_mm": b.markers.map(|m| m.marker_mm),
-                "dictionary": b.markers.map(|m| m.dictionary.as_str()),
-            })),
+            "board": checkerboard_to_json(&self.board),
+            "second_board": self.second_board.as_ref().map(checkerboard_to_json),
             "seed": self.seed,
             "supersampling": self.render.supersampling,
             "stripe_sigma_px": self.render.laser.stripe_sigma_px,

@@ -144,6 +144,7 @@ fn charuco_board(dictionary: Option<alacs::model::ArucoDictionary>) -> Checkerbo
 pub fn session(args: &SimulateSessionArgs) -> CmdResult {
     let (camera, laser) = args.truth.camera_and_laser()?;
     let render = args.render.options(RenderOptions::default());
+    let board = charuco_board(args.charuco);
     let options = SessionOptions {
         n_views: args.views as usize,
         slides_mm: check_slides(&args.slides, &laser)?,
@@ -158,8 +159,9 @@ pub fn session(args: &SimulateSessionArgs) -> CmdResult {
             alacs_from_rgbd,
         }),
         slide: SlideError::from(&args.slide),
-        board: charuco_board(args.charuco),
+        board,
         cut_by_border: args.cut_by_border,
+        second_board: args.second_board.then(|| Checkerboard::second_charuco(&board)),
         ..SessionOptions::default()
     };
     let bar = output::progress_bar(args.json, "computing the camera's rays");
