@@ -73,11 +73,23 @@ pub struct AccuracyOptions {
     pub sigma_px: Option<f64>,
     /// Stripe extraction (as the laser calibration's).
     pub stripe: StripeOptions,
+    /// Where the evaluated laser was fitted to these very samples by RANSAC
+    /// with this inlier threshold (mm on |z - z_hat|: the calibration
+    /// report), the points beyond it are the ones the fit rejected: they are
+    /// counted and drawn apart, and left out of the boxes and the noise.
+    /// `None` (a session of its own, `alacs evaluate accuracy`): every point
+    /// is in the boxes.
+    pub rejected_beyond_mm: Option<f64>,
 }
 
 impl Default for AccuracyOptions {
     fn default() -> Self {
-        Self { points: PointsPerView::All, sigma_px: None, stripe: StripeOptions::default() }
+        Self {
+            points: PointsPerView::All,
+            sigma_px: None,
+            stripe: StripeOptions::default(),
+            rejected_beyond_mm: None,
+        }
     }
 }
 
@@ -92,6 +104,8 @@ pub struct AccuracyPoint {
     pub point_true_in_camera: Point3<f64>,
     /// The laser model's triangulation, camera frame, mm.
     pub point_estimated_in_camera: Point3<f64>,
+    /// Whether the fit rejected it ([`AccuracyOptions::rejected_beyond_mm`]).
+    pub rejected: bool,
 }
 
 impl AccuracyPoint {
@@ -125,8 +139,12 @@ pub struct SlideAccuracy {
 /// The result of [`evaluate_accuracy`].
 #[derive(Debug, Clone)]
 pub struct AccuracyEvaluation {
-    /// Every evaluated point, in view order.
+    /// Every evaluated point, in view order (those the fit rejected among
+    /// them, marked).
     pub points: Vec<AccuracyPoint>,
+    /// The fit's inlier threshold the rejected points lie beyond, mm
+    /// ([`AccuracyOptions::rejected_beyond_mm`]).
+    pub rejected_beyond_mm: Option<f64>,
     /// Every view, in session order, with its board pose or why it gave nothing.
     pub views: Vec<ViewSamples>,
     /// Per slide position, ascending.
@@ -217,11 +235,15 @@ pub(crate) fn accuracy_from_views(
             else {
                 continue;
             };
+            let depth_error_mm = point_estimated_in_camera.z - point_true_in_camera.z;
             let point = AccuracyPoint {
                 view: index,
                 slide_mm: sample.slide_mm,
                 point_true_in_camera,
                 point_estimated_in_camera,
+                rejected: options.rejected_beyond_mm.is_some_and(|threshold| {
+                    depth_error_mm.abs() > threshold || depth_error_mm.is_nan()
+                }),
             };
             all_points.push(point);
             if keep {
@@ -236,13 +258,25 @@ pub(crate) fn accuracy_from_views(
             rejection_note(&views)
         )));
     }
+    if points.iter().all(|p| p.rejected) {
+        return Err(Error::NoData(format!(
+            "every one of the {} laser points is beyond the fit's inlier threshold of {} mm: the laser does not fit this session",
+            points.len(),
+            options.rejected_beyond_mm.unwrap_or(f64::NAN)
+        )));
+    }
+    // The boxes and the stripe noise are of the points the fit kept.
+    let kept = |list: &[AccuracyPoint]| list.iter().filter(|p| !p.rejected).copied().collect();
+    let (kept_points, all_points): (Vec<AccuracyPoint>, Vec<AccuracyPoint>) =
+        (kept(&points), kept(&all_points));
     let residuals = within_view_residuals(&all_points, laser, camera.fx_px);
     let measured_sigma_px =
         robust_sigma(&residuals.iter().map(|r| r.1).collect::<Vec<_>>()).unwrap_or(f64::NAN);
     let sigma_px = options.sigma_px.unwrap_or(measured_sigma_px);
-    let slides = per_slide(&points, &all_points, &residuals, laser, camera.fx_px, sigma_px);
+    let slides = per_slide(&kept_points, &all_points, &residuals, laser, camera.fx_px, sigma_px);
     Ok(AccuracyEvaluation {
         points,
+        rejected_beyond_mm: options.rejected_beyond_mm,
         views,
         slides,
         laser: *laser,
@@ -351,11 +385,11 @@ fn per_slide(
 
 impl AccuracyEvaluation {
     /// The errors (estimated - true, mm) along `axis` (0 x, 1 y, 2 z) of the
-    /// points at `slide_mm`: what one box of the plot shows.
+    /// points at `slide_mm` the fit kept: what one box of the plot shows.
     pub fn errors_at(&self, slide_mm: f64, axis: usize) -> Vec<f64> {
         self.points
             .iter()
-            .filter(|p| p.slide_mm == slide_mm)
+            .filter(|p| p.slide_mm == slide_mm && !p.rejected)
             .map(|p| p.error_mm()[axis.min(2)])
             .collect()
     }
@@ -365,7 +399,8 @@ impl AccuracyEvaluation {
     /// laser-camera distance, the median depth, the predicted sigma_z and
     /// the box-plot statistics of the x, y and z errors (`x`, `y`, `z`:
     /// n, median, q1, q3, min, max, the whiskers' ends at 1.5 IQR, mean,
-    /// rms, all mm).
+    /// rms, all mm), over the points the fit kept; `n_rejected` counts the
+    /// others, beyond `rejected_beyond_mm` (null: none were rejected).
     pub fn to_json(&self) -> Value {
         let stats = |s: &BoxStats| {
             json!({
@@ -380,6 +415,8 @@ impl AccuracyEvaluation {
             "laser": serde_json::to_value(self.laser.to_file()).unwrap_or_default(),
             "points_per_view": self.points_per_view.as_str(),
             "n_points": self.points.len(),
+            "n_rejected": self.points.iter().filter(|p| p.rejected).count(),
+            "rejected_beyond_mm": self.rejected_beyond_mm,
             "noise_floor": {
                 "formula": "sigma_z = z^2 cos(alpha) sigma_px / (f L), L = L0 - d, z the median depth",
                 "sigma_px": self.sigma_px,
@@ -409,17 +446,26 @@ impl AccuracyEvaluation {
         })
     }
 
-    /// Every point as CSV: `view,slide_mm,x_true_mm,y_true_mm,z_true_mm,x_error_mm,y_error_mm,z_error_mm`.
+    /// Every point as CSV: `view,slide_mm,x_true_mm,y_true_mm,z_true_mm,x_error_mm,y_error_mm,z_error_mm,rejected`
+    /// (`rejected` 1 where the fit rejected the point, else 0).
     pub fn points_csv(&self) -> String {
         let mut out = String::from(
-            "view,slide_mm,x_true_mm,y_true_mm,z_true_mm,x_error_mm,y_error_mm,z_error_mm\n",
+            "view,slide_mm,x_true_mm,y_true_mm,z_true_mm,x_error_mm,y_error_mm,z_error_mm,rejected\n",
         );
         for p in &self.points {
             let t = p.point_true_in_camera;
             let e = p.error_mm();
             out.push_str(&format!(
-                "{},{},{},{},{},{},{},{}\n",
-                p.view, p.slide_mm, t.x, t.y, t.z, e.x, e.y, e.z
+                "{},{},{},{},{},{},{},{},{}\n",
+                p.view,
+                p.slide_mm,
+                t.x,
+                t.y,
+                t.z,
+                e.x,
+                e.y,
+                e.z,
+                u8::from(p.rejected)
             ));
         }
         out
@@ -428,13 +474,85 @@ impl AccuracyEvaluation {
 
 #[cfg(test)]
 mod tests {
+    #![allow(clippy::unwrap_used)]
     use super::*;
+    use nalgebra::Point2;
 
     #[test]
     fn three_points_are_the_centres_of_the_thirds() {
         assert_eq!(chosen(600, PointsPerView::Three), vec![100, 300, 500]);
         assert_eq!(chosen(2, PointsPerView::Three), vec![0, 1]);
         assert_eq!(chosen(4, PointsPerView::All), vec![0, 1, 2, 3]);
+    }
+
+    /// Samples on the laser's plane at two slide positions, a little noise,
+    /// and one stray stripe sample 192 mm off (a reflection the fit rejected).
+    fn views_with_a_stray_sample(laser: &LaserModel) -> Vec<(Vec<LaserSample>, ViewSamples)> {
+        [0.0, 100.0]
+            .iter()
+            .enumerate()
+            .map(|(view, &slide_mm)| {
+                let mut samples: Vec<LaserSample> = (0..60)
+                    .map(|i| {
+                        let (u_n, v_n) = (0.02, -0.2 + 0.007 * f64::from(i));
+                        let z = laser.triangulate(&Point2::new(u_n, v_n), slide_mm).unwrap().z;
+                        let noise = 0.1 * (f64::from(i) * 1.7).sin();
+                        LaserSample { u_n, v_n, z_mm: z + noise, slide_mm, pose: Some(view as u32) }
+                    })
+                    .collect();
+                if view == 0 {
+                    samples[30].z_mm -= 192.0;
+                }
+                let report = ViewSamples {
+                    image: format!("view{view}.png"),
+                    slide_mm,
+                    camera_from_board: None,
+                    pose_rms_px: Some(0.1),
+                    n_samples: samples.len(),
+                    n_on_square_edges: 0,
+                    rejected: None,
+                    observation: None,
+                    pixels_px: Vec::new(),
+                    pose: Some(view as u32),
+                };
+                (samples, report)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn points_the_fit_rejected_are_marked_and_kept_out_of_the_boxes() {
+        let laser = LaserModel::seed_paper();
+        let camera = Camera::blackfly_s_5mp();
+        let options =
+            AccuracyOptions { rejected_beyond_mm: Some(2.0), ..AccuracyOptions::default() };
+        let eval =
+            accuracy_from_views(views_with_a_stray_sample(&laser), &camera, &laser, &options)
+                .unwrap();
+        assert_eq!(eval.points.len(), 120);
+        assert_eq!(eval.points.iter().filter(|p| p.rejected).count(), 1);
+        // The box of slide 0 spans the noise, not the stray sample.
+        let z = &eval.slides[0].error_mm[2];
+        assert_eq!(z.n, 59);
+        assert!(z.min > -0.5 && z.max < 0.5, "{z:?}");
+        assert_eq!(eval.errors_at(0.0, 2).len(), 59);
+        let json = eval.to_json();
+        assert_eq!(json["n_rejected"], 1);
+        assert_eq!(json["rejected_beyond_mm"], 2.0);
+        let csv = eval.points_csv();
+        assert!(csv.lines().next().unwrap().ends_with(",rejected"));
+        assert_eq!(csv.lines().filter(|l| l.ends_with(",1")).count(), 1);
+        // Without a fit to speak for (a session of its own) it is in the box.
+        let eval = accuracy_from_views(
+            views_with_a_stray_sample(&laser),
+            &camera,
+            &laser,
+            &AccuracyOptions::default(),
+        )
+        .unwrap();
+        assert_eq!(eval.slides[0].error_mm[2].n, 60);
+        assert!(eval.slides[0].error_mm[2].max > 150.0);
+        assert!(eval.to_json()["rejected_beyond_mm"].is_null());
     }
 
     #[test]

@@ -142,8 +142,10 @@ fn padded(lo: f64, hi: f64, min_pad: f64) -> (f64, f64) {
 
 /// The accuracy figure: per axis a panel, per slide position a box with
 /// whiskers at 1.5 IQR and the points beyond them; the top row to the
-/// extremes, the bottom row zoomed to the boxes (points beyond its edge
-/// left out, whiskers cut there).
+/// extremes of the points the fit kept, the bottom row zoomed to the boxes
+/// (points beyond its edge left out, whiskers cut there). Points the fit
+/// rejected are red crosses apart from the boxes, at the top row's edge
+/// where they lie beyond it.
 struct BoxPlots<'a> {
     eval: &'a AccuracyEvaluation,
 }
@@ -244,6 +246,20 @@ impl BoxPlots<'_> {
                 .take(MAX_PLOT_POINTS);
             chart
                 .draw_series(outliers.map(|e| Circle::new((x, e), 3, BOX_LINE.stroke_width(1))))?;
+            // The points the fit rejected, beside the box; beyond the full
+            // row's range at its edge, beyond the zoomed row's left out.
+            let rejected = self
+                .eval
+                .points
+                .iter()
+                .filter(|p| p.slide_mm == s.slide_mm && p.rejected)
+                .map(|p| p.error_mm()[axis])
+                .filter(|&e| !zoom || (lo..=hi).contains(&e))
+                .take(MAX_PLOT_POINTS);
+            chart
+                .draw_series(rejected.map(|e| {
+                    Cross::new((x + 1.4 * half_width, clamp(e)), 4, RED.stroke_width(2))
+                }))?;
             // Caps only where the whisker really ends inside the panel.
             for (end, value) in [(bottom, b.whisker_low), (top, b.whisker_high)] {
                 if end == value {
@@ -302,16 +318,26 @@ impl Figure for BoxPlots<'_> {
         DB::ErrorType: 'static,
     {
         root.fill(&WHITE)?;
-        let (title, body) = root.split_vertically(40);
+        let (title, body) = root.split_vertically(56);
+        let n_rejected = self.eval.points.iter().filter(|p| p.rejected).count();
         title.draw(&Text::new(
             format!(
-                "Localization error per slide position: {} points ({} per view), boxes: quartiles and median, whiskers: 1.5 IQR, circles: beyond",
-                self.eval.points.len(),
+                "Triangulated point minus its board plane, per slide position: {} points ({} per view); boxes: quartiles and median, whiskers: 1.5 IQR, circles: beyond",
+                self.eval.points.len() - n_rejected,
                 self.eval.points_per_view.as_str()
             ),
-            (16, 12),
-            (FAMILY, 20).into_font(),
+            (16, 8),
+            (FAMILY, 19).into_font(),
         ))?;
+        if let Some(threshold) = self.eval.rejected_beyond_mm {
+            title.draw(&Text::new(
+                format!(
+                    "red crosses, beside the boxes and not in them: {n_rejected} point(s) the fit rejected (|z error| > {threshold} mm), at the panel's edge where beyond it"
+                ),
+                (16, 32),
+                (FAMILY, 16).into_font(),
+            ))?;
+        }
         for (k, panel) in body.split_evenly((2, 3)).iter().enumerate() {
             self.panel(panel, k % 3, k >= 3)?;
         }

@@ -213,8 +213,12 @@ pub fn calibration_report_from_views(
     }
     let laser_std = laser_std_dev_at(&posed_samples, laser, threshold_mm);
     let table_1 = evaluate_calibration(&samples, &options).map_err(|e| e.to_string());
-    let accuracy = accuracy_from_views(per_view, camera, laser, &AccuracyOptions::default())
-        .map_err(|e| e.to_string());
+    // The laser was fitted on these samples with this threshold: the
+    // samples beyond it are the fit's rejected ones.
+    let accuracy_options =
+        AccuracyOptions { rejected_beyond_mm: Some(threshold_mm), ..AccuracyOptions::default() };
+    let accuracy =
+        accuracy_from_views(per_view, camera, laser, &accuracy_options).map_err(|e| e.to_string());
     Ok(CalibrationReport {
         camera: camera.clone(),
         laser: *laser,
@@ -714,9 +718,14 @@ fn plots(page: &mut Page, report: &CalibrationReport) {
     }
     page.heading("Accuracy on this session's views");
     match &report.accuracy {
-        Ok(_) => {
+        Ok(eval) => {
+            let n_rejected = eval.points.iter().filter(|p| p.rejected).count();
             page.paragraph(
-                "Every stripe point triangulated with the reported laser against its board plane, per slide position (the laser was probably fitted on these views: for an independent check run alacs evaluate accuracy on a second session).",
+                &format!(
+                    "Every stripe point triangulated with the reported laser against its board plane, per slide position (the laser was probably fitted on these views: for an independent check run alacs evaluate accuracy on a second session). {n_rejected} of {} points lie beyond the {} mm inlier threshold, the ones the fit rejected: red crosses beside the boxes, not in them.",
+                    eval.points.len(),
+                    report.threshold_mm
+                ),
                 Some("note"),
             );
             page.plot("accuracy_boxplots.png", "accuracy box plots");
