@@ -39,6 +39,7 @@
 //! # Ok::<(), alacs_sim::Error>(())
 //! ```
 
+mod bayer;
 mod board;
 mod error;
 mod orchard;

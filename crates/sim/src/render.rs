@@ -492,6 +492,9 @@ impl RayMap {
         if let Some((key, new_key)) = built {
             *key = Some(new_key);
         }
+        if sensor.bayer {
+            crate::bayer::mosaic_and_demosaic(&mut image);
+        }
         image
     }
 }
@@ -1141,6 +1144,10 @@ pub struct Sensor {
     pub blur_sigma_px: f64,
     /// Exposure time and gain of the frame.
     pub exposure: Exposure,
+    /// A colour sensor's RGGB Bayer filter with bilinear demosaicing: each
+    /// pixel records one colour, the other two are interpolated (false: a
+    /// value of every colour at every pixel).
+    pub bayer: bool,
 }
 
 impl Default for Sensor {
@@ -1156,6 +1163,7 @@ impl Default for Sensor {
             read_noise_dn: 0.5,
             blur_sigma_px: 0.0,
             exposure: Exposure::default(),
+            bayer: false,
         }
     }
 }

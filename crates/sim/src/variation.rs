@@ -358,7 +358,12 @@ impl RigVariation {
     }
 
     /// `render` with the drawn laser look and sensor (the exposure time and
-    /// gain kept, [`crate::Sensor::exposure_dn`] times the drawn factor).
+    /// gain kept, [`crate::Sensor::exposure_dn`] times the drawn factor),
+    /// through a Bayer filter ([`crate::Sensor::bayer`]): colour
+    /// machine-vision cameras (the Blackfly S colour models among them)
+    /// record one colour per pixel through an RGGB mosaic, and bilinear
+    /// demosaicing is the simplest of the interpolations their SDKs offer,
+    /// the one that spreads a thin red line the most.
     pub fn render_options(&self, render: &RenderOptions) -> RenderOptions {
         let mut out = *render;
         out.laser.stripe_sigma_px = self.stripe_sigma_px;
@@ -370,6 +375,7 @@ impl RigVariation {
         out.sensor.read_noise_dn = self.read_noise_dn;
         out.sensor.gain_dn_per_electron = self.gain_dn_per_electron;
         out.sensor.exposure_dn = render.sensor.exposure_dn * self.exposure_factor;
+        out.sensor.bayer = true;
         out
     }
 
