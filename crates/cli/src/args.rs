@@ -253,10 +253,8 @@ pub struct EvaluateCalibrationArgs {
     /// calibration.json, calibration_residuals_method{1..4}.png and .svg.
     #[arg(long, value_name = "DIR", default_value = "evaluation")]
     pub out: PathBuf,
-    /// Write into an output folder even if it holds files this command did
-    /// not write (they stay, unless an earlier run of it wrote them).
-    #[arg(long)]
-    pub force: bool,
+    #[command(flatten)]
+    pub folder: ForceArg,
     /// RANSAC inlier threshold epsilon on |z - z_hat|, in mm.
     #[arg(
         long,
@@ -312,10 +310,8 @@ pub struct ReportCalibrationArgs {
     /// Folder for the report (created): index.html, images/, plots.
     #[arg(long, value_name = "DIR", default_value = "report")]
     pub out: PathBuf,
-    /// Write into an output folder even if it holds files this command did
-    /// not write (they stay, unless an earlier run of it wrote them).
-    #[arg(long)]
-    pub force: bool,
+    #[command(flatten)]
+    pub folder: ForceArg,
     /// Print one JSON object on standard output: {"html": .., "files": [..], ..}.
     #[arg(long)]
     pub json: bool,
@@ -345,10 +341,8 @@ pub struct ReportScanArgs {
     /// Folder for the report (created): index.html and images/.
     #[arg(long, value_name = "DIR", default_value = "report")]
     pub out: PathBuf,
-    /// Write into an output folder even if it holds files this command did
-    /// not write (they stay, unless an earlier run of it wrote them).
-    #[arg(long)]
-    pub force: bool,
+    #[command(flatten)]
+    pub folder: ForceArg,
     /// Print one JSON object on standard output: {"html": .., "files": [..],
     /// "localization": {...as localize --json}}.
     #[arg(long)]
@@ -371,10 +365,8 @@ pub struct EvaluateAccuracyArgs {
     /// accuracy_boxplots.png and .svg.
     #[arg(long, value_name = "DIR", default_value = "evaluation")]
     pub out: PathBuf,
-    /// Write into an output folder even if it holds files this command did
-    /// not write (they stay, unless an earlier run of it wrote them).
-    #[arg(long)]
-    pub force: bool,
+    #[command(flatten)]
+    pub folder: ForceArg,
     /// Points per view: all, or 3 as the seed paper.
     #[arg(long, value_enum, default_value = "all")]
     pub points: PointsArg,
@@ -609,9 +601,8 @@ pub struct SimulateSamplesArgs {
     /// Output folder (created).
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
-    /// Write into --out even if it holds files this command did not write.
-    #[arg(long)]
-    pub force: bool,
+    #[command(flatten)]
+    pub folder: ForceArg,
     /// Seed: same seed, same bytes.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -647,9 +638,8 @@ pub struct SimulateSessionArgs {
     /// Output folder (created).
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
-    /// Write into --out even if it holds files this command did not write.
-    #[arg(long)]
-    pub force: bool,
+    #[command(flatten)]
+    pub folder: ForceArg,
     /// Seed: same seed, same bytes.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -706,6 +696,15 @@ pub struct SimulateSessionArgs {
     /// Print a JSON summary on standard output.
     #[arg(long)]
     pub json: bool,
+}
+
+/// `--force` of every command that writes an output folder.
+#[derive(Debug, Args)]
+pub struct ForceArg {
+    /// Write into the output folder even if it holds files this command did
+    /// not write (they stay, unless an earlier run of it wrote them).
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// The simulated slide's own error.
@@ -810,9 +809,8 @@ pub struct SimulateScanArgs {
     /// Output folder (created).
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
-    /// Write into --out even if it holds files this command did not write.
-    #[arg(long)]
-    pub force: bool,
+    #[command(flatten)]
+    pub folder: ForceArg,
     /// The orchard scene.
     #[command(flatten)]
     pub scene: SceneArgs,
@@ -854,9 +852,8 @@ pub struct SimulateRgbdArgs {
     /// Output folder (created).
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
-    /// Write into --out even if it holds files this command did not write.
-    #[arg(long)]
-    pub force: bool,
+    #[command(flatten)]
+    pub folder: ForceArg,
     /// The orchard scene (the same seed and options as `scan --sim` give the same scene).
     #[command(flatten)]
     pub scene: SceneArgs,
@@ -1001,10 +998,8 @@ pub struct DemoArgs {
     /// (report_calibration/index.html, report_scan/index.html).
     #[arg(long, value_name = "DIR", default_value = "alacs-demo")]
     pub out: PathBuf,
-    /// Write into an output folder even if it holds files this command did
-    /// not write (they stay, unless an earlier run of it wrote them).
-    #[arg(long)]
-    pub force: bool,
+    #[command(flatten)]
+    pub folder: ForceArg,
     /// Print one JSON object on standard output instead of text.
     #[arg(long)]
     pub json: bool,
@@ -1148,9 +1143,8 @@ pub struct BagExportArgs {
     /// Which scan of the bag, from 0.
     #[arg(long = "scan", value_name = "N", default_value_t = 0)]
     pub scan_index: usize,
-    /// Write into DIR even if it holds files this command did not write.
-    #[arg(long)]
-    pub force: bool,
+    #[command(flatten)]
+    pub folder: ForceArg,
     /// Print one JSON object: {"bag", "scan", "scans", "frames", "out", "messages"}.
     #[arg(long)]
     pub json: bool,

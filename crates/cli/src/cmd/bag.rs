@@ -17,7 +17,7 @@ use crate::output;
 /// Runs `alacs bag export`.
 pub fn export(args: &BagExportArgs) -> CmdResult {
     let (scan, summary) = read_scan(&args.bag, args.scan_index)?;
-    let mut out = OutputDir::create(&args.out, "bag export", args.force)?;
+    let mut out = OutputDir::create(&args.out, "bag export", args.folder.force)?;
     scan.write_into(&mut out)?;
     // The recorded CameraInfo: the camera the scan was localized with.
     if let Some(camera) = &summary.camera {

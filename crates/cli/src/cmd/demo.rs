@@ -174,8 +174,12 @@ fn image_pipeline(
         &|| {},
     );
     let report_files = report.and_then(|report| {
-        let mut report_out =
-            open_sub_output(out, "report_calibration", OutputKind::ReportCalibration, args.force)?;
+        let mut report_out = open_sub_output(
+            out,
+            "report_calibration",
+            OutputKind::ReportCalibration,
+            args.folder.force,
+        )?;
         let files = write_calibration_html(
             &mut report_out,
             &session,
@@ -256,7 +260,7 @@ fn image_pipeline(
                     .map(|(image, f)| ScanReportFrame { name: &f.image, image })
                     .collect();
                 let mut report_out =
-                    open_sub_output(out, "report_scan", OutputKind::ReportScan, args.force)?;
+                    open_sub_output(out, "report_scan", OutputKind::ReportScan, args.folder.force)?;
                 let source = format!("simulated ({label}, fruit {})", k + 1);
                 report_files.extend(write_scan_html(
                     &mut report_out,
@@ -306,7 +310,7 @@ fn mean_max(errors: &[[f64; 4]], axis: usize) -> (f64, f64) {
 pub fn run(args: &DemoArgs) -> CmdResult {
     let camera = Camera::blackfly_s_5mp();
     let truth = LaserModel::from_degrees(Fidelity::High, TRUE_ALPHA_DEG, TRUE_BETA_DEG, TRUE_L0_MM);
-    let mut out = open_output(&args.out, OutputKind::Demo, args.force)?;
+    let mut out = open_output(&args.out, OutputKind::Demo, args.folder.force)?;
     let bar = output::progress_bar(args.json, "calibrating");
     let scans = SCAN_CONDITIONS.len() * SCANS_PER_CONDITION as usize;
     output::start_progress(&bar, 1 + ACCURACY_SLIDES_MM.len() + 6 + scans, "calibrating");

@@ -80,7 +80,7 @@ pub fn calibration(args: &EvaluateCalibrationArgs) -> CmdResult {
             return Err(Failure::bad_input(anyhow!("give --samples FILE or --session DIR")));
         }
     };
-    let mut out = open_output(&args.out, OutputKind::EvaluateCalibration, args.force)?;
+    let mut out = open_output(&args.out, OutputKind::EvaluateCalibration, args.folder.force)?;
     let options = CalibrationOptions {
         threshold_mm: args.threshold_mm,
         seed: args.seed,
@@ -135,7 +135,7 @@ pub fn accuracy(args: &EvaluateAccuracyArgs) -> CmdResult {
     let session = Session::read(&args.session)?;
     let camera = Camera::from_yaml_file(&args.camera)?;
     let laser = LaserModel::from_yaml_file(&args.laser)?;
-    let mut out = open_output(&args.out, OutputKind::EvaluateAccuracy, args.force)?;
+    let mut out = open_output(&args.out, OutputKind::EvaluateAccuracy, args.folder.force)?;
     let options = AccuracyOptions {
         points: match args.points {
             PointsArg::All => PointsPerView::All,

@@ -33,7 +33,7 @@ pub fn calibration(args: &ReportCalibrationArgs) -> CmdResult {
     let session = Session::read(&args.session)?;
     let camera = Camera::from_yaml_file(&args.camera)?;
     let laser = LaserModel::from_yaml_file(&args.laser)?;
-    let mut out = open_output(&args.out, OutputKind::ReportCalibration, args.force)?;
+    let mut out = open_output(&args.out, OutputKind::ReportCalibration, args.folder.force)?;
     let bar = output::progress_bar(args.json, "views");
     output::start_progress(&bar, 2 * session.views.len(), "views: corners, board pose, stripe");
     let report = calibration_report(&session, &camera, &laser, &|| bar.inc(1));
@@ -94,7 +94,7 @@ pub fn scan(args: &ReportScanArgs) -> CmdResult {
     alacs::locate::check_camera_fits(&scan, &camera)
         .map_err(|e| Failure::from(e).with_context(&args.camera))?;
     let laser = LaserModel::from_yaml_file(&args.laser)?;
-    let mut out = open_output(&args.out, OutputKind::ReportScan, args.force)?;
+    let mut out = open_output(&args.out, OutputKind::ReportScan, args.folder.force)?;
     let bar = output::progress_bar(args.json, "frames");
     output::start_progress(&bar, scan.frames.len(), "frames read");
     let images = read_scan_images(&scan, |_, _| bar.inc(1));

@@ -117,7 +117,7 @@ pub fn samples(args: &SimulateSamplesArgs) -> CmdResult {
         ..SampleOptions::default()
     };
     let sim = simulate_samples(&camera, &laser, &options)?;
-    sim.write(&args.out, args.force)?;
+    sim.write(&args.out, args.folder.force)?;
     if args.json {
         output::print_json(&json!({
             "out": args.out.display().to_string(),
@@ -167,7 +167,7 @@ pub fn session(args: &SimulateSessionArgs) -> CmdResult {
     let bar = output::progress_bar(args.json, "computing the camera's rays");
     let session = simulate_session(&camera, &laser, &options)?;
     output::start_progress(&bar, session.image_count(), "rendering");
-    OutputDir::fill(&args.out, "simulate session", args.force, |out| {
+    OutputDir::fill(&args.out, "simulate session", args.folder.force, |out| {
         session.write_into(out, |done, _| bar.set_position(done as u64))
     })?;
     bar.finish_and_clear();
@@ -212,7 +212,7 @@ pub fn scan(args: &SimulateScanArgs) -> CmdResult {
     let bar = output::progress_bar(args.json, "building the scene and the camera's rays");
     let scan = simulate_scan(&camera, &laser, &options)?;
     output::start_progress(&bar, scan.image_count(), "rendering");
-    OutputDir::fill(&args.out, "simulate scan", args.force, |out| {
+    OutputDir::fill(&args.out, "simulate scan", args.folder.force, |out| {
         scan.write_into(out, |done, _| bar.set_position(done as u64))
     })?;
     bar.finish_and_clear();
@@ -257,7 +257,7 @@ pub fn rgbd(args: &SimulateRgbdArgs) -> CmdResult {
     bar.set_message("rendering the RGB-D camera's view");
     let camera = RgbdOptions::colour_camera_720p();
     let view = scan.render_rgbd(&camera, &alacs_from_rgbd, &alacs::sim::RgbdErrors::default())?;
-    OutputDir::fill(&args.out, "simulate rgbd", args.force, |out| view.write_into(out))?;
+    OutputDir::fill(&args.out, "simulate rgbd", args.folder.force, |out| view.write_into(out))?;
     bar.finish_and_clear();
     if args.json {
         output::print_json(
