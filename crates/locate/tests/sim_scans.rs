@@ -150,8 +150,9 @@ fn family_clusters_never_a_neighbour() {
     f.assert_gate("clusters", 6, 3.0, WRONG_MM);
 }
 
-/// With the renderer randomized (laser, light in the flesh, colours, lens,
-/// sensor, calibration error; crates/sim's `RigVariation`): at least three
+/// With the renderer randomized (laser, light in the flesh, colours, the
+/// apple's form, lens, Bayer sensor, calibration error; crates/sim's
+/// `RigVariation`): at least three
 /// quarters found, none wrong, median within 3 mm (the calibration error
 /// alone adds half a millimetre to a millimetre, docs/ACCURACY.md).
 #[test]

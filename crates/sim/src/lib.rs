@@ -59,7 +59,7 @@ pub use error::{
     Result,
 };
 pub use orchard::{
-    Appearance, CameraRayGrid, Hit, Kind, MAX_CLUSTER, Material, Object, OrchardOptions,
+    Appearance, AppleForm, CameraRayGrid, Hit, Kind, MAX_CLUSTER, Material, Object, OrchardOptions,
     OrchardScene, Shape, orchard_scene, value_noise,
 };
 pub use render::{

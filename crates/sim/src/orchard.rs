@@ -1,5 +1,6 @@
 //! Orchard scenes for scans: a target apple (a sphere or a slightly
-//! ellipsoidal fruit, textured red and green, with a specular highlight),
+//! ellipsoidal fruit, textured red and green, with a specular highlight;
+//! randomized rigs give it an apple's form, [`AppleForm`]),
 //! leaves that hide a chosen fraction of it, branches, and a wall of
 //! background foliage. Geometry and materials only; the renderer shades them.
 
@@ -93,6 +94,152 @@ pub struct Hit {
     pub object: usize,
 }
 
+/// How an apple departs from an ellipsoid, in its body frame scaled to the
+/// unit sphere (the stem along +z), every term inward so that the apple
+/// stays within its ellipsoid (a neighbour placed against the ellipsoid
+/// never overlaps it): the surface lies at
+/// `|q| = 1 - taper ((1 - q.z) / 2)^2 - lopsided ((1 - q.e) / 2)^2 - stem cavity - calyx cavity`
+/// for the direction `q` from the centre: the calyx end narrower than the
+/// stem end (a conic apple), one cheek flatter than the other (`e` points
+/// to the fuller one), and each cavity a Gaussian dimple around its pole.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct AppleForm {
+    /// How much narrower the calyx end is, a fraction of the radius at the
+    /// calyx pole (a quarter of it at the equator).
+    pub taper: f64,
+    /// How much flatter the cheek opposite `lopsided_axis` is, a fraction
+    /// of the radius there.
+    pub lopsided: f64,
+    /// The unit direction of the fuller cheek, across the stem axis (body frame).
+    pub lopsided_axis: [f64; 3],
+    /// Depth of the stem cavity around +z, a fraction of the radius.
+    pub stem_cavity_depth: f64,
+    /// Its angular half-width (the dimple's Gaussian sigma), radians.
+    pub stem_cavity_width_rad: f64,
+    /// Depth of the calyx basin around -z, a fraction of the radius.
+    pub calyx_cavity_depth: f64,
+    /// Its angular half-width, radians.
+    pub calyx_cavity_width_rad: f64,
+}
+
+/// Body-scaled steps of the search for an apple's surface along a ray: 0.8
+/// mm on a 40 mm apple, a sixth of the narrowest cavity's sigma (0.12 of
+/// the radius, `RigVariation::CALYX_CAVITY_WIDTH_RAD`), so no crossing of
+/// the surface is stepped over.
+const APPLE_STEP: f64 = 0.02;
+
+/// Bisections of a crossing: 2^-40 of a step.
+const APPLE_BISECTIONS: usize = 40;
+
+impl AppleForm {
+    /// The surface's distance from the centre in the direction `unit` (body
+    /// frame, scaled to the unit sphere).
+    fn radius(&self, unit: &Vector3<f64>) -> f64 {
+        let axis = Vector3::from(self.lopsided_axis);
+        let away = |m: f64| (0.5 * (1.0 - m)).powi(2);
+        let dimple = |m: f64, depth: f64, width: f64| {
+            let angle = m.clamp(-1.0, 1.0).acos();
+            depth * (-0.5 * (angle / width.max(1e-6)).powi(2)).exp()
+        };
+        1.0 - self.taper * away(unit.z)
+            - self.lopsided * away(unit.dot(&axis))
+            - dimple(unit.z, self.stem_cavity_depth, self.stem_cavity_width_rad)
+            - dimple(-unit.z, self.calyx_cavity_depth, self.calyx_cavity_width_rad)
+    }
+
+    /// The volume centroid of the body-scaled apple (the unit sphere's
+    /// is its centre): the cavities move it away from their poles. By
+    /// quadrature over the directions, `int r^4 / 4 w dw / int r^3 / 3 dw`.
+    pub fn centroid(&self) -> Vector3<f64> {
+        const POLAR: usize = 90;
+        const AZIMUTH: usize = 180;
+        let (mut moment, mut volume) = (Vector3::zeros(), 0.0);
+        for i in 0..POLAR {
+            let theta = (i as f64 + 0.5) * std::f64::consts::PI / POLAR as f64;
+            let weight = theta.sin();
+            for j in 0..AZIMUTH {
+                let phi = (j as f64 + 0.5) * std::f64::consts::TAU / AZIMUTH as f64;
+                let unit =
+                    Vector3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos());
+                let r = self.radius(&unit);
+                moment += unit * (weight * r.powi(4) / 4.0);
+                volume += weight * r.powi(3) / 3.0;
+            }
+        }
+        moment / volume
+    }
+
+    /// Positive outside the surface, negative inside, at body-scaled `q`.
+    fn level(&self, q: &Vector3<f64>) -> f64 {
+        let norm = q.norm();
+        if norm < 1e-12 {
+            return -1.0;
+        }
+        norm - self.radius(&(q / norm))
+    }
+}
+
+/// The nearest crossing of an apple's surface beyond `t_min` along the
+/// body-scaled ray `o + t d` (`d` not unit), and the level's gradient there.
+fn apple_crossing(
+    form: &AppleForm,
+    o: &Vector3<f64>,
+    d: &Vector3<f64>,
+    t_min: f64,
+) -> Option<(f64, Vector3<f64>)> {
+    // Within a sphere a step larger than the ellipsoid (every term of the
+    // form is inward), so the search begins outside the surface.
+    let bound = 1.0 + APPLE_STEP;
+    let (a, b, c) = (d.dot(d), o.dot(d), o.dot(o) - bound * bound);
+    let disc = b * b - a * c;
+    if disc < 0.0 || a <= 0.0 {
+        return None;
+    }
+    let root = disc.sqrt();
+    let (t0, t1) = ((-b - root) / a, (-b + root) / a);
+    if t1 <= t_min {
+        return None;
+    }
+    let start = t0.max(t_min);
+    let step = APPLE_STEP / a.sqrt();
+    let level = |t: f64| form.level(&(o + d * t));
+    // A start on the surface (a shadow ray leaving it at `t_min`) takes
+    // the side the ray goes to.
+    let mut previous = (start, level(start));
+    if t_min > t0 && previous.1.abs() < 1e-9 {
+        let next = (start + step).min(t1);
+        previous = (next, level(next));
+    }
+    let mut t = previous.0;
+    while t < t1 {
+        t = (t + step).min(t1);
+        let value = level(t);
+        if value.signum() != previous.1.signum() {
+            let (mut low, mut high) = (previous.0, t);
+            let outside_low = previous.1 > 0.0;
+            for _ in 0..APPLE_BISECTIONS {
+                let mid = 0.5 * (low + high);
+                if (level(mid) > 0.0) == outside_low {
+                    low = mid;
+                } else {
+                    high = mid;
+                }
+            }
+            let hit = 0.5 * (low + high);
+            let q = o + d * hit;
+            let h = 1e-6;
+            let gradient = Vector3::new(
+                form.level(&(q + Vector3::x() * h)) - form.level(&(q - Vector3::x() * h)),
+                form.level(&(q + Vector3::y() * h)) - form.level(&(q - Vector3::y() * h)),
+                form.level(&(q + Vector3::z() * h)) - form.level(&(q - Vector3::z() * h)),
+            );
+            return Some((hit, gradient));
+        }
+        previous = (t, value);
+    }
+    None
+}
+
 /// The kinds of object in an orchard scene.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Shape {
@@ -104,6 +251,19 @@ pub enum Shape {
         rotation: Rotation3<f64>,
         /// Semi-axes along the body frame's x, y, z, mm.
         semi_axes_mm: Vector3<f64>,
+    },
+    /// An apple: an ellipsoid given an apple's form ([`AppleForm`]).
+    Apple {
+        /// The ellipsoid's centre in the camera frame, mm (the apple's
+        /// volume centroid lies at `rotation * (semi_axes * form.centroid())` from it).
+        centre: Point3<f64>,
+        /// Rotation from the body frame to the camera frame; the stem points
+        /// along the body's +z.
+        rotation: Rotation3<f64>,
+        /// Semi-axes along the body frame's x, y, z, mm.
+        semi_axes_mm: Vector3<f64>,
+        /// How it departs from the ellipsoid.
+        form: AppleForm,
     },
     /// A flat elliptical leaf.
     Leaf {
@@ -252,6 +412,14 @@ impl Shape {
                 let gradient = local.component_div(semi_axes_mm);
                 Some((t, (rotation * gradient).normalize()))
             }
+            Shape::Apple { centre, rotation, semi_axes_mm, form } => {
+                let body_from_camera = rotation.inverse();
+                let o = (body_from_camera * (ray.origin - centre)).component_div(semi_axes_mm);
+                let d = (body_from_camera * ray.direction).component_div(semi_axes_mm);
+                let (t, gradient) = apple_crossing(form, &o, &d, t_min)?;
+                // The level's gradient in the camera frame (q = R^T (p - c) / s).
+                Some((t, (rotation * gradient.component_div(semi_axes_mm)).normalize()))
+            }
             Shape::Leaf { centre, normal, along, half_length_mm, half_width_mm } => {
                 let t = plane_hit(ray, centre, normal, t_min)?;
                 let offset = ray.at(t) - centre;
@@ -302,6 +470,8 @@ impl Shape {
     pub fn bounding_sphere(&self) -> Option<(Point3<f64>, f64)> {
         match self {
             Shape::Ellipsoid { centre, semi_axes_mm, .. } => Some((*centre, semi_axes_mm.max())),
+            // Within its ellipsoid (every term of the form is inward).
+            Shape::Apple { centre, semi_axes_mm, .. } => Some((*centre, semi_axes_mm.max())),
             Shape::Leaf { centre, half_length_mm, half_width_mm, .. } => {
                 Some((*centre, half_length_mm.max(*half_width_mm)))
             }
@@ -374,6 +544,8 @@ enum CameraShape {
         /// (point - optical centre) . normal.
         offset: f64,
     },
+    /// A shape without a camera-ray shortcut (an apple): [`Shape::intersect`].
+    General(Box<Shape>),
     /// A degenerate shape (a branch of length 0): never hit.
     Nothing,
 }
@@ -382,6 +554,7 @@ impl CameraShape {
     fn new(shape: &Shape) -> Self {
         let origin = Point3::origin();
         match shape {
+            Shape::Apple { .. } => CameraShape::General(Box::new(shape.clone())),
             Shape::Ellipsoid { centre, rotation, semi_axes_mm } => {
                 let body_from_camera = rotation.inverse();
                 let o = (body_from_camera * (origin - centre)).component_div(semi_axes_mm);
@@ -470,6 +643,7 @@ impl CameraShape {
                 })
             }
             CameraShape::Wall { normal, offset } => camera_plane_hit(ray, normal, *offset),
+            CameraShape::General(shape) => shape.intersect(ray, 0.0).map(|(t, _)| t),
             CameraShape::Nothing => None,
         }
     }
@@ -490,6 +664,11 @@ impl CameraShape {
                 let along = (ray.at(t) - start).dot(axis);
                 let radial = ray.at(t) - (start + axis * along);
                 radial.normalize()
+            }
+            CameraShape::General(shape) => {
+                // The hit again, from just before it.
+                let back = (1e-6 * t).max(1e-9);
+                shape.intersect(ray, t - back).map_or_else(Vector3::zeros, |(_, normal)| normal)
             }
             CameraShape::Nothing => Vector3::zeros(),
         }

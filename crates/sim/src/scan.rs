@@ -400,6 +400,9 @@ pub fn simulate_scan(
     let (mut rendered_camera, mut rendered_laser) = (camera.clone(), *laser);
     if let Some(v) = &variation {
         scene.appearance = v.appearance;
+        if let Some(target) = scene.objects.first_mut() {
+            target.shape = v.apple_shape(&target.shape);
+        }
         lighting = v.lighting(&lighting);
         render = v.render_options(&render);
         render.validate()?;

@@ -15,7 +15,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 use serde_json::Value;
 
-use crate::orchard::Appearance;
+use crate::orchard::{Appearance, AppleForm, Shape};
 use crate::render::{Lighting, RenderOptions};
 
 /// The error of a paper-like laser calibration (the true laser minus the
@@ -196,6 +196,9 @@ pub struct RigVariation {
     /// The rough position's error across the line of sight, sigma in mm
     /// ([`Self::ROUGH_LATERAL_SIGMA_MM`]).
     pub rough_lateral_sigma_mm: f64,
+    /// The target apple's form ([`Self::TAPER`], [`Self::LOPSIDED`],
+    /// [`Self::STEM_CAVITY_DEPTH`] and the others of [`AppleForm`]).
+    pub apple_form: AppleForm,
 }
 
 impl RigVariation {
@@ -282,6 +285,24 @@ impl RigVariation {
     /// 0.6-1.6 m), up to the seed paper's 2 % and a bit past it for a
     /// fruit's centre taken from its surface (REFERENCES.md).
     pub const ROUGH_DEPTH_ERROR: DrawRange = (0.005, 0.025);
+    /// How much narrower the apple's calyx end is ([`AppleForm::taper`]):
+    /// from a globose fruit to a conic one 12 % narrower at the calyx pole
+    /// (UPOV's apple guidelines, TG/14, grade the shape from globose to
+    /// conical; the range is our reading, not measured).
+    pub const TAPER: DrawRange = (0.0, 0.12);
+    /// One cheek flatter than the other ([`AppleForm::lopsided`]): up to 6 %
+    /// of the radius there.
+    pub const LOPSIDED: DrawRange = (0.0, 0.06);
+    /// Stem cavity depth, a fraction of the radius: 4-10 mm on a 40 mm
+    /// apple (TG/14 grades the stalk cavity from shallow to deep).
+    pub const STEM_CAVITY_DEPTH: DrawRange = (0.10, 0.25);
+    /// Stem cavity's angular sigma, radians: a dimple 15-30 mm across on a
+    /// 40 mm apple.
+    pub const STEM_CAVITY_WIDTH_RAD: DrawRange = (0.15, 0.30);
+    /// Calyx basin depth, a fraction of the radius: 2-6 mm (TG/14's eye basin).
+    pub const CALYX_CAVITY_DEPTH: DrawRange = (0.05, 0.15);
+    /// Calyx basin's angular sigma, radians.
+    pub const CALYX_CAVITY_WIDTH_RAD: DrawRange = (0.12, 0.25);
     /// The rough position's error across the line of sight, sigma in mm: a
     /// detector's box centre a pixel or two off on a D435 depth image
     /// (about 1.5 mm per pixel at 1 m, 848 x 480 over 87 deg).
@@ -351,10 +372,47 @@ impl RigVariation {
             cy_error_px: draw(Self::PRINCIPAL_POINT_ERROR_PX),
             rough_depth_error: draw(Self::ROUGH_DEPTH_ERROR),
             rough_lateral_sigma_mm: draw(Self::ROUGH_LATERAL_SIGMA_MM),
+            // Drawn last, below, after the calibration's value.
+            apple_form: AppleForm {
+                taper: 0.0,
+                lopsided: 0.0,
+                lopsided_axis: [1.0, 0.0, 0.0],
+                stem_cavity_depth: 0.0,
+                stem_cavity_width_rad: 1.0,
+                calyx_cavity_depth: 0.0,
+                calyx_cavity_width_rad: 1.0,
+            },
         };
         [variation.alpha_error_deg, variation.l0_error_mm, variation.beta_error_deg] =
             laser_calibration_error(rng.random());
+        let mut draw = |(low, high): DrawRange| rng.random_range(low..=high);
+        let lopsided_angle = draw((0.0, std::f64::consts::TAU));
+        variation.apple_form = AppleForm {
+            taper: draw(Self::TAPER),
+            lopsided: draw(Self::LOPSIDED),
+            lopsided_axis: [lopsided_angle.cos(), lopsided_angle.sin(), 0.0],
+            stem_cavity_depth: draw(Self::STEM_CAVITY_DEPTH),
+            stem_cavity_width_rad: draw(Self::STEM_CAVITY_WIDTH_RAD),
+            calyx_cavity_depth: draw(Self::CALYX_CAVITY_DEPTH),
+            calyx_cavity_width_rad: draw(Self::CALYX_CAVITY_WIDTH_RAD),
+        };
         variation
+    }
+
+    /// `shape` given the drawn apple's form, where it is an ellipsoid (the
+    /// target fruit), placed so that the apple's volume centroid lies at the
+    /// ellipsoid's centre (the truth stays the fruit's centre); any other
+    /// shape as it is.
+    pub fn apple_shape(&self, shape: &Shape) -> Shape {
+        match shape {
+            Shape::Ellipsoid { centre, rotation, semi_axes_mm } => Shape::Apple {
+                centre: centre - rotation * semi_axes_mm.component_mul(&self.apple_form.centroid()),
+                rotation: *rotation,
+                semi_axes_mm: *semi_axes_mm,
+                form: self.apple_form,
+            },
+            other => other.clone(),
+        }
     }
 
     /// `render` with the drawn laser look and sensor (the exposure time and

@@ -4,7 +4,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use alacs_model::Ray;
-use alacs_sim::{Kind, OrchardOptions, Shape, orchard_scene};
+use alacs_sim::{AppleForm, Kind, OrchardOptions, Shape, orchard_scene};
 use nalgebra::{Point3, Rotation3, Unit, Vector3};
 
 fn rays() -> impl Iterator<Item = Ray> {
@@ -35,6 +35,71 @@ fn ellipsoid_hits_lie_on_the_surface_with_gradient_normals() {
         }
     }
     assert!(hits > 20, "{hits}");
+}
+
+fn round_form() -> AppleForm {
+    AppleForm {
+        taper: 0.0,
+        lopsided: 0.0,
+        lopsided_axis: [1.0, 0.0, 0.0],
+        stem_cavity_depth: 0.0,
+        stem_cavity_width_rad: 0.2,
+        calyx_cavity_depth: 0.0,
+        calyx_cavity_width_rad: 0.2,
+    }
+}
+
+#[test]
+fn an_apple_without_form_is_its_ellipsoid() {
+    let rotation = Rotation3::from_euler_angles(0.3, -0.2, 0.9);
+    let centre = Point3::new(20.0, -15.0, 800.0);
+    let semi_axes_mm = Vector3::new(42.0, 38.0, 40.0);
+    let ellipsoid = Shape::Ellipsoid { centre, rotation, semi_axes_mm };
+    let apple = Shape::Apple { centre, rotation, semi_axes_mm, form: round_form() };
+    let mut hits = 0;
+    for ray in rays() {
+        let (a, b) = (ellipsoid.intersect(&ray, 0.0), apple.intersect(&ray, 0.0));
+        assert_eq!(a.is_some(), b.is_some(), "{ray:?}");
+        if let (Some((ta, na)), Some((tb, nb))) = (a, b) {
+            hits += 1;
+            // Within a micrometre and a microradian.
+            assert!((ray.at(ta) - ray.at(tb)).norm() < 1e-3, "{ta} {tb}");
+            assert!((na - nb).norm() < 1e-5, "{na} {nb}");
+        }
+    }
+    assert!(hits > 20, "{hits}");
+}
+
+#[test]
+fn an_apples_stem_cavity_is_a_dimple_and_its_surface_casts_no_shadow_on_itself() {
+    // Stem towards the camera (body +z along camera -z).
+    let rotation = Rotation3::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI);
+    let centre = Point3::new(0.0, 0.0, 800.0);
+    let semi_axes_mm = Vector3::repeat(40.0);
+    let form = AppleForm { stem_cavity_depth: 0.2, ..round_form() };
+    let apple = Shape::Apple { centre, rotation, semi_axes_mm, form };
+    let axis = Ray::through_normalized(0.0, 0.0);
+    let (t, normal) = apple.intersect(&axis, 0.0).unwrap();
+    // 8 mm deep at the pole, the normal facing the camera.
+    assert!((axis.at(t).z - (760.0 + 8.0)).abs() < 1e-6, "{}", axis.at(t).z);
+    assert!(normal.dot(&Vector3::z()) < -0.999);
+    // A ray leaving the surface outward meets nothing; one going in meets
+    // the far side.
+    let off_axis = Ray::through_normalized(0.02, 0.01);
+    let (t, normal) = apple.intersect(&off_axis, 0.0).unwrap();
+    let point = off_axis.at(t);
+    let out = Ray { origin: point, direction: normal };
+    assert!(apple.intersect(&out, 1e-6).is_none());
+    let inward = Ray { origin: point, direction: -normal };
+    let (t_far, _) = apple.intersect(&inward, 1e-6).unwrap();
+    assert!(t_far > 60.0, "{t_far}");
+    // The cavity moves the volume centroid away from the stem: by about the
+    // dimple's volume (0.2 x 2 pi 0.2^2 of the unit sphere's 4/3 pi) times
+    // its distance from the centre, 0.01 of the radius.
+    let centroid = form.centroid();
+    assert!(centroid.x.abs() < 1e-9 && centroid.y.abs() < 1e-9, "{centroid}");
+    assert!((-0.015..-0.007).contains(&centroid.z), "{centroid}");
+    assert!(round_form().centroid().norm() < 1e-9);
 }
 
 #[test]

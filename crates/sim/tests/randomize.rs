@@ -8,7 +8,7 @@
 use alacs_model::{Camera, LaserModel, Ray};
 use alacs_sim::{
     DrawRange, FruitColour, LaserLight, OrchardOptions, RenderOptions, RigVariation, ScanOptions,
-    Sensor, simulate_scan,
+    Sensor, Shape, simulate_scan,
 };
 use nalgebra::Point2;
 
@@ -71,7 +71,21 @@ fn randomization_keeps_the_scene_and_the_calibration() {
         let on = simulate_scan(&Camera::blackfly_s_5mp(), &laser(), &options(seed, true)).unwrap();
         assert_eq!(on.scene.fruit_centre, off.scene.fruit_centre, "seed {seed}");
         assert_eq!(on.scene.fruit_radius_mm, off.scene.fruit_radius_mm);
-        assert_eq!(on.scene.objects, off.scene.objects);
+        // The same objects in the same places; the target is given the
+        // drawn apple's form.
+        assert_eq!(on.scene.objects[1..], off.scene.objects[1..]);
+        match (&on.scene.objects[0].shape, &off.scene.objects[0].shape) {
+            (
+                Shape::Apple { centre, rotation, semi_axes_mm, form },
+                Shape::Ellipsoid { centre: c, rotation: r, semi_axes_mm: s },
+            ) => {
+                assert_eq!((rotation, semi_axes_mm), (r, s));
+                // Its volume centroid is the fruit's centre.
+                let centroid = centre + rotation * semi_axes_mm.component_mul(&form.centroid());
+                assert!((centroid - c).norm() < 1e-9, "seed {seed}");
+            }
+            other => panic!("seed {seed}: {other:?}"),
+        }
         assert_eq!(on.scene.occlusion, off.scene.occlusion);
         assert_eq!(on.lighting.to_light_in_camera, off.lighting.to_light_in_camera);
         // The calibration a localizer is given stays the nominal one.
@@ -177,6 +191,12 @@ fn drawn_values_lie_within_their_ranges_and_vary() {
     check("cy", V::PRINCIPAL_POINT_ERROR_PX, |v| v.cy_error_px);
     check("rough depth", V::ROUGH_DEPTH_ERROR, |v| v.rough_depth_error);
     check("rough lateral", V::ROUGH_LATERAL_SIGMA_MM, |v| v.rough_lateral_sigma_mm);
+    check("taper", V::TAPER, |v| v.apple_form.taper);
+    check("lopsided", V::LOPSIDED, |v| v.apple_form.lopsided);
+    check("stem cavity", V::STEM_CAVITY_DEPTH, |v| v.apple_form.stem_cavity_depth);
+    check("stem width", V::STEM_CAVITY_WIDTH_RAD, |v| v.apple_form.stem_cavity_width_rad);
+    check("calyx cavity", V::CALYX_CAVITY_DEPTH, |v| v.apple_form.calyx_cavity_depth);
+    check("calyx width", V::CALYX_CAVITY_WIDTH_RAD, |v| v.apple_form.calyx_cavity_width_rad);
     // Every colour family is drawn, each within its albedo ranges; the
     // laser's reflectance follows the red albedo (leaves 4/3 of it).
     for family in FruitColour::ALL {
