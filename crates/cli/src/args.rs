@@ -678,8 +678,8 @@ pub struct SimulateSessionArgs {
     #[arg(long)]
     pub cut_by_border: bool,
     /// Put a second board in every view, as in photographs of real rigs: a
-    /// 6 x 4 ChArUco board (30 mm squares, DICT_5X5_100 or, where the target
-    /// uses that, DICT_4X4_50) leaning back 50-70
+    /// 6 x 4 ChArUco board (30 mm squares, DICT_5X5_100 or, where the
+    /// target's markers are 5 x 5, DICT_4X4_50) leaning back 50-70
     /// deg in front of and under the target, hiding none of its corners
     /// (truth.json: second_board, camera_from_second_board).
     #[arg(long)]

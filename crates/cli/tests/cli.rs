@@ -456,7 +456,7 @@ fn simulate_session_writes_a_formats_md_session() {
 fn simulate_session_second_board_is_in_the_truth_and_not_taken_for_the_target() {
     let dir = scratch("sim_session_second");
     let out = dir.to_str().unwrap();
-    let template = "simulate session --out {} --seed 5 --views 3 --scale 0.5 --charuco DICT_5X5_100 \
+    let template = "simulate session --out {} --seed 5 --views 3 --scale 0.5 --charuco DICT_5X5_250 \
                     --second-board --max-tilt-deg 60 --json";
     let json = stdout_json(&alacs(&cmdline(template, &[&out])));
     assert_eq!(json["n_views"], 3);
@@ -465,7 +465,7 @@ fn simulate_session_second_board_is_in_the_truth_and_not_taken_for_the_target() 
     // The same keys for both boards; no marker id on both.
     let keys = |v: &Value| v.as_object().unwrap().keys().cloned().collect::<Vec<_>>();
     assert_eq!(keys(&truth["board"]), keys(&truth["second_board"]));
-    assert_eq!(truth["board"]["dictionary"], "DICT_5X5_100");
+    assert_eq!(truth["board"]["dictionary"], "DICT_5X5_250");
     assert_eq!(truth["second_board"]["dictionary"], "DICT_4X4_50");
     assert_eq!(truth["second_board"]["inner_corners"], serde_json::json!([6, 4]));
     for view in truth["views"].as_array().unwrap() {

@@ -142,9 +142,10 @@ fn padded(lo: f64, hi: f64, min_pad: f64) -> (f64, f64) {
 
 /// The accuracy figure: per axis a panel, per slide position a box with
 /// whiskers at 1.5 IQR and the points beyond them; the top row to the
-/// extremes of the points the fit kept, the bottom row zoomed to the boxes
-/// (points beyond its edge left out, whiskers cut there). Points the fit
-/// rejected are red crosses apart from the boxes, at the top row's edge
+/// extremes of the points a fit keeps, the bottom row zoomed to the boxes
+/// (points beyond its edge left out, whiskers cut there). Points beyond the
+/// fit's threshold ([`crate::AccuracyOptions::rejected_beyond_mm`]) are red
+/// crosses beside the boxes (which still count them), at the top row's edge
 /// where they lie beyond it.
 struct BoxPlots<'a> {
     eval: &'a AccuracyEvaluation,
@@ -181,14 +182,21 @@ impl BoxPlots<'_> {
         let first = slides.first().copied().unwrap_or(0.0);
         let last = slides.last().copied().unwrap_or(0.0);
         let x_range = (first - 0.7 * spacing)..(last + 0.7 * spacing);
-        let (mut lo, mut hi) = self.eval.slides.iter().fold((0.0f64, 0.0f64), |(lo, hi), s| {
-            let b = &s.error_mm[axis];
-            if zoom {
+        let (mut lo, mut hi) = if zoom {
+            self.eval.slides.iter().fold((0.0f64, 0.0f64), |(lo, hi), s| {
+                let b = &s.error_mm[axis];
                 (lo.min(b.q1 - ZOOM_IQRS * b.iqr()), hi.max(b.q3 + ZOOM_IQRS * b.iqr()))
-            } else {
-                (lo.min(b.min), hi.max(b.max))
-            }
-        });
+            })
+        } else {
+            // The extremes of the points a fit keeps: one stray point does
+            // not stretch the panel.
+            self.eval
+                .points
+                .iter()
+                .filter(|p| !p.rejected)
+                .map(|p| p.error_mm()[axis])
+                .fold((0.0f64, 0.0f64), |(lo, hi), e| (lo.min(e), hi.max(e)))
+        };
         if axis == 2 {
             for s in &self.eval.slides {
                 let (a, b) = Self::predicted(s);
@@ -240,7 +248,7 @@ impl BoxPlots<'_> {
                 .eval
                 .points
                 .iter()
-                .filter(|p| p.slide_mm == s.slide_mm)
+                .filter(|p| p.slide_mm == s.slide_mm && !p.rejected)
                 .map(|p| p.error_mm()[axis])
                 .filter(|&e| b.is_outlier(e) && (lo..=hi).contains(&e))
                 .take(MAX_PLOT_POINTS);
@@ -323,7 +331,7 @@ impl Figure for BoxPlots<'_> {
         title.draw(&Text::new(
             format!(
                 "Triangulated point minus its board plane, per slide position: {} points ({} per view); boxes: quartiles and median, whiskers: 1.5 IQR, circles: beyond",
-                self.eval.points.len() - n_rejected,
+                self.eval.points.len(),
                 self.eval.points_per_view.as_str()
             ),
             (16, 8),
@@ -332,7 +340,7 @@ impl Figure for BoxPlots<'_> {
         if let Some(threshold) = self.eval.rejected_beyond_mm {
             title.draw(&Text::new(
                 format!(
-                    "red crosses, beside the boxes and not in them: {n_rejected} point(s) the fit rejected (|z error| > {threshold} mm), at the panel's edge where beyond it"
+                    "red crosses beside the boxes: {n_rejected} point(s) beyond the fit's inlier threshold (|z error| > {threshold} mm), at the panel's edge where beyond its range"
                 ),
                 (16, 32),
                 (FAMILY, 16).into_font(),

@@ -241,7 +241,9 @@ fn main() {
                     (c - truth).norm()
                 );
             }
-            if let alacs_sim::Shape::Ellipsoid { centre, rotation, semi_axes_mm } =
+            // The target's ellipsoid (a randomized apple's, whose form departs from it).
+            if let alacs_sim::Shape::Ellipsoid { centre, rotation, semi_axes_mm }
+            | alacs_sim::Shape::Apple { centre, rotation, semi_axes_mm, .. } =
                 &scan.scene.objects[0].shape
             {
                 let inverse_squares =

@@ -91,11 +91,12 @@ impl Checkerboard {
     /// default target so that only one of them is the board asked for (as
     /// the ChArUco board lying in front of the target in the real
     /// photographs of issue 42). Its markers are DICT_5X5_100, or
-    /// DICT_4X4_50 where the target's markers are DICT_5X5_100, so that no
-    /// marker id is on both boards.
+    /// DICT_4X4_50 where the target's markers are 5 x 5 bits (OpenCV's
+    /// 5 x 5 dictionaries share their first codes), so that no marker is on
+    /// both boards.
     pub fn second_charuco(target: &Checkerboard) -> Checkerboard {
         let dictionary = match target.markers {
-            Some(m) if m.dictionary == ArucoDictionary::Dict5x5_100 => ArucoDictionary::Dict4x4_50,
+            Some(m) if m.dictionary.marker_bits() == 5 => ArucoDictionary::Dict4x4_50,
             _ => ArucoDictionary::Dict5x5_100,
         };
         let board = Checkerboard { inner_corners: (6, 4), ..Checkerboard::default() };

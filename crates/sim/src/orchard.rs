@@ -96,8 +96,7 @@ pub struct Hit {
 
 /// How an apple departs from an ellipsoid, in its body frame scaled to the
 /// unit sphere (the stem along +z), every term inward so that the apple
-/// stays within its ellipsoid (a neighbour placed against the ellipsoid
-/// never overlaps it): the surface lies at
+/// stays within its ellipsoid: the surface lies at
 /// `|q| = 1 - taper ((1 - q.z) / 2)^2 - lopsided ((1 - q.e) / 2)^2 - stem cavity - calyx cavity`
 /// for the direction `q` from the centre: the calyx end narrower than the
 /// stem end (a conic apple), one cheek flatter than the other (`e` points
@@ -124,8 +123,8 @@ pub struct AppleForm {
 
 /// Body-scaled steps of the search for an apple's surface along a ray: 0.8
 /// mm on a 40 mm apple, a sixth of the narrowest cavity's sigma (0.12 of
-/// the radius, `RigVariation::CALYX_CAVITY_WIDTH_RAD`), so no crossing of
-/// the surface is stepped over.
+/// the radius, `RigVariation::CALYX_CAVITY_WIDTH_RAD`): a ray steps over
+/// the surface only where it grazes a cavity's rim within a step.
 const APPLE_STEP: f64 = 0.02;
 
 /// Bisections of a crossing: 2^-40 of a step.

@@ -402,7 +402,10 @@ impl RigVariation {
     /// `shape` given the drawn apple's form, where it is an ellipsoid (the
     /// target fruit), placed so that the apple's volume centroid lies at the
     /// ellipsoid's centre (the truth stays the fruit's centre); any other
-    /// shape as it is.
+    /// shape as it is. The form lies within its ellipsoid, which that moves
+    /// by up to 2.5 % of the radius (a deep stem cavity): a neighbour placed
+    /// touching the scene's ellipsoid may overlap the apple by up to about
+    /// half a millimetre.
     pub fn apple_shape(&self, shape: &Shape) -> Shape {
         match shape {
             Shape::Ellipsoid { centre, rotation, semi_axes_mm } => Shape::Apple {

@@ -213,8 +213,8 @@ pub fn calibration_report_from_views(
     }
     let laser_std = laser_std_dev_at(&posed_samples, laser, threshold_mm);
     let table_1 = evaluate_calibration(&samples, &options).map_err(|e| e.to_string());
-    // The laser was fitted on these samples with this threshold: the
-    // samples beyond it are the fit's rejected ones.
+    // The laser was probably fitted on these samples: those beyond the
+    // threshold are the ones a RANSAC fit with it rejects.
     let accuracy_options =
         AccuracyOptions { rejected_beyond_mm: Some(threshold_mm), ..AccuracyOptions::default() };
     let accuracy =
@@ -722,7 +722,7 @@ fn plots(page: &mut Page, report: &CalibrationReport) {
             let n_rejected = eval.points.iter().filter(|p| p.rejected).count();
             page.paragraph(
                 &format!(
-                    "Every stripe point triangulated with the reported laser against its board plane, per slide position (the laser was probably fitted on these views: for an independent check run alacs evaluate accuracy on a second session). {n_rejected} of {} points lie beyond the {} mm inlier threshold, the ones the fit rejected: red crosses beside the boxes, not in them.",
+                    "Every stripe point triangulated with the reported laser against its board plane, per slide position (the laser was probably fitted on these views: for an independent check run alacs evaluate accuracy on a second session). {n_rejected} of {} points lie beyond the {} mm inlier threshold, the ones a RANSAC fit with it rejects: red crosses beside the boxes (which count them), the panels' range set by the others.",
                     eval.points.len(),
                     report.threshold_mm
                 ),
