@@ -14,8 +14,9 @@
 //! at while developing; each line splits the error along the line of sight
 //! and across it, with the answer's radius and the outline's image radius
 //! against the truth's. Three switches take a cause out to measure it:
-//! `--round` renders every fruit a sphere, `--no-outline` locates without
-//! the fruit's outline, `--true-calibration` locates a randomized scan
+//! `--round` makes every fruit's ellipsoid a sphere (a randomized apple
+//! keeps its form, its cavities and taper, within it), `--no-outline`
+//! locates without the fruit's outline, `--true-calibration` locates a randomized scan
 //! with the calibration its images were rendered with (no calibration
 //! error). Progress goes to standard error, the table
 //! (markdown) to standard output.
