@@ -373,6 +373,12 @@ fn per_slide(
 }
 
 impl AccuracyEvaluation {
+    /// How many points lie beyond the fit's threshold
+    /// ([`AccuracyOptions::rejected_beyond_mm`]).
+    pub fn n_rejected(&self) -> usize {
+        self.points.iter().filter(|p| p.rejected).count()
+    }
+
     /// The errors (estimated - true, mm) along `axis` (0 x, 1 y, 2 z) of the
     /// points at `slide_mm`: what one box of the plot shows.
     pub fn errors_at(&self, slide_mm: f64, axis: usize) -> Vec<f64> {
@@ -404,7 +410,7 @@ impl AccuracyEvaluation {
             "laser": serde_json::to_value(self.laser.to_file()).unwrap_or_default(),
             "points_per_view": self.points_per_view.as_str(),
             "n_points": self.points.len(),
-            "n_rejected": self.points.iter().filter(|p| p.rejected).count(),
+            "n_rejected": self.n_rejected(),
             "rejected_beyond_mm": self.rejected_beyond_mm,
             "noise_floor": {
                 "formula": "sigma_z = z^2 cos(alpha) sigma_px / (f L), L = L0 - d, z the median depth",

@@ -327,7 +327,7 @@ impl Figure for BoxPlots<'_> {
     {
         root.fill(&WHITE)?;
         let (title, body) = root.split_vertically(56);
-        let n_rejected = self.eval.points.iter().filter(|p| p.rejected).count();
+        let n_rejected = self.eval.n_rejected();
         title.draw(&Text::new(
             format!(
                 "Triangulated point minus its board plane, per slide position: {} points ({} per view); boxes: quartiles and median, whiskers: 1.5 IQR, circles: beyond",

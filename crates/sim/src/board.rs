@@ -99,9 +99,7 @@ impl Checkerboard {
             Some(m) if m.dictionary.marker_bits() == 5 => ArucoDictionary::Dict4x4_50,
             _ => ArucoDictionary::Dict5x5_100,
         };
-        let board = Checkerboard { inner_corners: (6, 4), ..Checkerboard::default() };
-        let marker_mm = CHARUCO_MARKER_PER_SQUARE * board.square_mm.0.min(board.square_mm.1);
-        Checkerboard { markers: Some(CharucoMarkers { marker_mm, dictionary }), ..board }
+        Checkerboard { inner_corners: (6, 4), ..Checkerboard::charuco(dictionary) }
     }
 
     /// Checks that the board is printable: at least 2 x 2 inner corners,

@@ -719,7 +719,7 @@ fn plots(page: &mut Page, report: &CalibrationReport) {
     page.heading("Accuracy on this session's views");
     match &report.accuracy {
         Ok(eval) => {
-            let n_rejected = eval.points.iter().filter(|p| p.rejected).count();
+            let n_rejected = eval.n_rejected();
             page.paragraph(
                 &format!(
                     "Every stripe point triangulated with the reported laser against its board plane, per slide position (the laser was probably fitted on these views: for an independent check run alacs evaluate accuracy on a second session). {n_rejected} of {} points lie beyond the {} mm inlier threshold, the ones a RANSAC fit with it rejects: red crosses beside the boxes (which count them), the panels' range set by the others.",
