@@ -1,12 +1,18 @@
 //! The localizer judged per family of simulated scans: found rate, wrong
 //! rate and error percentiles, as docs/ACCURACY.md's table.
 //!
-//! `cargo run --release -p alacs-locate --example families -- [--seeds tune|report] [--n N] [--scale S] [--randomize on|off|both] [--family NAME] [--scans] [--round] [--no-outline] [--true-calibration]`
+//! `cargo run --release -p alacs-locate --example families -- [--seeds tune|report] [--n N] [--scale S] [--randomize on|off|both] [--family NAME] [--scans] [--round] [--no-outline] [--true-calibration] [--no-extension]`
 //!
 //! Randomized scans draw, per scan, what real rigs vary in (alacs-sim's
 //! `RigVariation`: laser, light in the flesh, fruit and leaf colours, lens,
 //! sensor, exposure, calibration error, the rough position's error); the
 //! table then also breaks them down by the fruit's colour.
+//!
+//! A scan whose fruit is not found in the seed's five frames is extended
+//! as the scan controller extends it (`ScanStrategy::extension`: frames
+//! beyond both ends of the sweep, rendered where the slide would stand)
+//! and located again; the table's "extended" column counts those scans.
+//! `--no-extension` locates the five frames only.
 //!
 //! Seeds come from two ranges that never meet: `tune` (the default) for
 //! development, `report` for the table. `--scans` prints every scan's line
@@ -23,7 +29,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use alacs_locate::{FrameImages, LocateOptions, Prior, Status, locate};
-use alacs_model::{Camera, LaserModel};
+use alacs_model::{Camera, LaserModel, ScanStrategy};
 use alacs_sim::{OrchardOptions, ScanOptions, simulate_rendered_scan};
 
 /// First seed of the tuning range.
@@ -85,6 +91,8 @@ struct Tally {
     wrong: usize,
     /// Errors of the `ok` answers within [`WRONG_MM`].
     errors_mm: Vec<f64>,
+    /// Scans that took the extension's frames.
+    extended: usize,
 }
 
 fn percentile(sorted: &[f64], p: f64) -> f64 {
@@ -124,8 +132,10 @@ fn main() {
         "{} seeds, {n} scans a family, camera scale {scale}; found: `ok` within {WRONG_MM} mm of the truth; wrong: `ok` beyond it; errors of the found.\n",
         if report { "Reporting" } else { "Tuning" },
     );
-    println!("| family | randomized | found | not found | wrong | median | 90th pct | worst |");
-    println!("|---|---|---|---|---|---|---|---|");
+    println!(
+        "| family | randomized | found | not found | wrong | median | 90th pct | worst | extended |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|");
     let mut colours: Vec<(String, Tally)> = Vec::new();
     let mut unbuilt = 0;
     for &randomize in &modes {
@@ -171,21 +181,42 @@ fn main() {
                 } else {
                     (&scan.camera, &scan.laser)
                 };
-                let answer = locate(camera, laser, &prior, &frames, &locate_options)
+                let mut answer = locate(camera, laser, &prior, &frames, &locate_options)
                     .expect("a simulated scan is valid input");
+                // Not found in the sweep: the strategy's extension frames
+                // (beyond both ends of it), as the scan controller takes them.
+                let mut extended = 0;
+                if answer.status != Status::Ok && !args.iter().any(|a| a == "--no-extension") {
+                    let slides = ScanStrategy::default().extension(&scan.plan);
+                    let images: Vec<_> = slides
+                        .iter()
+                        .enumerate()
+                        .map(|(k, &d)| {
+                            let index = (scan.frames.len() + k) as u64;
+                            (scan.render_at(d, true, index).expect("renders"), d)
+                        })
+                        .collect();
+                    if !images.is_empty() {
+                        extended = images.len();
+                        let mut all = frames.clone();
+                        all.extend(images.iter().map(|(image, d)| FrameImages::from((image, *d))));
+                        answer = locate(camera, laser, &prior, &all, &locate_options)
+                            .expect("a simulated scan is valid input");
+                    }
+                }
                 let truth = scan.scene.fruit_centre;
                 let error = match (answer.status, answer.position_mm) {
                     (Status::Ok, Some(p)) => Some((p - truth).norm()),
                     _ => None,
                 };
-                tally.add(error);
+                tally.add(error, extended > 0);
                 if let Some(v) = &scan.variation {
                     let name = format!("{:?}", v.fruit_colour).to_lowercase();
                     match colours.iter_mut().find(|(c, _)| *c == name) {
-                        Some((_, t)) => t.add(error),
+                        Some((_, t)) => t.add(error, extended > 0),
                         None => {
                             let mut t = Tally::default();
-                            t.add(error);
+                            t.add(error, extended > 0);
                             colours.push((name, t));
                         }
                     }
@@ -250,8 +281,13 @@ fn main() {
                             v.blur_sigma_px
                         );
                     }
+                    let extension = if extended > 0 {
+                        format!(" (after {extended} extension frames)")
+                    } else {
+                        String::new()
+                    };
                     println!(
-                        "  seed {seed} z {:.0} r {:.1} hidden {:.0} %: {line}",
+                        "  seed {seed} z {:.0} r {:.1} hidden {:.0} %{extension}: {line}",
                         truth.z,
                         truth_radius,
                         100.0 * scan.scene.occlusion
@@ -295,8 +331,9 @@ fn main() {
 }
 
 impl Tally {
-    fn add(&mut self, error_mm: Option<f64>) {
+    fn add(&mut self, error_mm: Option<f64>, extended: bool) {
         self.scans += 1;
+        self.extended += usize::from(extended);
         match error_mm {
             Some(e) if e > WRONG_MM => self.wrong += 1,
             Some(e) => {
@@ -312,6 +349,7 @@ impl Tally {
         self.found += other.found;
         self.wrong += other.wrong;
         self.errors_mm.extend(other.errors_mm);
+        self.extended += other.extended;
     }
 }
 
@@ -321,7 +359,7 @@ fn print_row(name: &str, randomized: bool, tally: &Tally) {
     let pct = 100.0 * tally.found as f64 / tally.scans.max(1) as f64;
     let mm = |v: f64| if v.is_nan() { "-".to_string() } else { format!("{v:.2} mm") };
     println!(
-        "| {name} | {} | {} of {} ({pct:.0} %) | {} | {} | {} | {} | {} |",
+        "| {name} | {} | {} of {} ({pct:.0} %) | {} | {} | {} | {} | {} | {} |",
         if randomized { "yes" } else { "no" },
         tally.found,
         tally.scans,
@@ -330,5 +368,6 @@ fn print_row(name: &str, randomized: bool, tally: &Tally) {
         mm(percentile(&errors, 0.5)),
         mm(percentile(&errors, 0.9)),
         mm(errors.last().copied().unwrap_or(f64::NAN)),
+        tally.extended,
     );
 }

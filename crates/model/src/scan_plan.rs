@@ -14,6 +14,13 @@
 //! Several fruit ([`ScanStrategy::plan_sweep`]): each fruit's five frames
 //! as above, all in one sweep in ascending slide order, a frame shared
 //! where two fruit's frames fall within [`SHARED_FRAME_MM`] of each other.
+//!
+//! 3. Extension ([`ScanStrategy::extension`]): where a fruit is not found
+//!    in the sweep, a few more frames at the same step beyond each of its
+//!    ends, so the line also crosses the fruit's outer thirds. A fruit half
+//!    hidden by leaves may show only there, or only where the leaves do
+//!    not shadow the laser (it comes from the side); a fruit found in the
+//!    first sweep costs no extra frame.
 
 use nalgebra::{Point3, Vector3};
 
@@ -38,11 +45,23 @@ pub struct ScanStrategy {
     pub start_left_of_centre: f64,
     /// Slide stroke, mm (the paper: 200).
     pub stroke_mm: f64,
+    /// Frames added where the sweep did not find the fruit, half beyond
+    /// each end of it at the same step ([`ScanStrategy::extension`]); 0
+    /// never extends. Four: with the paper's sweep from half a radius left
+    /// of the centre, two 10 mm steps each side take the line across the
+    /// whole of a 35-45 mm fruit.
+    pub extension_frames: usize,
 }
 
 impl Default for ScanStrategy {
     fn default() -> Self {
-        Self { frames: 5, step_mm: 10.0, start_left_of_centre: 0.5, stroke_mm: SLIDE_STROKE_MM }
+        Self {
+            frames: 5,
+            step_mm: 10.0,
+            start_left_of_centre: 0.5,
+            stroke_mm: SLIDE_STROKE_MM,
+            extension_frames: 4,
+        }
     }
 }
 
@@ -87,6 +106,27 @@ impl ScanStrategy {
             .map(|k| (first_mm + self.step_mm * k as f64).min(self.stroke_mm))
             .collect();
         ScanPlan { slides_mm, unclamped_start_mm: start_mm, shifted: first_mm != start_mm }
+    }
+
+    /// The slide positions that extend `plan`'s sweep where it did not
+    /// find the fruit: [`ScanStrategy::extension_frames`] positions, half
+    /// before its first frame and half after its last (the odd one after),
+    /// at [`ScanStrategy::step_mm`], nearest first on each side; those
+    /// outside the stroke or within [`SHARED_FRAME_MM`] of a frame already
+    /// taken are left out.
+    pub fn extension(&self, plan: &ScanPlan) -> Vec<f64> {
+        let (Some(&first), Some(&last)) = (plan.slides_mm.first(), plan.slides_mm.last()) else {
+            return Vec::new();
+        };
+        let before = self.extension_frames / 2;
+        let after = self.extension_frames - before;
+        let within = |d: &f64| d.is_finite() && (0.0..=self.stroke_mm).contains(d);
+        let below = (1..=before).map(|k| first - self.step_mm * k as f64).take_while(within);
+        let above = (1..=after).map(|k| last + self.step_mm * k as f64).take_while(within);
+        below
+            .chain(above)
+            .filter(|d| plan.slides_mm.iter().all(|taken| (d - taken).abs() >= SHARED_FRAME_MM))
+            .collect()
     }
 
     /// One sweep for several fruit (rough centres and radius priors): each

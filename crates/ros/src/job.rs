@@ -8,7 +8,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use alacs_locate::{Localization, LocateOptions};
+use alacs_locate::{Localization, LocateOptions, Status};
 use alacs_model::{Camera, LaserModel};
 use alacs_scanner::{
     CapturedScan, ControllerConfig, Device, Error as ScanError, FrameCamera, LaserSwitch, Rig,
@@ -99,7 +99,7 @@ struct Watch<'p> {
     laser_on: Cell<bool>,
     slide_mm: Cell<f64>,
     frame: Cell<usize>,
-    n_frames: usize,
+    n_frames: Cell<usize>,
     report: RefCell<&'p mut dyn FnMut(Progress)>,
 }
 
@@ -182,7 +182,7 @@ impl WatchedCamera<'_, '_> {
         let frame = self.watch.frame.get();
         (self.watch.report.borrow_mut())(Progress::Frame {
             frame,
-            n_frames: self.watch.n_frames,
+            n_frames: self.watch.n_frames.get(),
             slide_mm: self.watch.slide_mm.get(),
             stripe_points,
             image: Arc::clone(&image),
@@ -228,7 +228,8 @@ impl LaserSwitch for WatchedLaser<'_, '_> {
 
 /// Runs one goal on `rig`: plans the seed's scan from the rough position,
 /// scans (reporting each laser frame), switches the laser off and
-/// localizes. `cancel` stops it between device operations; the laser is
+/// localizes; where a fruit is not found, extends the sweep beyond both
+/// ends ([`ScanController::extend_with_progress`]) and localizes again. `cancel` stops it between device operations; the laser is
 /// off whenever this returns.
 pub fn run_job(
     rig: &mut dyn ScanRig,
@@ -260,32 +261,59 @@ pub fn run_job(
             request.rough_positions_mm.len()
         ));
     }
-    let captured = {
-        let plan = controller.plan_targets(&roughs_mm).map(|(plan, _)| plan);
-        let watch = Watch {
-            cancel,
-            laser_on: Cell::new(false),
-            slide_mm: Cell::new(f64::NAN),
-            frame: Cell::new(0),
-            n_frames: plan.map_or(controller.config().strategy.frames, |p| p.slides_mm.len()),
-            report: RefCell::new(report),
-        };
+    let plan = controller.plan_targets(&roughs_mm).map(|(plan, _)| plan);
+    let watch = Watch {
+        cancel,
+        laser_on: Cell::new(false),
+        slide_mm: Cell::new(f64::NAN),
+        frame: Cell::new(0),
+        n_frames: Cell::new(
+            plan.map_or(controller.config().strategy.frames, |p| p.slides_mm.len()),
+        ),
+        report: RefCell::new(report),
+    };
+    let scanned = {
         let devices = rig.rig();
         let mut slide = WatchedSlide { inner: devices.slide, watch: &watch };
         let mut camera = WatchedCamera { inner: devices.camera, watch: &watch };
         let mut laser = WatchedLaser { inner: devices.laser, watch: &watch };
         let mut watched = Rig { slide: &mut slide, camera: &mut camera, laser: &mut laser };
-        controller.run_targets_with_progress(&mut watched, &roughs_mm, |_, _| {})
+        controller.run_targets_with_progress(&mut watched, &roughs_mm, |_, _| {}).and_then(
+            |mut captured| {
+                let answers =
+                    captured.localize_targets(&context.camera, &context.laser, &context.locate);
+                let missed =
+                    answers.as_ref().is_ok_and(|a| a.iter().any(|l| l.status != Status::Ok));
+                if !missed {
+                    return Ok((captured, answers));
+                }
+                // Not found in the sweep: frames beyond both ends of it,
+                // then localization again with all of them.
+                let more = controller.config().strategy.extension(&captured.plan).len();
+                watch.n_frames.set(captured.frames.len() + more);
+                match controller.extend_with_progress(&mut watched, &mut captured, |_, _| {})? {
+                    0 => Ok((captured, answers)),
+                    _ => {
+                        let answers = captured.localize_targets(
+                            &context.camera,
+                            &context.laser,
+                            &context.locate,
+                        );
+                        Ok((captured, answers))
+                    }
+                }
+            },
+        )
     };
     // Whatever happened, the laser is off (the controller switched it off;
     // this covers a driver that failed to).
     let _ = rig.rig().laser.set(false);
-    let captured = match captured {
-        Ok(captured) => captured,
+    let (captured, answers) = match scanned {
+        Ok(scanned) => scanned,
         Err(_) if cancel.load(Ordering::Relaxed) => return Outcome::Cancelled,
         Err(e) => return Outcome::Failed(e.to_string()),
     };
-    match captured.localize_targets(&context.camera, &context.laser, &context.locate) {
+    match answers {
         Ok(localizations) => Outcome::Localized {
             localizations,
             elapsed: start.elapsed(),

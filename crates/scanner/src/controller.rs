@@ -19,6 +19,10 @@
 //!    Or, with [`ScanMode::Continuous`], one run of the slide through
 //!    the positions, frames captured on the way ([`crate::sweep`]).
 //! 5. The laser is switched off at the end, and whenever a step fails.
+//! 6. Where localization did not find the fruit in those frames, a few
+//!    more beyond both ends of the sweep
+//!    ([`ScanController::extend_with_progress`], [`ScanStrategy::extension`]),
+//!    and localization again with all of them.
 //!
 //! The frames keep the positions the slide reported, not the plan's:
 //! localization triangulates with where the laser was.
@@ -160,7 +164,8 @@ pub struct CapturedScan {
     pub more_targets: Vec<ScanTarget>,
     /// The plan the scan followed.
     pub plan: ScanPlan,
-    /// The frames, in plan order.
+    /// The frames, in plan order, then any extension frames
+    /// ([`ScanController::extend_with_progress`]) in the order taken.
     pub frames: Vec<CapturedFrame>,
     /// The camera's exposure over the frames, if known (the controller
     /// knows it when it metered).
@@ -402,18 +407,7 @@ impl ScanController {
         let mut done = 0;
         let mut frames = Vec::with_capacity(plan.slides_mm.len());
         for (frame, &target_mm) in plan.slides_mm.iter().enumerate() {
-            let step = Step::Move { frame, target_mm };
-            let slide_mm =
-                rig.slide.move_to(target_mm, self.config.move_timeout).map_err(|e| e.at(step))?;
-            let tolerance_mm = self.config.position_tolerance_mm;
-            if !(slide_mm.is_finite() && (slide_mm - target_mm).abs() <= tolerance_mm) {
-                return Err(Error::PositionMismatch {
-                    step: Some(step),
-                    target_mm,
-                    reached_mm: slide_mm,
-                    tolerance_mm,
-                });
-            }
+            let slide_mm = self.move_slide(rig, frame, target_mm)?;
             if frame == 0 {
                 exposure = self.meter(rig, fruit)?;
                 if let Some(metered) = exposure {
@@ -423,27 +417,121 @@ impl ScanController {
                     progress(done, total);
                 }
             }
-            let image = self.capture(rig, frame, true)?;
-            let on_at = SystemTime::now();
-            done += 1;
-            progress(done, total);
-            let (image_laser_off, off_at) = if laser_off {
-                let off = self.capture(rig, frame, false)?;
+            let mut tick = || {
                 done += 1;
                 progress(done, total);
-                (Some(Arc::new(off)), Some(SystemTime::now()))
-            } else {
-                (None, None)
             };
-            frames.push(CapturedFrame {
-                planned_slide_mm: target_mm,
-                slide_mm,
-                image,
-                image_laser_off,
-                captured_at: [Some(on_at), off_at],
-            });
+            frames.push(self.capture_frame(rig, frame, target_mm, slide_mm, laser_off, &mut tick)?);
         }
         Ok((frames, exposure, None))
+    }
+
+    /// Moves the slide for frame `frame` and checks where it settled.
+    fn move_slide(&self, rig: &mut Rig<'_>, frame: usize, target_mm: f64) -> Result<f64> {
+        let step = Step::Move { frame, target_mm };
+        let slide_mm =
+            rig.slide.move_to(target_mm, self.config.move_timeout).map_err(|e| e.at(step))?;
+        let tolerance_mm = self.config.position_tolerance_mm;
+        if !(slide_mm.is_finite() && (slide_mm - target_mm).abs() <= tolerance_mm) {
+            return Err(Error::PositionMismatch {
+                step: Some(step),
+                target_mm,
+                reached_mm: slide_mm,
+                tolerance_mm,
+            });
+        }
+        Ok(slide_mm)
+    }
+
+    /// Captures frame `frame` where the slide stands: laser on, then with
+    /// `laser_off` off as well, calling `tick` after each image.
+    fn capture_frame(
+        &self,
+        rig: &mut Rig<'_>,
+        frame: usize,
+        planned_slide_mm: f64,
+        slide_mm: f64,
+        laser_off: bool,
+        tick: &mut impl FnMut(),
+    ) -> Result<CapturedFrame> {
+        let image = self.capture(rig, frame, true)?;
+        let on_at = SystemTime::now();
+        tick();
+        let (image_laser_off, off_at) = if laser_off {
+            let off = self.capture(rig, frame, false)?;
+            tick();
+            (Some(Arc::new(off)), Some(SystemTime::now()))
+        } else {
+            (None, None)
+        };
+        Ok(CapturedFrame {
+            planned_slide_mm,
+            slide_mm,
+            image,
+            image_laser_off,
+            captured_at: [Some(on_at), off_at],
+        })
+    }
+
+    /// Where the scan did not find the fruit: captures the strategy's
+    /// extension frames ([`ScanStrategy::extension`]: beyond both ends of
+    /// the sweep, those within the slide's stroke) stop-and-go at the
+    /// exposure the scan was taken at, and appends them to `scan`. Laser-off
+    /// frames are taken where the scan took them per frame; a continuous
+    /// sweep's one laser-off reference serves the new frames too (the scene
+    /// stands still). Calls `progress(done, total)` after each image, and
+    /// returns how many frames it added. The laser is off at the end and
+    /// whenever a step fails.
+    pub fn extend_with_progress(
+        &self,
+        rig: &mut Rig<'_>,
+        scan: &mut CapturedScan,
+        mut progress: impl FnMut(usize, usize),
+    ) -> Result<usize> {
+        let stroke_mm = rig.slide.stroke_mm();
+        let slides: Vec<f64> = self
+            .config
+            .strategy
+            .extension(&scan.plan)
+            .into_iter()
+            .filter(|d| *d <= stroke_mm)
+            .collect();
+        let reference_off = scan
+            .sweep_speed_mm_per_s
+            .and_then(|_| scan.frames.first().and_then(|f| f.image_laser_off.clone()));
+        let laser_off =
+            reference_off.is_none() && scan.frames.iter().any(|f| f.image_laser_off.is_some());
+        let total = slides.len() * (1 + usize::from(laser_off));
+        let mut done = 0;
+        progress(done, total);
+        let first = scan.frames.len();
+        let mut added = Vec::with_capacity(slides.len());
+        let mut capture = || -> Result<()> {
+            for (k, &target_mm) in slides.iter().enumerate() {
+                let frame = first + k;
+                let slide_mm = self.move_slide(rig, frame, target_mm)?;
+                let mut tick = || {
+                    done += 1;
+                    progress(done, total);
+                };
+                let mut captured =
+                    self.capture_frame(rig, frame, target_mm, slide_mm, laser_off, &mut tick)?;
+                if let Some(off) = &reference_off {
+                    captured.image_laser_off = Some(Arc::clone(off));
+                    captured.captured_at[1] = scan.frames[0].captured_at[1];
+                }
+                added.push(captured);
+            }
+            Ok(())
+        };
+        let captured = capture();
+        // Whatever happened, the laser goes off; the first error is the one reported.
+        let off = rig.laser.set(false).map_err(|e| e.at(Step::Finish));
+        captured?;
+        off?;
+        let n = added.len();
+        scan.frames.extend(added);
+        Ok(n)
     }
 
     /// Meters (where the slide stands: the laser is off, so its position

@@ -472,3 +472,49 @@ fn a_sweep_of_a_one_frame_plan_moves_to_it_and_stands() {
     assert_eq!(scan.frames[0].slide_mm, scene.plan.slides_mm[0]);
     assert_eq!(rig.slide_mm(), scene.plan.slides_mm[0]);
 }
+
+#[test]
+fn an_extension_captures_frames_beyond_both_ends_of_the_sweep_and_turns_the_laser_off() {
+    let scene = scene(3, 0.1);
+    for (config, per_frame_off) in [
+        (ControllerConfig { capture_laser_off: true, ..ControllerConfig::default() }, true),
+        (ControllerConfig { capture_laser_off: true, ..sweeping(&scene) }, false),
+    ] {
+        let mut rig = SimulatedRig::new(scene.clone(), SimulatedRigOptions::default()).unwrap();
+        let controller = ScanController::new(laser(), config).unwrap();
+        let mut scan = controller.run(&mut rig.rig(), &scene.rough_position_mm).unwrap();
+        let swept = scan.slides_mm();
+        let mut calls = Vec::new();
+        let added = controller
+            .extend_with_progress(&mut rig.rig(), &mut scan, |done, total| {
+                calls.push((done, total))
+            })
+            .unwrap();
+        assert_eq!(added, 4);
+        assert!(!rig.laser_on());
+        // The sweep's frames first, as they were; then two 10 mm steps
+        // before its first planned frame and two after its last, each
+        // rendered where the slide stood.
+        let slides = scan.slides_mm();
+        assert_eq!(slides[..5], swept[..]);
+        let plan = &scan.plan.slides_mm;
+        let expected = [plan[0] - 10.0, plan[0] - 20.0, plan[4] + 10.0, plan[4] + 20.0];
+        for (k, (got, want)) in slides[5..].iter().zip(expected).enumerate() {
+            assert!((got - want).abs() < 1e-6, "frame {}: {got} vs {want}", k + 5);
+            assert!(
+                scan.frames[k + 5].image == scene.render_at(*got, true, (k + 5) as u64).unwrap()
+            );
+        }
+        // Laser-off images as the sweep took them: per frame, or a
+        // continuous sweep's one reference for all.
+        assert!(scan.frames.iter().all(|f| f.image_laser_off.is_some()));
+        let reference = scan.frames[0].image_laser_off.clone().unwrap();
+        let shared = scan.frames[5..]
+            .iter()
+            .all(|f| std::sync::Arc::ptr_eq(f.image_laser_off.as_ref().unwrap(), &reference));
+        assert_eq!(shared, !per_frame_off);
+        let images = if per_frame_off { 8 } else { 4 };
+        assert_eq!(calls.first(), Some(&(0, images)));
+        assert_eq!(calls.last(), Some(&(images, images)));
+    }
+}

@@ -8,7 +8,9 @@
 //!    camera's rough position (`--rough-mm`, or the simulated RGB-D
 //!    camera's), five frames.
 //! 3. Localizes with `--camera` and `--laser`, or with a simulated camera
-//!    the simulation's true camera and laser.
+//!    the simulation's true camera and laser; where the fruit is not found,
+//!    the controller extends the sweep beyond both ends
+//!    ([`ScanController::extend_with_progress`]) and localizes again.
 
 use std::time::Instant;
 
@@ -83,12 +85,40 @@ pub fn run(args: &ScanArgs) -> CmdResult {
     };
     output::start_progress(&bar, controller.image_count(), "scanning");
     let started = Instant::now();
+    let locate_options = args.rig.rough_error.locate_options(alacs::locate::Method::Fused);
+    let progress = |done: usize, total: usize| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    };
     let scanned =
-        controller.run_targets_with_progress(&mut devices.rig(), &roughs_in_rgbd, |done, total| {
-            bar.set_length(total as u64);
-            bar.set_position(done as u64);
-        });
-    let scan = match scanned {
+        controller.run_targets_with_progress(&mut devices.rig(), &roughs_in_rgbd, progress);
+    // A fruit the sweep did not find: the strategy's frames beyond both
+    // ends of it (the rig is still open), then localization again.
+    // Time spent localizing between the sweep and its extension, not the rig's.
+    let mut localizing = std::time::Duration::ZERO;
+    let mut localize = |scan: &CapturedScan| {
+        bar.set_message("localizing");
+        let started = Instant::now();
+        let answers = scan.localize_targets(&camera, &laser, &locate_options);
+        localizing += started.elapsed();
+        answers
+    };
+    let scanned = scanned.and_then(|mut scan| {
+        let answers = localize(&scan);
+        let missed = answers.as_ref().is_ok_and(|a| a.iter().any(|l| l.status != Status::Ok));
+        if !missed {
+            return Ok((scan, answers));
+        }
+        bar.set_message("extending the sweep");
+        match controller.extend_with_progress(&mut devices.rig(), &mut scan, progress)? {
+            0 => Ok((scan, answers)),
+            _ => {
+                let answers = localize(&scan);
+                Ok((scan, answers))
+            }
+        }
+    });
+    let (scan, answers) = match scanned {
         Ok(scan) => scan,
         Err(error) => {
             // No scan: the --out folder made for it goes again (only if empty).
@@ -99,16 +129,13 @@ pub fn run(args: &ScanArgs) -> CmdResult {
             return Err(error.into());
         }
     };
-    let rig_time_s = devices.simulated_time().unwrap_or_else(|| started.elapsed()).as_secs_f64();
+    let rig_time_s = devices
+        .simulated_time()
+        .unwrap_or_else(|| started.elapsed().saturating_sub(localizing))
+        .as_secs_f64();
     // The laser is off (the controller switched it off); a real rig's
     // connection closes here.
     drop(devices);
-    bar.set_message("localizing");
-    let answers = scan.localize_targets(
-        &camera,
-        &laser,
-        &args.rig.rough_error.locate_options(alacs::locate::Method::Fused),
-    );
     let answer = answers.map_err(|error| {
         let mut failure = Failure::from(error);
         if let Some(path) = &args.rig.camera {

@@ -351,6 +351,30 @@ fn scan_plans_shift_into_the_stroke() {
 }
 
 #[test]
+fn an_extension_steps_on_beyond_both_ends_of_the_sweep_within_the_stroke() {
+    use alacs_model::{ScanPlan, ScanStrategy};
+    let laser = paper_laser();
+    let strategy = ScanStrategy::default();
+    let plan = strategy.plan(&laser, &nalgebra::Point3::new(30.0, -20.0, 900.0), 40.0);
+    let (first, last) = (plan.slides_mm[0], plan.slides_mm[4]);
+    assert_eq!(
+        strategy.extension(&plan),
+        vec![first - 10.0, first - 20.0, last + 10.0, last + 20.0]
+    );
+    // At the stroke's end the frames beyond it are left out, not moved.
+    let at_end = ScanPlan {
+        slides_mm: vec![160.0, 170.0, 180.0, 190.0, 200.0],
+        unclamped_start_mm: 170.0,
+        shifted: true,
+    };
+    assert_eq!(strategy.extension(&at_end), vec![150.0, 140.0]);
+    // An odd count puts the odd frame after the sweep; none extends nothing.
+    let odd = ScanStrategy { extension_frames: 3, ..strategy };
+    assert_eq!(odd.extension(&plan), vec![first - 10.0, last + 10.0, last + 20.0]);
+    assert!(ScanStrategy { extension_frames: 0, ..strategy }.extension(&plan).is_empty());
+}
+
+#[test]
 fn a_sweep_for_several_fruit_covers_each_with_its_own_five_frames() {
     use alacs_model::{SHARED_FRAME_MM, ScanStrategy};
     let laser = paper_laser();
