@@ -183,10 +183,14 @@ fn main() {
                 };
                 let mut answer = locate(camera, laser, &prior, &frames, &locate_options)
                     .expect("a simulated scan is valid input");
-                // Not found in the sweep: the strategy's extension frames
-                // (beyond both ends of it), as the scan controller takes them.
+                // Not found in the sweep for want of evidence: the strategy's
+                // extension frames (beyond both ends of it), as the scan
+                // controller takes them (nearest first does not matter here).
                 let mut extended = 0;
-                if answer.status != Status::Ok && !args.iter().any(|a| a == "--no-extension") {
+                if answer.status != Status::Ok
+                    && !answer.contradicted
+                    && !args.iter().any(|a| a == "--no-extension")
+                {
                     let slides = ScanStrategy::default().extension(&scan.plan);
                     let images: Vec<_> = slides
                         .iter()

@@ -125,10 +125,6 @@ pub(crate) fn estimate_fruit(
             ));
         }
     }
-    let centre = fit.ellipsoid.as_ref().map_or(fit.sphere.centre, |e| e.centre);
-    if let Some(reason) = context.search.contradiction(&centre, covariance.as_ref()) {
-        return Err(reason);
-    }
     let note = format!(
         "{} over {} points from {} frames, RMS {:.2} mm, from {}; it beats the next explanation by {margin:.0} rows ({} of {} predicted rows missing)",
         if fit.ellipsoid.is_some() { "ellipsoid" } else { "sphere" },

@@ -95,6 +95,18 @@ pub(crate) fn conclude(
             }
             Err(reason) => (None, None, Some(reason)),
         };
+    // The fused answer against the rough position: beyond its stated
+    // error the slides, the laser or the calibration contradict it.
+    let (fused, accepted, fused_rejected, mut contradicted) = match (fused, accepted) {
+        (Some(fit), Some((note, covariance))) => {
+            let centre = fit.ellipsoid.as_ref().map_or(fit.sphere.centre, |e| e.centre);
+            match context.search.contradiction(&centre, covariance.as_ref()) {
+                Some(reason) => (None, None, Some(reason), true),
+                None => (Some(fit), Some((note, covariance)), fused_rejected, false),
+            }
+        }
+        (fused, accepted) => (fused, accepted, fused_rejected, false),
+    };
     let mut answer = Localization {
         status: Status::NotFound,
         position_mm: None,
@@ -109,6 +121,7 @@ pub(crate) fn conclude(
         frames: results,
         search_radius_mm: context.search.radius_mm,
         position_cov_mm2: None,
+        contradicted: false,
     };
     match context.options.method {
         Method::Fused => match accepted {
@@ -118,12 +131,14 @@ pub(crate) fn conclude(
         Method::Holistic => selection::answer_holistic(&mut answer, context.prior),
     }
     if let Some(reason) = contradiction {
+        contradicted = true;
         answer.status = Status::NotFound;
         answer.position_mm = None;
         answer.radius_mm = None;
         answer.position_cov_mm2 = None;
         answer.reason = reason;
     }
+    answer.contradicted = contradicted && answer.status == Status::NotFound;
     answer
 }
 

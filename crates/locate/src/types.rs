@@ -265,4 +265,9 @@ pub struct Localization {
     /// ([`crate::uncertainty`]); `None` when not found and for the holistic
     /// method.
     pub position_cov_mm2: Option<Matrix3<f64>>,
+    /// Not found because the inputs contradict each other (frames that
+    /// claim one slide position while their stripes moved, an answer the
+    /// RGB-D camera's rough position rules out), not for want of evidence:
+    /// more frames of the same rig cannot help.
+    pub contradicted: bool,
 }

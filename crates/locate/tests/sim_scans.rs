@@ -326,6 +326,9 @@ fn contradicting_slides_are_never_answered_confidently() {
         let answer =
             locate(&scan.camera, &scan.laser, &prior, &frames, &LocateOptions::default()).unwrap();
         assert!(answer.reason.contains("claim one slide position"), "{}", answer.reason);
+        // A contradiction, not a want of evidence: the scan controller
+        // takes no more frames for it.
+        assert!(answer.contradicted);
         judged += 1;
     }
     assert!(judged >= 5, "only {judged} scans built");

@@ -111,13 +111,16 @@ impl ScanStrategy {
     /// The slide positions that extend `plan`'s sweep where it did not
     /// find the fruit: [`ScanStrategy::extension_frames`] positions, half
     /// before its first frame and half after its last (the odd one after),
-    /// at [`ScanStrategy::step_mm`], nearest first on each side; those
+    /// at [`ScanStrategy::step_mm`], nearest first on each side (before,
+    /// then after); those
     /// outside the stroke or within [`SHARED_FRAME_MM`] of a frame already
     /// taken are left out.
     pub fn extension(&self, plan: &ScanPlan) -> Vec<f64> {
-        let (Some(&first), Some(&last)) = (plan.slides_mm.first(), plan.slides_mm.last()) else {
+        let first = plan.slides_mm.iter().copied().fold(f64::INFINITY, f64::min);
+        let last = plan.slides_mm.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        if !(first.is_finite() && last.is_finite()) {
             return Vec::new();
-        };
+        }
         let before = self.extension_frames / 2;
         let after = self.extension_frames - before;
         let within = |d: &f64| d.is_finite() && (0.0..=self.stroke_mm).contains(d);

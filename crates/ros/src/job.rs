@@ -8,7 +8,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use alacs_locate::{Localization, LocateOptions, Status};
+use alacs_locate::{Localization, LocateOptions};
 use alacs_model::{Camera, LaserModel};
 use alacs_scanner::{
     CapturedScan, ControllerConfig, Device, Error as ScanError, FrameCamera, LaserSwitch, Rig,
@@ -228,8 +228,9 @@ impl LaserSwitch for WatchedLaser<'_, '_> {
 
 /// Runs one goal on `rig`: plans the seed's scan from the rough position,
 /// scans (reporting each laser frame), switches the laser off and
-/// localizes; where a fruit is not found, extends the sweep beyond both
-/// ends ([`ScanController::extend_with_progress`]) and localizes again. `cancel` stops it between device operations; the laser is
+/// localizes; where a fruit is not found for want of evidence, extends the
+/// sweep beyond both ends ([`ScanController::localize_extending`]) and
+/// localizes it again. `cancel` stops it between device operations; the laser is
 /// off whenever this returns.
 pub fn run_job(
     rig: &mut dyn ScanRig,
@@ -278,30 +279,20 @@ pub fn run_job(
         let mut camera = WatchedCamera { inner: devices.camera, watch: &watch };
         let mut laser = WatchedLaser { inner: devices.laser, watch: &watch };
         let mut watched = Rig { slide: &mut slide, camera: &mut camera, laser: &mut laser };
-        controller.run_targets_with_progress(&mut watched, &roughs_mm, |_, _| {}).and_then(
+        controller.run_targets_with_progress(&mut watched, &roughs_mm, |_, _| {}).map(
             |mut captured| {
-                let answers =
-                    captured.localize_targets(&context.camera, &context.laser, &context.locate);
-                let missed =
-                    answers.as_ref().is_ok_and(|a| a.iter().any(|l| l.status != Status::Ok));
-                if !missed {
-                    return Ok((captured, answers));
-                }
-                // Not found in the sweep: frames beyond both ends of it,
-                // then localization again with all of them.
-                let more = controller.config().strategy.extension(&captured.plan).len();
-                watch.n_frames.set(captured.frames.len() + more);
-                match controller.extend_with_progress(&mut watched, &mut captured, |_, _| {})? {
-                    0 => Ok((captured, answers)),
-                    _ => {
-                        let answers = captured.localize_targets(
-                            &context.camera,
-                            &context.laser,
-                            &context.locate,
-                        );
-                        Ok((captured, answers))
-                    }
-                }
+                // Not found in the sweep for want of evidence: frames
+                // beyond both ends of it, then localization again.
+                let localized = controller.localize_extending(
+                    &mut watched,
+                    &mut captured,
+                    &context.camera,
+                    &context.laser,
+                    &context.locate,
+                    |slides| watch.n_frames.set(watch.frame.get() + slides.len()),
+                    |_, _| {},
+                );
+                (captured, localized)
             },
         )
     };
@@ -314,8 +305,16 @@ pub fn run_job(
         Err(e) => return Outcome::Failed(e.to_string()),
     };
     match answers {
-        Ok(localizations) => Outcome::Localized {
-            localizations,
+        // A device that failed during the extension fails the goal, as it
+        // would have failed the sweep.
+        Ok(localized) if localized.extension_error.is_some() => {
+            if cancel.load(Ordering::Relaxed) {
+                return Outcome::Cancelled;
+            }
+            Outcome::Failed(localized.extension_error.map(|e| e.to_string()).unwrap_or_default())
+        }
+        Ok(localized) => Outcome::Localized {
+            localizations: localized.answers,
             elapsed: start.elapsed(),
             scan: Box::new(captured),
             out_of_reach,

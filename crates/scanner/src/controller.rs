@@ -19,23 +19,23 @@
 //!    Or, with [`ScanMode::Continuous`], one run of the slide through
 //!    the positions, frames captured on the way ([`crate::sweep`]).
 //! 5. The laser is switched off at the end, and whenever a step fails.
-//! 6. Where localization did not find the fruit in those frames, a few
-//!    more beyond both ends of the sweep
-//!    ([`ScanController::extend_with_progress`], [`ScanStrategy::extension`]),
-//!    and localization again with all of them.
+//! 6. Where localization did not find a fruit in those frames for want of
+//!    evidence, a few more beyond both ends of its sweep, stop-and-go
+//!    ([`ScanController::localize_extending`], [`ScanStrategy::extension`]),
+//!    and localization of it again with all of them.
 //!
 //! The frames keep the positions the slide reported, not the plan's:
 //! localization triangulates with where the laser was.
 
 use std::path::Path;
 use std::sync::Arc;
-use std::time::{Duration, SystemTime};
+use std::time::{Duration, Instant, SystemTime};
 
-use alacs_locate::{FrameImages, Localization, LocateOptions, Prior, locate};
+use alacs_locate::{FrameImages, Localization, LocateOptions, Prior, Status, locate};
 use alacs_model::io::OutputDir;
 use alacs_model::{
-    Camera, DEFAULT_FRUIT_RADIUS_MM, FrameExposure, LaserModel, MAX_SCAN_TARGETS, SCAN_FILE, Scan,
-    ScanFrameSpec, ScanPlan, ScanStrategy, ScanTarget,
+    Camera, DEFAULT_FRUIT_RADIUS_MM, FrameExposure, LaserModel, MAX_SCAN_TARGETS, SCAN_FILE,
+    SHARED_FRAME_MM, Scan, ScanFrameSpec, ScanPlan, ScanStrategy, ScanTarget,
 };
 use image::RgbImage;
 use nalgebra::{Isometry3, Point3};
@@ -165,7 +165,7 @@ pub struct CapturedScan {
     /// The plan the scan followed.
     pub plan: ScanPlan,
     /// The frames, in plan order, then any extension frames
-    /// ([`ScanController::extend_with_progress`]) in the order taken.
+    /// ([`ScanController::localize_extending`]) in the order taken.
     pub frames: Vec<CapturedFrame>,
     /// The camera's exposure over the frames, if known (the controller
     /// knows it when it metered).
@@ -285,9 +285,10 @@ impl ScanController {
         Ok((self.config.strategy.plan_sweep(&self.laser, &fruit), fruit))
     }
 
-    /// How many images a scan of one fruit captures at most: laser-on and
-    /// laser-off frames (a sweep's one laser-off reference frame), and the
-    /// metering frames. A metered scene that is not bright takes no
+    /// How many images the sweep of one fruit captures at most: laser-on
+    /// and laser-off frames (a sweep's one laser-off reference frame), and
+    /// the metering frames; an extension
+    /// ([`ScanController::localize_extending`]) takes more. A metered scene that is not bright takes no
     /// laser-off frames; the progress callback of
     /// [`ScanController::run_with_progress`] has the count of each scan.
     pub fn image_count(&self) -> usize {
@@ -473,41 +474,65 @@ impl ScanController {
         })
     }
 
-    /// Where the scan did not find the fruit: captures the strategy's
-    /// extension frames ([`ScanStrategy::extension`]: beyond both ends of
-    /// the sweep, those within the slide's stroke) stop-and-go at the
-    /// exposure the scan was taken at, and appends them to `scan`. Laser-off
-    /// frames are taken where the scan took them per frame; a continuous
-    /// sweep's one laser-off reference serves the new frames too (the scene
-    /// stands still). Calls `progress(done, total)` after each image, and
-    /// returns how many frames it added. The laser is off at the end and
-    /// whenever a step fails.
-    pub fn extend_with_progress(
+    /// The slide positions that extend `scan` for its fruit `missed`
+    /// (indices into [`CapturedScan::priors`]): each missed fruit's
+    /// [`ScanStrategy::extension`] of its own plan, within `stroke_mm`,
+    /// none within [`SHARED_FRAME_MM`] of a frame taken or of another;
+    /// nearest the slide's last position first on its side, then the other
+    /// side, so the slide crosses the sweep once.
+    pub fn extension_slides(
+        &self,
+        scan: &CapturedScan,
+        missed: &[usize],
+        stroke_mm: f64,
+    ) -> Vec<f64> {
+        let strategy = &self.config.strategy;
+        let priors = scan.priors();
+        let mut taken = scan.slides_mm();
+        let mut slides: Vec<f64> = Vec::new();
+        for prior in missed.iter().filter_map(|&k| priors.get(k)) {
+            let plan = strategy.plan(&self.laser, &prior.rough_position_mm, prior.fruit_radius_mm);
+            for d in strategy.extension(&plan) {
+                if d <= stroke_mm && taken.iter().all(|t| (d - t).abs() >= SHARED_FRAME_MM) {
+                    taken.push(d);
+                    slides.push(d);
+                }
+            }
+        }
+        let here = scan.frames.last().map_or(0.0, |f| f.slide_mm);
+        let (mut ahead, mut behind): (Vec<f64>, Vec<f64>) =
+            slides.into_iter().partition(|d| *d >= here);
+        ahead.sort_by(f64::total_cmp);
+        behind.sort_by(|a, b| b.total_cmp(a));
+        ahead.extend(behind);
+        ahead
+    }
+
+    /// Captures frames at `slides_mm` stop-and-go, at the exposure the
+    /// camera was left at by the scan, and appends them to `scan`.
+    /// Laser-off frames are taken where the scan took them per frame; a
+    /// continuous sweep's one laser-off reference serves the new frames too
+    /// (the scene stands still). Calls `progress(done, total)` after each
+    /// image. The laser is off at the end and whenever a step fails; a
+    /// failure adds no frame.
+    pub fn capture_more(
         &self,
         rig: &mut Rig<'_>,
         scan: &mut CapturedScan,
+        slides_mm: &[f64],
         mut progress: impl FnMut(usize, usize),
-    ) -> Result<usize> {
-        let stroke_mm = rig.slide.stroke_mm();
-        let slides: Vec<f64> = self
-            .config
-            .strategy
-            .extension(&scan.plan)
-            .into_iter()
-            .filter(|d| *d <= stroke_mm)
-            .collect();
+    ) -> Result<()> {
         let reference_off = scan
             .sweep_speed_mm_per_s
             .and_then(|_| scan.frames.first().and_then(|f| f.image_laser_off.clone()));
         let laser_off =
             reference_off.is_none() && scan.frames.iter().any(|f| f.image_laser_off.is_some());
-        let total = slides.len() * (1 + usize::from(laser_off));
+        let total = slides_mm.len() * (1 + usize::from(laser_off));
         let mut done = 0;
-        progress(done, total);
         let first = scan.frames.len();
-        let mut added = Vec::with_capacity(slides.len());
+        let mut added = Vec::with_capacity(slides_mm.len());
         let mut capture = || -> Result<()> {
-            for (k, &target_mm) in slides.iter().enumerate() {
+            for (k, &target_mm) in slides_mm.iter().enumerate() {
                 let frame = first + k;
                 let slide_mm = self.move_slide(rig, frame, target_mm)?;
                 let mut tick = || {
@@ -529,9 +554,57 @@ impl ScanController {
         let off = rig.laser.set(false).map_err(|e| e.at(Step::Finish));
         captured?;
         off?;
-        let n = added.len();
         scan.frames.extend(added);
-        Ok(n)
+        Ok(())
+    }
+
+    /// Localizes every fruit of `scan`; where one is not found for want of
+    /// evidence (not where its inputs contradict each other), extends the
+    /// sweep for it ([`ScanController::extension_slides`],
+    /// [`ScanController::capture_more`]) and localizes it again with all
+    /// frames. The answers found in the sweep stay. `on_extension` hears
+    /// the positions before the slide moves, `progress` the extension's
+    /// images. Localization's errors (bad input) are the error; a device
+    /// failure during the extension leaves the scan and the sweep's answers
+    /// as they were and is [`Localized::extension_error`].
+    #[allow(clippy::too_many_arguments)]
+    pub fn localize_extending(
+        &self,
+        rig: &mut Rig<'_>,
+        scan: &mut CapturedScan,
+        camera: &Camera,
+        laser: &LaserModel,
+        options: &LocateOptions,
+        on_extension: impl FnOnce(&[f64]),
+        progress: impl FnMut(usize, usize),
+    ) -> Result<Localized> {
+        let started = Instant::now();
+        let mut answers = scan.localize_targets(camera, laser, options)?;
+        let mut localizing = started.elapsed();
+        let missed: Vec<usize> = answers
+            .iter()
+            .enumerate()
+            .filter(|(_, a)| a.status != Status::Ok && !a.contradicted)
+            .map(|(k, _)| k)
+            .collect();
+        let slides = self.extension_slides(scan, &missed, rig.slide.stroke_mm());
+        if slides.is_empty() {
+            return Ok(Localized { answers, added: 0, extension_error: None, localizing });
+        }
+        on_extension(&slides);
+        if let Err(error) = self.capture_more(rig, scan, &slides, progress) {
+            return Ok(Localized { answers, added: 0, extension_error: Some(error), localizing });
+        }
+        let started = Instant::now();
+        let frames = scan.frame_images();
+        let priors = scan.priors();
+        for k in missed {
+            if let (Some(answer), Some(prior)) = (answers.get_mut(k), priors.get(k)) {
+                *answer = locate(camera, laser, prior, &frames, options)?;
+            }
+        }
+        localizing += started.elapsed();
+        Ok(Localized { answers, added: slides.len(), extension_error: None, localizing })
     }
 
     /// Meters (where the slide stands: the laser is off, so its position
@@ -589,6 +662,20 @@ impl ScanController {
             .capture(self.config.capture_timeout)
             .map_err(|e| e.at(Step::Capture { frame, laser_on }))
     }
+}
+
+/// What [`ScanController::localize_extending`] gives.
+#[derive(Debug)]
+pub struct Localized {
+    /// One answer per fruit, in [`CapturedScan::priors`]' order.
+    pub answers: Vec<Localization>,
+    /// Frames the extension added to the scan.
+    pub added: usize,
+    /// Why the extension's frames were not taken, if a device failed: the
+    /// answers are then the sweep's.
+    pub extension_error: Option<Error>,
+    /// Time spent localizing (not the rig's).
+    pub localizing: Duration,
 }
 
 /// What a capture returns: the frames, the metered exposure, a sweep's speed.

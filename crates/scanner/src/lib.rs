@@ -57,7 +57,9 @@ pub mod metering;
 mod sim_devices;
 pub mod sweep;
 
-pub use controller::{CapturedFrame, CapturedScan, ControllerConfig, ScanController, ScanMode};
+pub use controller::{
+    CapturedFrame, CapturedScan, ControllerConfig, Localized, ScanController, ScanMode,
+};
 pub use error::{Device, Error, Result, Step};
 pub use hardware::{FrameCamera, LaserSwitch, Rig, ScanRig, Slide, SlideReport, TimedFrame};
 pub use metering::{MeteredExposure, Metering};

@@ -484,26 +484,28 @@ fn an_extension_captures_frames_beyond_both_ends_of_the_sweep_and_turns_the_lase
         let controller = ScanController::new(laser(), config).unwrap();
         let mut scan = controller.run(&mut rig.rig(), &scene.rough_position_mm).unwrap();
         let swept = scan.slides_mm();
+        // Two 10 mm steps after the sweep's last planned frame (the slide
+        // stands there), then two before its first.
+        let plan = scan.plan.slides_mm.clone();
+        let slides = controller.extension_slides(&scan, &[0], 200.0);
+        assert_eq!(slides, vec![plan[4] + 10.0, plan[4] + 20.0, plan[0] - 10.0, plan[0] - 20.0]);
+        // A slide shorter than the strategy's stroke leaves out what it cannot reach.
+        assert_eq!(controller.extension_slides(&scan, &[0], plan[4] + 15.0).len(), 3);
+        assert!(controller.extension_slides(&scan, &[], 200.0).is_empty());
         let mut calls = Vec::new();
-        let added = controller
-            .extend_with_progress(&mut rig.rig(), &mut scan, |done, total| {
+        controller
+            .capture_more(&mut rig.rig(), &mut scan, &slides, |done, total| {
                 calls.push((done, total))
             })
             .unwrap();
-        assert_eq!(added, 4);
         assert!(!rig.laser_on());
-        // The sweep's frames first, as they were; then two 10 mm steps
-        // before its first planned frame and two after its last, each
+        // The sweep's frames first, as they were; then the extension's, each
         // rendered where the slide stood.
-        let slides = scan.slides_mm();
-        assert_eq!(slides[..5], swept[..]);
-        let plan = &scan.plan.slides_mm;
-        let expected = [plan[0] - 10.0, plan[0] - 20.0, plan[4] + 10.0, plan[4] + 20.0];
-        for (k, (got, want)) in slides[5..].iter().zip(expected).enumerate() {
-            assert!((got - want).abs() < 1e-6, "frame {}: {got} vs {want}", k + 5);
-            assert!(
-                scan.frames[k + 5].image == scene.render_at(*got, true, (k + 5) as u64).unwrap()
-            );
+        assert_eq!(scan.slides_mm()[..5], swept[..]);
+        for (k, want) in slides.iter().enumerate() {
+            let frame = &scan.frames[k + 5];
+            assert!((frame.slide_mm - want).abs() < 1e-6, "frame {}", k + 5);
+            assert!(frame.image == scene.render_at(frame.slide_mm, true, (k + 5) as u64).unwrap());
         }
         // Laser-off images as the sweep took them: per frame, or a
         // continuous sweep's one reference for all.
@@ -514,7 +516,45 @@ fn an_extension_captures_frames_beyond_both_ends_of_the_sweep_and_turns_the_lase
             .all(|f| std::sync::Arc::ptr_eq(f.image_laser_off.as_ref().unwrap(), &reference));
         assert_eq!(shared, !per_frame_off);
         let images = if per_frame_off { 8 } else { 4 };
-        assert_eq!(calls.first(), Some(&(0, images)));
+        assert_eq!(calls.first(), Some(&(1, images)));
         assert_eq!(calls.last(), Some(&(images, images)));
     }
+}
+
+#[test]
+fn an_extension_that_fails_turns_the_laser_off_and_adds_no_frame() {
+    let scene = scene(3, 0.1);
+    let mut rig = SimulatedRig::new(scene.clone(), SimulatedRigOptions::default()).unwrap();
+    let controller = ScanController::new(laser(), ControllerConfig::default()).unwrap();
+    let mut scan = controller.run(&mut rig.rig(), &scene.rough_position_mm).unwrap();
+    // The second position lies beyond the simulated slide's stroke.
+    let last = scan.slides_mm()[4];
+    let error = controller
+        .capture_more(&mut rig.rig(), &mut scan, &[last + 10.0, 500.0], |_, _| {})
+        .unwrap_err();
+    assert!(error.to_string().contains("500"), "{error}");
+    assert!(!rig.laser_on());
+    assert_eq!(scan.frames.len(), 5);
+}
+
+#[test]
+fn a_fruit_found_in_the_sweep_takes_no_extension() {
+    let scene = scene(3, 0.5);
+    let (mut rig, mut scan) = run_on_rig(&scene);
+    let controller = ScanController::new(laser(), ControllerConfig::default()).unwrap();
+    let localized = controller
+        .localize_extending(
+            &mut rig.rig(),
+            &mut scan,
+            &scene.camera,
+            &scene.laser,
+            &LocateOptions::default(),
+            |_| panic!("no extension"),
+            |_, _| {},
+        )
+        .unwrap();
+    assert_eq!(localized.added, 0);
+    assert_eq!(scan.frames.len(), 5);
+    assert_eq!(localized.answers.len(), 1);
+    assert_eq!(localized.answers[0].status, Status::Ok, "{}", localized.answers[0].reason);
 }

@@ -8,9 +8,9 @@
 //!    camera's rough position (`--rough-mm`, or the simulated RGB-D
 //!    camera's), five frames.
 //! 3. Localizes with `--camera` and `--laser`, or with a simulated camera
-//!    the simulation's true camera and laser; where the fruit is not found,
-//!    the controller extends the sweep beyond both ends
-//!    ([`ScanController::extend_with_progress`]) and localizes again.
+//!    the simulation's true camera and laser; where a fruit is not found
+//!    for want of evidence, the controller extends the sweep beyond both
+//!    ends ([`ScanController::localize_extending`]) and localizes it again.
 
 use std::time::Instant;
 
@@ -86,37 +86,34 @@ pub fn run(args: &ScanArgs) -> CmdResult {
     output::start_progress(&bar, controller.image_count(), "scanning");
     let started = Instant::now();
     let locate_options = args.rig.rough_error.locate_options(alacs::locate::Method::Fused);
-    let progress = |done: usize, total: usize| {
-        bar.set_length(total as u64);
-        bar.set_position(done as u64);
-    };
     let scanned =
-        controller.run_targets_with_progress(&mut devices.rig(), &roughs_in_rgbd, progress);
-    // A fruit the sweep did not find: the strategy's frames beyond both
-    // ends of it (the rig is still open), then localization again.
-    // Time spent localizing between the sweep and its extension, not the rig's.
-    let mut localizing = std::time::Duration::ZERO;
-    let mut localize = |scan: &CapturedScan| {
+        controller.run_targets_with_progress(&mut devices.rig(), &roughs_in_rgbd, |done, total| {
+            bar.set_length(total as u64);
+            bar.set_position(done as u64);
+        });
+    // Localization, and where a fruit is not found for want of evidence
+    // the strategy's frames beyond its sweep (the rig is still open).
+    let scanned = scanned.map(|mut scan| {
         bar.set_message("localizing");
-        let started = Instant::now();
-        let answers = scan.localize_targets(&camera, &laser, &locate_options);
-        localizing += started.elapsed();
-        answers
-    };
-    let scanned = scanned.and_then(|mut scan| {
-        let answers = localize(&scan);
-        let missed = answers.as_ref().is_ok_and(|a| a.iter().any(|l| l.status != Status::Ok));
-        if !missed {
-            return Ok((scan, answers));
-        }
-        bar.set_message("extending the sweep");
-        match controller.extend_with_progress(&mut devices.rig(), &mut scan, progress)? {
-            0 => Ok((scan, answers)),
-            _ => {
-                let answers = localize(&scan);
-                Ok((scan, answers))
-            }
-        }
+        let (swept_images, swept_done) = (bar.length().unwrap_or(0), bar.position());
+        let localized = controller.localize_extending(
+            &mut devices.rig(),
+            &mut scan,
+            &camera,
+            &laser,
+            &locate_options,
+            |slides| {
+                bar.set_message("extending the sweep");
+                bar.suspend(|| {
+                    errln!("not found in the sweep: {} frames more beyond its ends", slides.len())
+                });
+            },
+            |done, total| {
+                bar.set_length(swept_images + total as u64);
+                bar.set_position(swept_done + done as u64);
+            },
+        );
+        (scan, localized)
     });
     let (scan, answers) = match scanned {
         Ok(scan) => scan,
@@ -129,6 +126,8 @@ pub fn run(args: &ScanArgs) -> CmdResult {
             return Err(error.into());
         }
     };
+    // A real rig's time: the wall clock without localization's.
+    let localizing = answers.as_ref().map_or(std::time::Duration::ZERO, |l| l.localizing);
     let rig_time_s = devices
         .simulated_time()
         .unwrap_or_else(|| started.elapsed().saturating_sub(localizing))
@@ -136,6 +135,14 @@ pub fn run(args: &ScanArgs) -> CmdResult {
     // The laser is off (the controller switched it off); a real rig's
     // connection closes here.
     drop(devices);
+    let answers = answers.map(|localized| {
+        if let Some(error) = &localized.extension_error {
+            bar.suspend(|| {
+                errln!("warning: the extension's frames were not taken ({error}); the answers are the sweep's")
+            });
+        }
+        localized.answers
+    });
     let answer = answers.map_err(|error| {
         let mut failure = Failure::from(error);
         if let Some(path) = &args.rig.camera {
