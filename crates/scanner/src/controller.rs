@@ -803,7 +803,8 @@ impl CapturedScan {
         self.to_scan(Path::new("")).to_yaml_string(if self.sweep_speed_mm_per_s.is_some() {
             "Captured by alacs-scanner in a continuous sweep. rough_position_mm is the RGB-D\n\
                  camera's rough position carried into the ALACS camera frame; slide_mm where the\n\
-                 slide was at each frame's mid-exposure."
+                 slide was at each frame's mid-exposure (an extension's frames, after the\n\
+                 sweep's, where it settled)."
         } else {
             "Captured by alacs-scanner. rough_position_mm is the RGB-D camera's rough\n\
                  position carried into the ALACS camera frame; slide_mm where the slide settled."
