@@ -807,20 +807,36 @@ mod tests {
 
     #[cfg(unix)]
     #[test]
-    fn a_device_fifo_or_folder_is_never_replaced() {
+    fn a_device_fifo_socket_or_folder_is_never_replaced() {
+        // Only nodes of the test's own folder: never a system path such as
+        // /dev/null, which a regression run as root would replace.
         let dir = tempfile::tempdir().unwrap();
         let fifo = dir.path().join("fifo");
         assert!(std::process::Command::new("mkfifo").arg(&fifo).status().unwrap().success());
         let folder = dir.path().join("folder");
         std::fs::create_dir(&folder).unwrap();
-        let link_to_null = dir.path().join("null.yaml");
-        std::os::unix::fs::symlink("/dev/null", &link_to_null).unwrap();
-        for (path, what) in [
-            (fifo.as_path(), "a FIFO"),
-            (folder.as_path(), "a folder"),
-            (link_to_null.as_path(), "a device"),
-            (Path::new("/dev/null"), "a device"),
-        ] {
+        let socket = dir.path().join("socket.yaml");
+        let _listener = std::os::unix::net::UnixListener::bind(&socket).unwrap();
+        let mut targets = vec![
+            (fifo.clone(), "a FIFO"),
+            (folder.clone(), "a folder"),
+            (socket.clone(), "a socket"),
+        ];
+        // As root (CI): a null device of the test's own, and a link to it.
+        let null = dir.path().join("null");
+        let made_device = std::process::Command::new("mknod")
+            .arg(&null)
+            .args(["c", "1", "3"])
+            .stderr(std::process::Stdio::null())
+            .status()
+            .is_ok_and(|s| s.success());
+        if made_device {
+            let link_to_null = dir.path().join("null.yaml");
+            std::os::unix::fs::symlink(&null, &link_to_null).unwrap();
+            targets.push((null.clone(), "a device"));
+            targets.push((link_to_null, "a device"));
+        }
+        for (path, what) in &targets {
             let error = write_file(path, "x").unwrap_err();
             assert!(matches!(error, Error::NotRegularFile { .. }), "{error}");
             assert!(error.is_bad_input());
@@ -829,9 +845,14 @@ mod tests {
         }
         use std::os::unix::fs::FileTypeExt as _;
         assert!(std::fs::symlink_metadata(&fifo).unwrap().file_type().is_fifo());
+        assert!(std::fs::symlink_metadata(&socket).unwrap().file_type().is_socket());
+        if made_device {
+            assert!(std::fs::symlink_metadata(&null).unwrap().file_type().is_char_device());
+        }
         assert!(folder.is_dir());
         // Nothing left behind in the folder but what was there.
-        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 3);
+        let expected = if made_device { 5 } else { 3 };
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), expected);
     }
 
     #[cfg(unix)]
