@@ -6,7 +6,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle, TermLike};
 
 use alacs::LaserCalibration;
 use alacs::locate::{Localization, LocalizeOutput, Prior, Status, TargetsOutput};
-use alacs::model::Fidelity;
+use alacs::model::{Fidelity, PlusMinus};
 use serde_json::Value;
 
 use crate::failure::{CmdResult, Failure};
@@ -88,38 +88,31 @@ pub fn summary(c: &LaserCalibration) -> String {
         None => out.push('\n'),
     }
     let std = c.std_dev;
-    let pm = |v: Option<f64>, digits: usize| match v {
-        Some(s) => format!("  +- {s:.digits$}"),
-        None => String::new(),
+    // Each value to its sigma's two significant figures (PlusMinus).
+    let pm = |value: f64, sigma: Option<f64>, decimals: usize| {
+        PlusMinus { value, sigma, decimals }.to_string()
     };
-    let _ = writeln!(
-        out,
-        "  alpha = {:>9.4} deg{}",
-        c.laser.alpha_deg(),
-        pm(std.map(|s| s.alpha_deg), 4)
-    );
-    let _ = writeln!(out, "  L0    = {:>9.3} mm {}", c.laser.l0_mm, pm(std.map(|s| s.l0_mm), 3));
+    let _ = writeln!(out, "  alpha = {} deg", pm(c.laser.alpha_deg(), std.map(|s| s.alpha_deg), 4));
+    let _ = writeln!(out, "  L0    = {} mm", pm(c.laser.l0_mm, std.map(|s| s.l0_mm), 3));
     if c.laser.fidelity == Fidelity::High {
         let _ = writeln!(
             out,
-            "  beta  = {:>9.4} deg{}",
-            c.laser.beta_deg(),
-            pm(std.and_then(|s| s.beta_deg), 4)
+            "  beta  = {} deg",
+            pm(c.laser.beta_deg(), std.and_then(|s| s.beta_deg), 4)
         );
     }
     if c.slide_scale_fitted {
         let _ = writeln!(
             out,
-            "  k     = {:>9.5}    {} (slide scale: L = L0 - k d)",
-            c.laser.slide_scale,
-            pm(std.and_then(|s| s.slide_scale), 5)
+            "  k     = {} (slide scale: L = L0 - k d)",
+            pm(c.laser.slide_scale, std.and_then(|s| s.slide_scale), 5)
         );
     } else {
         // Said, so that a session at one slide position is not mistaken
         // for one that measured k = 1.
         let _ = writeln!(
             out,
-            "  k     = {:>9.5}    held, not fitted (slide scale; fitting it needs views at 3 or more slide positions, and no --hold-slide-scale)",
+            "  k     = {:.5} held, not fitted (slide scale; fitting it needs views at 3 or more slide positions, and no --hold-slide-scale)",
             c.laser.slide_scale
         );
     }
@@ -258,7 +251,7 @@ pub fn targets_summary(answers: &[Localization], priors: &[Prior]) -> String {
         let r = &prior.rough_position_mm;
         let _ = writeln!(
             out,
-            "\ntarget {k} (rough position ({:.1}, {:.1}, {:.1}) mm, radius prior {:.1} mm): {}",
+            "\ntarget {k} (rough position ({:.1}, {:.1}, {:.1}) mm in the ALACS camera frame, radius prior {:.1} mm): {}",
             r.x,
             r.y,
             r.z,

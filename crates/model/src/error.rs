@@ -259,6 +259,35 @@ impl std::fmt::Display for Num {
     }
 }
 
+/// A value with its standard deviation, `value +- sigma`, both to the
+/// decimals that give the sigma two significant figures (a sigma known to
+/// 10 % shows no more): `19.07012 +- 0.00040`, `412.5 +- 1.5`, `412 +- 15`.
+/// Without a finite, positive sigma, the value alone to `decimals`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlusMinus {
+    /// The value.
+    pub value: f64,
+    /// Its standard deviation, if known.
+    pub sigma: Option<f64>,
+    /// Decimals of the value when there is no sigma to size them.
+    pub decimals: usize,
+}
+
+impl std::fmt::Display for PlusMinus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let value = self.value;
+        match self.sigma.filter(|s| s.is_finite() && *s > 0.0) {
+            Some(sigma) => {
+                // Two significant figures; at most 9 decimals (a sigma below
+                // 1e-9 of any unit here is a rounding error, not a measurement).
+                let decimals = (1.0 - sigma.log10().floor()).clamp(0.0, 9.0) as usize;
+                write!(f, "{value:.decimals$} +- {sigma:.decimals$}")
+            }
+            None => write!(f, "{value:.*}", self.decimals),
+        }
+    }
+}
+
 #[cfg(test)]
 mod num_tests {
     use super::Num;
@@ -274,6 +303,18 @@ mod num_tests {
         assert_eq!(Num(412.5).to_string(), "412.5");
         assert_eq!(Num(0.0).to_string(), "0");
         assert_eq!(Num(f64::NAN).to_string(), "NaN");
+    }
+
+    #[test]
+    fn a_sigma_shows_two_significant_figures_and_its_value_as_many_decimals() {
+        use super::PlusMinus;
+        let pm = |value, sigma, decimals| PlusMinus { value, sigma, decimals }.to_string();
+        assert_eq!(pm(19.07012, Some(0.0004), 3), "19.07012 +- 0.00040");
+        assert_eq!(pm(19.07012, Some(0.05), 3), "19.070 +- 0.050");
+        assert_eq!(pm(412.5, Some(1.5), 3), "412.5 +- 1.5");
+        assert_eq!(pm(412.7, Some(15.3), 3), "413 +- 15");
+        assert_eq!(pm(1.0, None, 2), "1.00");
+        assert_eq!(pm(1.0, Some(0.0), 2), "1.00");
     }
 }
 

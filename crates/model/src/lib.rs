@@ -45,7 +45,7 @@ mod scan_plan;
 mod session;
 
 pub use camera::*;
-pub use error::{Error, ErrorClass, Num, Result, yaml_message};
+pub use error::{Error, ErrorClass, Num, PlusMinus, Result, yaml_message};
 pub use geometry::{Plane, Ray};
 pub use laser::{
     Fidelity, LaserFile, LaserModel, PreparedLaser, SLIDE_SCALE_RANGE, SLIDE_STROKE_MM, SlideTarget,

@@ -6,7 +6,7 @@ use alacs::calib::{
     CalibrationOptions, FixedIntrinsics, IntrinsicsOptions, LaserSessionOptions, Method, Residual,
     calibrate_camera_session, calibrate_laser_session, read_samples_csv, write_samples_csv,
 };
-use alacs::model::DistortionModel;
+use alacs::model::{DistortionModel, PlusMinus};
 use alacs::{Camera, Session};
 use anyhow::anyhow;
 use serde_json::json;
@@ -261,14 +261,16 @@ pub fn camera(args: &CalibrateCameraArgs) -> CmdResult {
             options.fixed.principal_point,
             options.fixed.principal_point,
         ];
-        let sd = |i: usize| {
+        // Each intrinsic with its sigma to two significant figures (PlusMinus).
+        let value = |i: usize, px: f64| {
             if i == 1 && held[1] {
-                return format!(" (fx x {:.5}: aspect held)", c.fy_px / c.fx_px);
+                return format!("{px:.2} (fx x {:.5}: aspect held)", c.fy_px / c.fx_px);
             }
             if held[i] {
-                return " (held)".to_string();
+                return format!("{px:.2} (held)");
             }
-            fit.std_dev.as_ref().map(|s| format!(" +- {:.2}", s[i])).unwrap_or_default()
+            let sigma = fit.std_dev.as_ref().map(|s| s[i]);
+            PlusMinus { value: px, sigma, decimals: 2 }.to_string()
         };
         outln!(
             "camera {} x {} px from {} board poses ({} images; views rejected: {})",
@@ -278,8 +280,8 @@ pub fn camera(args: &CalibrateCameraArgs) -> CmdResult {
             fit.images,
             rejected.len()
         );
-        outln!("  fx {:.2}{} px, fy {:.2}{} px", c.fx_px, sd(0), c.fy_px, sd(1));
-        outln!("  cx {:.2}{} px, cy {:.2}{} px", c.cx_px, sd(2), c.cy_px, sd(3));
+        outln!("  fx {} px, fy {} px", value(0, c.fx_px), value(1, c.fy_px));
+        outln!("  cx {} px, cy {} px", value(2, c.cx_px), value(3, c.cy_px));
         outln!("  {model} {:?}", dist.iter().map(|d| (d * 1e5).round() / 1e5).collect::<Vec<_>>());
         let fixed = fixed_names(&options.fixed);
         if !fixed.is_empty() {

@@ -10,7 +10,7 @@ use alacs_calib::{
     pose_observations, session_view_samples,
 };
 use alacs_model::io::OutputDir;
-use alacs_model::{Camera, LaserModel, Session};
+use alacs_model::{Camera, LaserModel, PlusMinus, Session};
 use alacs_vision::{StripeOptions, read_image};
 use nalgebra::Point2;
 use rayon::prelude::*;
@@ -468,22 +468,10 @@ pub fn write_calibration_html(
     Ok(files)
 }
 
-/// `value +- sd` with at least `digits` decimals, and more where the
-/// standard deviation needs them to show two significant digits (a sigma
-/// of 0.0004 deg is not "+- 0.000"), at most 8.
+/// `value +- sd` as every sigma is shown ([`PlusMinus`]): two significant
+/// figures of the sigma; `digits` decimals without one.
 fn plus_minus(value: f64, sd: Option<f64>, digits: usize) -> String {
-    match sd {
-        Some(s) => {
-            let needed = if s > 0.0 && s.is_finite() {
-                (1.0 - s.log10().floor()).clamp(0.0, 8.0) as usize
-            } else {
-                0
-            };
-            let digits = digits.max(needed);
-            format!("{value:.digits$} +- {s:.digits$}")
-        }
-        None => format!("{value:.digits$}"),
-    }
+    PlusMinus { value, sigma: sd, decimals: digits }.to_string()
 }
 
 /// The names of a distortion model's coefficients, in OpenCV's order.
@@ -731,18 +719,5 @@ fn plots(page: &mut Page, report: &CalibrationReport) {
             page.plot("accuracy_boxplots.png", "accuracy box plots");
         }
         Err(reason) => page.paragraph(&format!("Not computed: {reason}"), Some("flag")),
-    }
-}
-
-#[cfg(test)]
-mod plus_minus_tests {
-    use super::plus_minus;
-
-    #[test]
-    fn a_small_sigma_shows_two_significant_digits() {
-        assert_eq!(plus_minus(19.07012, Some(0.0004), 3), "19.07012 +- 0.00040");
-        assert_eq!(plus_minus(19.07012, Some(0.05), 3), "19.070 +- 0.050");
-        assert_eq!(plus_minus(412.5, Some(1.5), 2), "412.50 +- 1.50");
-        assert_eq!(plus_minus(1.0, None, 2), "1.00");
     }
 }
