@@ -86,3 +86,51 @@ impl Error {
         self.class() == ErrorClass::BadInput
     }
 }
+
+/// Images most named per reason in [`view_reasons`]: enough to find them,
+/// short enough for one line when a whole session shares one reason.
+const NAMED_PER_REASON: usize = 3;
+
+/// Why views were rejected, for one line of a message: views that share a
+/// reason are listed once with it (`a.png, b.png and 11 more: reason; c.png:
+/// other reason`), in the order their reasons first appear.
+pub(crate) fn view_reasons<'a>(views: impl IntoIterator<Item = (&'a str, &'a str)>) -> String {
+    let mut groups: Vec<(&str, Vec<&str>)> = Vec::new();
+    for (name, reason) in views {
+        match groups.iter_mut().find(|(r, _)| *r == reason) {
+            Some((_, names)) => names.push(name),
+            None => groups.push((reason, vec![name])),
+        }
+    }
+    let group = |(reason, names): &(&str, Vec<&str>)| {
+        let shown = names[..names.len().min(NAMED_PER_REASON)].join(", ");
+        match names.len().checked_sub(NAMED_PER_REASON) {
+            Some(more) if more > 0 => format!("{shown} and {more} more: {reason}"),
+            _ => format!("{shown}: {reason}"),
+        }
+    };
+    groups.iter().map(group).collect::<Vec<_>>().join("; ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::view_reasons;
+
+    #[test]
+    fn views_that_share_a_reason_are_listed_once_with_it() {
+        let views = [
+            ("a.png", "only 54 of 70 corners found"),
+            ("b.png", "only 54 of 70 corners found"),
+            ("c.png", "no corners"),
+            ("d.png", "only 54 of 70 corners found"),
+            ("e.png", "only 54 of 70 corners found"),
+            ("f.png", "only 54 of 70 corners found"),
+        ];
+        assert_eq!(
+            view_reasons(views),
+            "a.png, b.png, d.png and 2 more: only 54 of 70 corners found; c.png: no corners"
+        );
+        assert_eq!(view_reasons([("a.png", "x"), ("b.png", "x")]), "a.png, b.png: x");
+        assert_eq!(view_reasons([]), "");
+    }
+}

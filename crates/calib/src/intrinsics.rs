@@ -26,6 +26,7 @@ use nalgebra::{
     Vector3,
 };
 
+use crate::error::view_reasons;
 use crate::refine::dynamic_problem_params;
 use crate::{Error, Result};
 
@@ -376,15 +377,10 @@ pub fn calibrate_intrinsics(
 }
 
 fn rejected_summary(fits: &[ViewFit]) -> String {
-    let rejected: Vec<String> = fits
-        .iter()
-        .filter_map(|f| f.rejected.as_ref().map(|r| format!("{}: {r}", f.name)))
-        .collect();
-    if rejected.is_empty() {
-        String::new()
-    } else {
-        format!(" (rejected: {})", rejected.join("; "))
-    }
+    let rejected = view_reasons(
+        fits.iter().filter_map(|f| f.rejected.as_deref().map(|r| (f.name.as_str(), r))),
+    );
+    if rejected.is_empty() { String::new() } else { format!(" (rejected: {rejected})") }
 }
 
 /// Why a view cannot be used at all, if it cannot.

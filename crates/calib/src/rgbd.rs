@@ -12,6 +12,7 @@ use alacs_vision::read_image;
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 
+use crate::error::view_reasons;
 use crate::intrinsics::{BoardObservation, board_pose};
 use crate::{Error, Result};
 
@@ -140,7 +141,7 @@ pub fn calibrate_rgbd(
     if poses.is_empty() {
         return Err(Error::Degenerate(format!(
             "no board pose was found in both cameras' images ({})",
-            rejected.iter().map(|(n, r)| format!("{n}: {r}")).collect::<Vec<_>>().join("; ")
+            view_reasons(rejected.iter().map(|(n, r)| (n.as_str(), r.as_str())))
         )));
     }
     let alacs_from_rgbd = mean_pose(poses.iter().map(|p| &p.alacs_from_rgbd));

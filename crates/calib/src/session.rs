@@ -21,6 +21,7 @@ use alacs_vision::{Region, StripeOptions, extract_stripe_rgb, read_image};
 use nalgebra::{Isometry3, Point2};
 use rayon::prelude::*;
 
+use crate::error::view_reasons;
 use crate::refine::Layout;
 use crate::uncertainty::{
     MIN_BOOTSTRAP_POSES, PoseData, at_least, bootstrap_session, sample_on_board,
@@ -232,14 +233,12 @@ pub fn calibrate_camera_session(
         .collect();
     let (_, observations) =
         pose_observations(&found.iter().map(Option::as_ref).collect::<Vec<_>>());
-    let no_board = || {
-        boards
-            .iter()
-            .filter_map(|b| b.corners.as_ref().err().map(|e| format!("{}: {e}", b.image)))
-            .collect::<Vec<_>>()
-    };
     if observations.len() < options.min_views {
-        let rejected = no_board();
+        let reasons: Vec<(&str, String)> = boards
+            .iter()
+            .filter_map(|b| b.corners.as_ref().err().map(|e| (b.image.as_str(), e.to_string())))
+            .collect();
+        let rejected = view_reasons(reasons.iter().map(|(n, r)| (*n, r.as_str())));
         return Err(Error::Degenerate(format!(
             "camera calibration needs at least {} board poses with a {} x {} board, found {} in {} images{}",
             options.min_views,
@@ -247,7 +246,7 @@ pub fn calibrate_camera_session(
             session.board.rows,
             observations.len(),
             boards.len(),
-            if rejected.is_empty() { String::new() } else { format!(" ({})", rejected.join("; ")) }
+            if rejected.is_empty() { String::new() } else { format!(" ({rejected})") }
         )));
     }
     let mut fit = calibrate_intrinsics(width, height, &observations, options)?;
@@ -334,11 +333,10 @@ pub struct LaserSessionCalibration {
 /// Why views were rejected, for an error message: ` (view01.png: reason;
 /// ...)`, or nothing when none was.
 pub fn rejection_note(views: &[ViewSamples]) -> String {
-    let reasons: Vec<String> = views
-        .iter()
-        .filter_map(|v| v.rejected.as_ref().map(|r| format!("{}: {r}", v.image)))
-        .collect();
-    if reasons.is_empty() { String::new() } else { format!(" ({})", reasons.join("; ")) }
+    let reasons = view_reasons(
+        views.iter().filter_map(|v| v.rejected.as_deref().map(|r| (v.image.as_str(), r))),
+    );
+    if reasons.is_empty() { String::new() } else { format!(" ({reasons})") }
 }
 
 /// [`view_samples`] of every view of `session`, in parallel, in session

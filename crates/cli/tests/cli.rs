@@ -532,6 +532,26 @@ fn calibrate_camera_json_has_the_formats_md_keys() {
 }
 
 #[test]
+fn a_board_given_by_its_squares_gets_the_hint_once_not_once_per_view() {
+    let dir = scratch("board_by_squares");
+    for entry in std::fs::read_dir(opencv_right()).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "jpg") {
+            std::fs::copy(&path, dir.join(path.file_name().unwrap())).unwrap();
+        }
+    }
+    // The photographs' board has 10 x 7 squares: 9 x 6 inner corners.
+    let init = alacs(&cmdline("session init --board 10x7 --square-mm 25 {}", &[&dir]));
+    assert!(init.status.success(), "{}", stderr(&init));
+    let output = alacs(&cmdline("calibrate camera --session {}", &[&dir]));
+    assert_eq!(output.status.code(), Some(1));
+    let text = stderr(&output);
+    let hint = "so a board of 10 x 7 squares is 9 x 6";
+    assert_eq!(text.matches(hint).count(), 1, "{text}");
+    assert_eq!(text.lines().count(), 1, "{text}");
+}
+
+#[test]
 fn calibrate_from_a_simulated_session_end_to_end() {
     let dir = scratch("session_end_to_end");
     let out = dir.to_str().unwrap();
