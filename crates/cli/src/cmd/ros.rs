@@ -62,7 +62,7 @@ pub fn run(args: &RosArgs) -> CmdResult {
         let c = sim.scene.fruit_centre;
         let rough_in_rgbd = alacs_from_rgbd.inverse() * sim.rough_position_mm;
         errln!(
-            "simulated apple (seed {}) at ({:.1}, {:.1}, {:.1}) mm, radius {:.1} mm; the RGB-D \
+            "simulated apple (seed {}) at ({:.1}, {:.1}, {:.1}) mm in the ALACS camera frame, radius {:.1} mm; the RGB-D \
              camera sees it at ({:.1}, {:.1}, {:.1}) mm in its frame",
             args.rig.scene.seed,
             c.x,

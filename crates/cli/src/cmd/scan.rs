@@ -296,7 +296,7 @@ fn print_targets(
         for k in 0..answers.len() {
             if let (Some((t, _)), Some(e)) = (truth(k), error(k)) {
                 out!(
-                    "target {k}: truth ({:.1}, {:.1}, {:.1}) mm, error {:.2} mm in 3-D\n",
+                    "target {k}: truth ({:.1}, {:.1}, {:.1}) mm in the ALACS camera frame, error {:.2} mm in 3-D\n",
                     t.x,
                     t.y,
                     t.z,
@@ -355,7 +355,7 @@ fn summary(
     match (answer.status, answer.position_mm) {
         (Status::Ok, Some(p)) => {
             out += &format!(
-                "  found the apple at {}, radius {:.1} mm ({})\n",
+                "  found the apple at {} in the ALACS frame, radius {:.1} mm ({})\n",
                 xyz(&p),
                 answer.radius_mm.unwrap_or(f64::NAN),
                 answer.reason

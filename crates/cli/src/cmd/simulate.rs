@@ -227,7 +227,7 @@ pub fn scan(args: &SimulateScanArgs) -> CmdResult {
         }))?;
     }
     errln!(
-        "wrote {} frames ({} x {} px, slides {} mm) of a {:.1} mm apple at ({:.1}, {:.1}, {:.1}) mm, {:.0} % hidden, to {} (scan.yaml, camera.yaml, laser.yaml, truth.json)",
+        "wrote {} frames ({} x {} px, slides {} mm) of a {:.1} mm apple at ({:.1}, {:.1}, {:.1}) mm in the ALACS camera frame, {:.0} % hidden, to {} (scan.yaml, camera.yaml, laser.yaml, truth.json)",
         scan.frames.len(),
         scan.camera.width_px,
         scan.camera.height_px,
@@ -271,7 +271,7 @@ pub fn rgbd(args: &SimulateRgbdArgs) -> CmdResult {
         camera.height_px,
         view.apples.len(),
         target.map_or(String::new(), |t| format!(
-            ", the target at ({:.1}, {:.1}, {:.1}) mm",
+            ", the target at ({:.1}, {:.1}, {:.1}) mm in the RGB-D camera frame",
             t.centre_mm.x, t.centre_mm.y, t.centre_mm.z
         )),
         args.out.display()
