@@ -1761,6 +1761,16 @@ fn non_regular_inputs_are_refused_naming_them() {
             &["input.fifo"],
         );
     }
+    // A frame of a scan folder that is a FIFO: refused naming it, not read
+    // (an open FIFO blocks until someone writes to it).
+    let folder = copy_dir(&f.scan, dir.join("scan_with_fifo"));
+    std::fs::remove_file(folder.join("frame1.png")).unwrap();
+    make_fifo(&folder, "frame1.png");
+    suite.refused(
+        "localize with a FIFO as a frame",
+        &a(&["localize", "--scan", &arg(&folder), "--camera", &camera, "--laser", &laser]),
+        &["frame1.png"],
+    );
     suite.finish("FIFO inputs");
 }
 

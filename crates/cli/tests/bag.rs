@@ -228,6 +228,64 @@ fn a_bag_that_is_not_a_recording_exits_2_naming_it() {
     }
 }
 
+/// `bag` copied to `out` without the `skip`-th message (from 0) on a topic
+/// ending in `topic`, written by the mcap crate as any MCAP tool would.
+fn without_message(bag: &Path, out: &Path, topic: &str, skip: usize) {
+    let bytes = std::fs::read(bag).unwrap();
+    let mut writer = mcap::Writer::new(std::fs::File::create(out).unwrap()).unwrap();
+    let mut seen = 0;
+    for message in mcap::MessageStream::new(&bytes).unwrap() {
+        let message = message.unwrap();
+        if message.channel.topic.ends_with(topic) {
+            seen += 1;
+            if seen - 1 == skip {
+                continue;
+            }
+        }
+        writer.write(&message).unwrap();
+    }
+    writer.finish().unwrap();
+    assert!(seen > skip, "only {seen} messages on {topic}");
+}
+
+#[test]
+fn a_frame_whose_slide_message_is_missing_is_refused_not_given_the_previous_slide() {
+    let dir = tempfile::tempdir().unwrap();
+    let folder = dir.path().join("scan");
+    let bag = dir.path().join("scan.mcap");
+    let scanned = json(&alacs(&[
+        "scan",
+        "--sim",
+        "--seed",
+        "4",
+        "--scale",
+        "0.25",
+        "--out",
+        p(&folder),
+        "--record",
+        p(&bag),
+        "--json",
+    ]));
+    assert_eq!(scanned["status"], "ok");
+    // The third frame's slide position is lost.
+    let broken = dir.path().join("broken.mcap");
+    without_message(&bag, &broken, "/slide", 2);
+    let camera = folder.join("camera.yaml");
+    let laser = folder.join("laser.yaml");
+    let located =
+        alacs(&["localize", "--bag", p(&broken), "--camera", p(&camera), "--laser", p(&laser)]);
+    let exported = dir.path().join("exported");
+    let export = alacs(&["bag", "export", p(&broken), p(&exported)]);
+    for output in [located, export] {
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(2), "{stderr}");
+        assert!(stderr.contains("without the slide position"), "{stderr}");
+        assert!(stderr.contains(p(&broken)), "{stderr}");
+    }
+    // Nothing exported from a recording that cannot be read whole.
+    assert!(!exported.join("scan.yaml").exists());
+}
+
 #[test]
 fn a_scan_is_kept_when_its_localization_fails_and_a_recording_is_not_replaced() {
     // Regression (review): localization ran before --out and --record were

@@ -108,7 +108,7 @@ fn output_to_a_symlink_writes_its_target_and_keeps_the_link() {
 }
 
 #[test]
-fn in_place_convert_keeps_the_files_mode() {
+fn in_place_convert_keeps_the_files_mode_and_owner() {
     let dir = scratch("outputs-mode");
     let sim = dir.join("scan");
     let o = alacs(&["simulate", "scan", "--out", &arg(&sim), "--scale", "0.2", "--seed", "1"]);
@@ -120,6 +120,17 @@ fn in_place_convert_keeps_the_files_mode() {
     assert!(o.status.success(), "{}", context(&o));
     let mode = std::fs::metadata(&camera).unwrap().permissions().mode();
     assert_eq!(mode & 0o777, 0o640, "mode {mode:o}");
+    // As root (CI): a file another user owns stays theirs.
+    if is_root()
+        && Command::new("chown").args(["1234:1234", &arg(&camera)]).status().unwrap().success()
+    {
+        let o = alacs(&["convert", "camera", "--input", &arg(&camera), "-o", &arg(&camera)]);
+        assert!(o.status.success(), "{}", context(&o));
+        use std::os::unix::fs::MetadataExt as _;
+        let meta = std::fs::metadata(&camera).unwrap();
+        assert_eq!((meta.uid(), meta.gid()), (1234, 1234));
+        assert_eq!(meta.permissions().mode() & 0o777, 0o640);
+    }
 }
 
 #[test]

@@ -143,6 +143,22 @@ fn rig_check_names_the_device_and_step_that_failed() {
 }
 
 #[test]
+fn rig_check_refuses_a_controller_in_laser_mode_naming_the_setting() {
+    // $32=1: GRBL powers the spindle output (the laser) only while the axes
+    // move, so every frame at a standing slide would be dark.
+    let dir = tempfile::tempdir().unwrap();
+    let grbl = emulator(dir.path(), &["--setting", "32=1"]);
+    let rig = rig_toml(dir.path(), &grbl.port);
+    let output =
+        alacs(&["rig", "check", "--rig", rig.to_str().unwrap(), "--scale", "0.25", "--json"]);
+    assert_eq!(output.status.code(), Some(1), "{}", String::from_utf8_lossy(&output.stderr));
+    let report = json(&output);
+    assert_eq!(report["passed"], false);
+    let message = report["error"]["message"].as_str().unwrap();
+    assert!(message.contains("$32=1") && message.contains("$32=0"), "{message}");
+}
+
+#[test]
 fn a_bad_rig_toml_exits_2_naming_the_file_and_the_key() {
     let dir = tempfile::tempdir().unwrap();
     let cases = [
