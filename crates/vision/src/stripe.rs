@@ -415,7 +415,10 @@ pub fn extract_stripe(
         let Some(row) = data.get(row_start..row_start + width) else {
             continue;
         };
-        span_peaks(row, (v, u0, u1), options, &mut buffer, &mut points);
+        // The columns the line detector reads, as the colour pass holds them.
+        let reach = options.local_background.map_or(0, |b| b.reach());
+        let valid = ((u0 as usize).saturating_sub(reach), (u1 as usize + reach).min(width - 1));
+        span_peaks(row, valid, (v, u0, u1), options, &mut buffer, &mut points);
     }
     points
 }
@@ -520,11 +523,25 @@ pub fn extract_stripe_rgb(
                     }
                     let mut profile = Scaled { excess: &mut scratch.profile, value };
                     profile_peaks(&mut profile, (v, u0), options, &mut points);
+                    if !points.is_empty() {
+                        // The centres again on the scores (the detector ran
+                        // only where peaks could be: the whole span now).
+                        deinterleave(&mut scratch.scores[first..=last], &scratch.interleaved);
+                        for point in &mut points {
+                            refine_on_linear_background(
+                                &scratch.scores,
+                                (first, last),
+                                background,
+                                point,
+                            );
+                        }
+                    }
                 }
                 _ => {
                     deinterleave(&mut scratch.scores[first..=last], &scratch.interleaved);
                     span_peaks(
                         &scratch.scores,
+                        (first, last),
                         (v, u0, u1),
                         options,
                         &mut scratch.buffer,
@@ -567,7 +584,14 @@ fn signed_span_peaks(
     if f32::from(most) - f32::from(least) < options.min_strength {
         return points;
     }
-    span_peaks(&scratch.signed, (v, u0, u1), options, &mut scratch.buffer, &mut points);
+    span_peaks(
+        &scratch.signed,
+        (first, last),
+        (v, u0, u1),
+        options,
+        &mut scratch.buffer,
+        &mut points,
+    );
     points
 }
 
@@ -781,10 +805,11 @@ fn single_peak_u8(
 }
 
 /// The peaks of one span of a row, appended to `points`: `row` holds the
-/// whole image row's scores (valid at least over the span and the local
-/// background's reach).
+/// whole image row's scores, valid over the columns `valid` (at least the
+/// span and the local background's reach).
 fn span_peaks<T: Summable>(
     row: &[T],
+    valid: (usize, usize),
     (v, u0, u1): (u32, u32, u32),
     options: &StripeOptions,
     buffer: &mut Vec<f32>,
@@ -792,15 +817,78 @@ fn span_peaks<T: Summable>(
 ) {
     let (first, last) = (u0 as usize, u1 as usize);
     let Some(span) = row.get(first..=last) else { return };
+    let start = points.len();
     match options.local_background {
         None => {
             buffer.clear();
             // Scores are f32, u8 or i16: each converts exactly.
             buffer.extend(span.iter().map(|&s| s.into() as f32));
+            profile_peaks(buffer.as_mut_slice(), (v, u0), options, points);
         }
-        Some(background) => local_contrast(row, first, last, background, buffer),
+        Some(background) => {
+            local_contrast(row, first, last, background, buffer);
+            profile_peaks(buffer.as_mut_slice(), (v, u0), options, points);
+            for point in &mut points[start..] {
+                refine_on_linear_background(row, valid, background, point);
+            }
+        }
     }
-    profile_peaks(buffer.as_mut_slice(), (v, u0), options, points);
+}
+
+/// A Gaussian's full width at half maximum in sigmas, 2 sqrt(2 ln 2).
+const FWHM_PER_SIGMA: f64 = 2.354_820_045;
+
+/// Steger's centre of `point` again, on the scores less a linear
+/// background: each pixel's score less the mean of its two detector
+/// windows (the background's value there where it is linear). The line
+/// detector subtracts the larger window instead, which keeps a step (an
+/// apple's edge) from looking like a line but, where the background slopes
+/// under a wide stripe, moves the centre towards the lower side (0.24 px
+/// for a stripe of sigma 2.5 px on a slope of 2 DN/px): this removes that.
+/// Only a stripe wide enough to reach the windows is biased, and only it
+/// is refined. The point keeps its centre where the profile's reach leaves `valid`
+/// (columns of `row` that hold scores), where this profile has no maximum
+/// near it, or where the centre would move more than a tenth of the
+/// stripe's width (a slope moves it less, 0.06 of the width at sigma 3 px
+/// on 2 DN/px: a larger move is a step beside the line, not a slope).
+fn refine_on_linear_background<T: Copy + Into<f64>>(
+    row: &[T],
+    (valid_first, valid_last): (usize, usize),
+    background: LocalBackground,
+    point: &mut StripePoint,
+) {
+    let (gap, window, reach) = (background.gap_px, background.window_px, background.reach());
+    // A stripe whose Gaussian (sigma = FWHM / 2.355) ends, at 3 sigma,
+    // before the windows begin leaves them to the background alone, where
+    // the detector is unbiased (0.004 px at sigma 1.5 px on 2 DN/px).
+    let reaches_windows = 3.0 * point.width_px / FWHM_PER_SIGMA > gap as f64;
+    if window == 0 || !reaches_windows || !point.u_px.is_finite() || point.u_px < 0.0 {
+        return;
+    }
+    let sigma = (point.width_px / (2.0 * 3.0_f64.sqrt())).max(STEGER_MIN_SIGMA_PX);
+    // Pixels each side of the peak: Steger's kernel (4 sigma) from anywhere
+    // within the stripe's width.
+    let half = (4.0 * sigma + 0.5).ceil() as usize + point.width_px.ceil() as usize + 1;
+    let k = point.u_px.round() as usize;
+    let Some(first) = k.checked_sub(half) else { return };
+    let last = k + half;
+    if first < valid_first + reach || last + reach > valid_last.min(row.len().saturating_sub(1)) {
+        return;
+    }
+    let mean = |a: usize| row[a..a + window].iter().map(|&s| s.into()).sum::<f64>() / window as f64;
+    let profile: Vec<f32> = (first..=last)
+        .map(|i| (row[i].into() - 0.5 * (mean(i - reach) + mean(i + gap + 1))) as f32)
+        .collect();
+    let within = point.width_px.ceil() as usize;
+    let local = k - first;
+    let Some(centre) = steger_centre(&profile[..], local, local - within, local + within, sigma)
+    else {
+        return;
+    };
+    let centre = first as f64 + centre;
+    if (centre - point.u_px).abs() <= 0.1 * point.width_px {
+        point.u_px = centre;
+    }
 }
 
 /// The peaks of one span's profile (pixel 0 at column `u0` of row `v`),
@@ -1402,6 +1490,56 @@ mod tests {
                 (3.0 + 100.0 * (-((i as f64 - centre).powi(2)) / (2.0 * 1.5 * 1.5)).exp()) as f32
             })
             .collect()
+    }
+
+    /// A wide stripe (sigma 2.5 px, as a defocused line gives) on a
+    /// background that slopes 1.5 DN per px (a shaded fruit), each pixel
+    /// the mean over its width, red on a grey ground.
+    fn wide_stripe_on_a_slope(centre: f64, with_stripe: bool) -> RgbImage {
+        let (width, height) = (121_u32, 4_u32);
+        RgbImage::from_fn(width, height, |u, _| {
+            let red = (0..20)
+                .map(|j| {
+                    let x = f64::from(u) - 0.5 + (f64::from(j) + 0.5) / 20.0;
+                    let stripe = if with_stripe {
+                        70.0 * (-((x - centre).powi(2)) / (2.0 * 2.5 * 2.5)).exp()
+                    } else {
+                        0.0
+                    };
+                    100.0 + 1.5 * (x - 60.0) + stripe
+                })
+                .sum::<f64>()
+                / 20.0;
+            image::Rgb([red.round() as u8, 30, 30])
+        })
+    }
+
+    #[test]
+    fn a_wide_stripe_on_a_sloping_background_keeps_its_centre() {
+        let options = StripeOptions::orchard();
+        for centre in [58.0, 60.3, 61.7] {
+            let on = wide_stripe_on_a_slope(centre, true);
+            let off = wide_stripe_on_a_slope(centre, false);
+            let region = Region::full(on.width(), on.height());
+            // The colour score (no laser-off image), the difference with
+            // a laser-off image, and a score image.
+            let colour = extract_stripe_rgb(&on, None, &region, &options).unwrap();
+            let difference = extract_stripe_rgb(&on, Some(&off), &region, &options).unwrap();
+            let score = laser_score(&on, None, &options).unwrap();
+            let from_score = extract_stripe(&score, &region, &options);
+            for (what, points) in
+                [("colour", colour), ("difference", difference), ("score image", from_score)]
+            {
+                // One point per row on the stripe (the ramp's end at the
+                // image's border may give another, far from it).
+                let on_stripe: Vec<_> =
+                    points.iter().filter(|p| (p.u_px - centre).abs() < 5.0).collect();
+                assert_eq!(on_stripe.len(), 4, "{what}: {points:?}");
+                for p in on_stripe {
+                    assert!((p.u_px - centre).abs() < 0.05, "{what}: {} for {centre}", p.u_px);
+                }
+            }
+        }
     }
 
     #[test]
