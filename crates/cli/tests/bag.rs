@@ -36,26 +36,23 @@ fn position(source: &[&str], calibration: &Path) -> Value {
     json(&alacs(&args))["position_mm"].clone()
 }
 
+/// A simulated scan (seed 4, quarter scale, with `extra` options) written
+/// to `dir/scan` and recorded to `dir/scan.mcap`; its `--json` answer, `ok`.
+fn recorded_scan(dir: &Path, extra: &[&str]) -> (std::path::PathBuf, std::path::PathBuf, Value) {
+    let folder = dir.join("scan");
+    let bag = dir.join("scan.mcap");
+    let mut args = vec!["scan", "--sim", "--seed", "4", "--scale", "0.25"];
+    args.extend_from_slice(extra);
+    args.extend_from_slice(&["--out", p(&folder), "--record", p(&bag), "--json"]);
+    let scanned = json(&alacs(&args));
+    assert_eq!(scanned["status"], "ok");
+    (folder, bag, scanned)
+}
+
 #[test]
 fn a_recorded_scan_localizes_from_the_bag_as_from_its_folder() {
     let dir = tempfile::tempdir().unwrap();
-    let folder = dir.path().join("scan");
-    let bag = dir.path().join("scan.mcap");
-    let scanned = json(&alacs(&[
-        "scan",
-        "--sim",
-        "--seed",
-        "4",
-        "--scale",
-        "0.25",
-        "--laser-off",
-        "--out",
-        p(&folder),
-        "--record",
-        p(&bag),
-        "--json",
-    ]));
-    assert_eq!(scanned["status"], "ok");
+    let (folder, bag, scanned) = recorded_scan(dir.path(), &["--laser-off"]);
     let from_folder = position(&["--scan", p(&folder)], &folder);
     assert_eq!(from_folder, scanned["position_mm"]);
     assert_eq!(position(&["--bag", p(&bag)], &folder), from_folder);
@@ -251,22 +248,7 @@ fn without_message(bag: &Path, out: &Path, topic: &str, skip: usize) {
 #[test]
 fn a_frame_whose_slide_message_is_missing_is_refused_not_given_the_previous_slide() {
     let dir = tempfile::tempdir().unwrap();
-    let folder = dir.path().join("scan");
-    let bag = dir.path().join("scan.mcap");
-    let scanned = json(&alacs(&[
-        "scan",
-        "--sim",
-        "--seed",
-        "4",
-        "--scale",
-        "0.25",
-        "--out",
-        p(&folder),
-        "--record",
-        p(&bag),
-        "--json",
-    ]));
-    assert_eq!(scanned["status"], "ok");
+    let (folder, bag, _) = recorded_scan(dir.path(), &[]);
     // The third frame's slide position is lost.
     let broken = dir.path().join("broken.mcap");
     without_message(&bag, &broken, "/slide", 2);
