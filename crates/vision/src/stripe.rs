@@ -61,6 +61,19 @@ pub enum PeakMethod {
 /// sampled derivative kernels no longer smooth the pixel noise.
 const STEGER_MIN_SIGMA_PX: f64 = 0.7;
 
+/// [`PeakMethod::Steger`]'s smoothing sigma for a stripe `width_px` wide at
+/// half maximum: `w / sqrt(3)` for its half-width `w`, at least
+/// [`STEGER_MIN_SIGMA_PX`].
+fn steger_sigma(width_px: f64) -> f64 {
+    (width_px / (2.0 * 3.0_f64.sqrt())).max(STEGER_MIN_SIGMA_PX)
+}
+
+/// Pixels Steger's derivative kernels of `sigma` reach each side of a
+/// pixel: 4 sigma, rounded up.
+fn steger_reach(sigma: f64) -> usize {
+    (4.0 * sigma + 0.5).ceil() as usize
+}
+
 /// Settings of [`extract_stripe`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct StripeOptions {
@@ -523,7 +536,7 @@ pub fn extract_stripe_rgb(
                     }
                     let mut profile = Scaled { excess: &mut scratch.profile, value };
                     profile_peaks(&mut profile, (v, u0), options, &mut points);
-                    if !points.is_empty() {
+                    if points.iter().any(|p| reaches_windows(p, background)) {
                         // The centres again on the scores (the detector ran
                         // only where peaks could be: the whole span now).
                         deinterleave(&mut scratch.scores[first..=last], &scratch.interleaved);
@@ -768,8 +781,7 @@ fn candidate_margin_px(options: &StripeOptions) -> usize {
         return usize::MAX / 4;
     }
     let width = options.max_width_px.max(0.0).ceil() as usize;
-    let sigma = (width as f64 / (2.0 * 3.0_f64.sqrt())).max(STEGER_MIN_SIGMA_PX);
-    let steger = (4.0 * sigma + 0.5).ceil() as usize;
+    let steger = steger_reach(steger_sigma(width as f64));
     (width + 2) + steger.max(width.max(2)) + 2
 }
 
@@ -838,6 +850,14 @@ fn span_peaks<T: Summable>(
 /// A Gaussian's full width at half maximum in sigmas, 2 sqrt(2 ln 2).
 const FWHM_PER_SIGMA: f64 = 2.354_820_045;
 
+/// Whether `point`'s stripe reaches the line detector's windows: a
+/// Gaussian (sigma = FWHM / 2.355) that ends, at 3 sigma, before they begin
+/// leaves them to the background alone, where the detector is unbiased
+/// (0.004 px at sigma 1.5 px on 2 DN/px).
+fn reaches_windows(point: &StripePoint, background: LocalBackground) -> bool {
+    background.window_px > 0 && 3.0 * point.width_px / FWHM_PER_SIGMA > background.gap_px as f64
+}
+
 /// Steger's centre of `point` again, on the scores less a linear
 /// background: each pixel's score less the mean of its two detector
 /// windows (the background's value there where it is linear). The line
@@ -858,17 +878,13 @@ fn refine_on_linear_background<T: Copy + Into<f64>>(
     point: &mut StripePoint,
 ) {
     let (gap, window, reach) = (background.gap_px, background.window_px, background.reach());
-    // A stripe whose Gaussian (sigma = FWHM / 2.355) ends, at 3 sigma,
-    // before the windows begin leaves them to the background alone, where
-    // the detector is unbiased (0.004 px at sigma 1.5 px on 2 DN/px).
-    let reaches_windows = 3.0 * point.width_px / FWHM_PER_SIGMA > gap as f64;
-    if window == 0 || !reaches_windows || !point.u_px.is_finite() || point.u_px < 0.0 {
+    if !reaches_windows(point, background) || !point.u_px.is_finite() || point.u_px < 0.0 {
         return;
     }
-    let sigma = (point.width_px / (2.0 * 3.0_f64.sqrt())).max(STEGER_MIN_SIGMA_PX);
-    // Pixels each side of the peak: Steger's kernel (4 sigma) from anywhere
-    // within the stripe's width.
-    let half = (4.0 * sigma + 0.5).ceil() as usize + point.width_px.ceil() as usize + 1;
+    let sigma = steger_sigma(point.width_px);
+    // Pixels each side of the peak: Steger's kernel from anywhere within
+    // the stripe's width.
+    let half = steger_reach(sigma) + point.width_px.ceil() as usize + 1;
     let k = point.u_px.round() as usize;
     let Some(first) = k.checked_sub(half) else { return };
     let last = k + half;
@@ -1387,10 +1403,7 @@ fn peak_at<P: Profile + ?Sized>(
             let offset = if denominator < 0.0 { 0.5 * (a - c) / denominator } else { 0.0 };
             k as f64 + offset.clamp(-0.5, 0.5)
         }
-        PeakMethod::Steger => {
-            let sigma = (width_px / (2.0 * 3.0_f64.sqrt())).max(STEGER_MIN_SIGMA_PX);
-            steger_centre(row, k, left, right, sigma)?
-        }
+        PeakMethod::Steger => steger_centre(row, k, left, right, steger_sigma(width_px))?,
     };
     Some((centre, peak, width_px))
 }
@@ -1449,7 +1462,7 @@ fn steger_centre<P: Profile + ?Sized>(
 /// (a pixel holds the mean of the continuous profile over its width), cut
 /// at 4 sigma; the row's end pixels repeat beyond it.
 fn smoothed_derivatives<P: Profile + ?Sized>(row: &P, x: f64, sigma: f64) -> (f64, f64) {
-    let reach = (4.0 * sigma + 0.5).ceil() as i64;
+    let reach = steger_reach(sigma) as i64;
     let (nearest, last) = (x.round() as i64, row.pixels() as i64 - 1);
     // The Gaussian g and its slope g' at distance d from x; the normalisation,
     // 1 / (sqrt(2 pi) sigma), cancels in -g' / g'' and keeps the sign of
