@@ -19,7 +19,9 @@
 //! and is refused for the reporting range: its single scans are not looked
 //! at while developing; each line splits the error along the line of sight
 //! and across it, with the answer's radius and the outline's image radius
-//! against the truth's. Three switches take a cause out to measure it:
+//! against the truth's, and how far the answer's laser points lie behind
+//! the true surface along their camera rays (median): the stripe's own
+//! error, apart from the fit's. Three switches take a cause out to measure it:
 //! `--round` makes every fruit's ellipsoid a sphere (a randomized apple
 //! keeps its form, its cavities and taper, within it), `--no-outline`
 //! locates without the fruit's outline, `--true-calibration` locates a randomized scan
@@ -29,7 +31,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use alacs_locate::{FrameImages, LocateOptions, Prior, Status, locate};
-use alacs_model::{Camera, LaserModel, ScanStrategy};
+use alacs_model::{Camera, LaserModel, Ray, ScanStrategy};
 use alacs_sim::{OrchardOptions, ScanOptions, simulate_rendered_scan};
 
 /// First seed of the tuning range.
@@ -248,6 +250,30 @@ fn main() {
                                     }
                                 })
                             });
+                            // How far the answer's points lie behind the true surface
+                            // along their camera rays (median, mm): the stripe's own bias
+                            // (a wide or glowing stripe, the calibration), apart from the fit.
+                            let behind = answer.fused.as_ref().map_or(f64::NAN, |f| {
+                                let mut offsets: Vec<f64> = answer
+                                    .frames
+                                    .iter()
+                                    .flat_map(|r| &r.points_in_camera)
+                                    .filter(|(_, p)| {
+                                        ((p - f.sphere.centre).norm() - f.sphere.radius_mm).abs()
+                                            < 2.5
+                                    })
+                                    .filter_map(|(_, p)| {
+                                        let ray = Ray {
+                                            origin: nalgebra::Point3::origin(),
+                                            direction: p.coords.normalize(),
+                                        };
+                                        let hit = scan.scene.first_hit(&ray, 1.0)?;
+                                        (hit.object == 0).then(|| p.coords.norm() - hit.t)
+                                    })
+                                    .collect();
+                                offsets.sort_by(f64::total_cmp);
+                                offsets.get(offsets.len() / 2).copied().unwrap_or(f64::NAN)
+                            });
                             // The error along the line of sight and across it, and the
                             // answer's radius against the truth's.
                             let p = answer.position_mm.unwrap_or(truth);
@@ -265,7 +291,7 @@ fn main() {
                                     o.radius_px - scan.camera.fx_px * theta.tan()
                                 });
                             format!(
-                                "ok {e:6.2} mm (outline {outline_px:+.2} px, along {along:+.2}, across {across:.2}, radius {:+.1} mm; sigma {sigma:.1} mm, {} of its {} points on the fruit): {}",
+                                "ok {e:6.2} mm (outline {outline_px:+.2} px, along {along:+.2}, across {across:.2}, radius {:+.1} mm, points {behind:+.2} mm behind; sigma {sigma:.1} mm, {} of its {} points on the fruit): {}",
                                 radius - truth_radius,
                                 on_truth.0,
                                 on_truth.1,
