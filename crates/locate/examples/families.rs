@@ -19,9 +19,11 @@
 //! and is refused for the reporting range: its single scans are not looked
 //! at while developing; each line splits the error along the line of sight
 //! and across it, with the answer's radius and the outline's image radius
-//! against the truth's, and how far the answer's laser points lie behind
-//! the true surface along their camera rays (median): the stripe's own
-//! error, apart from the fit's. Three switches take a cause out to measure it:
+//! against the truth's, how far the answer's laser points lie behind
+//! the true surface along their camera rays (median: the stripe's own
+//! error, apart from the fit's), and along the line of sight how far the
+//! answer's front lies behind the fruit's and its centre behind its front
+//! (against the truth's centre behind the fruit's front). Three switches take a cause out to measure it:
 //! `--round` makes every fruit's ellipsoid a sphere (a randomized apple
 //! keeps its form, its cavities and taper, within it), `--no-outline`
 //! locates without the fruit's outline, `--true-calibration` locates a randomized scan
@@ -274,6 +276,35 @@ fn main() {
                                 offsets.sort_by(f64::total_cmp);
                                 offsets.get(offsets.len() / 2).copied().unwrap_or(f64::NAN)
                             });
+                            // Where the answer's front lies against the fruit's, along
+                            // the line of sight through the truth, and how far its centre
+                            // lies behind that front against the truth's (mm).
+                            let (front, depth, true_depth) =
+                                answer.fused.as_ref().map_or((f64::NAN, f64::NAN, f64::NAN), |f| {
+                                    let sight = truth.coords.normalize();
+                                    let ray = Ray {
+                                        origin: nalgebra::Point3::origin(),
+                                        direction: sight,
+                                    };
+                                    let true_front =
+                                        scan.scene.first_hit(&ray, 1.0).map_or(f64::NAN, |h| h.t);
+                                    // An ellipsoid's half extent along a unit direction s is
+                                    // sqrt(s' A^-1 s).
+                                    let (centre, depth) = match &f.ellipsoid {
+                                        Some(e) => (
+                                            e.centre,
+                                            e.shape.try_inverse().map_or(f64::NAN, |inverse| {
+                                                sight.dot(&(inverse * sight)).sqrt()
+                                            }),
+                                        ),
+                                        None => (f.sphere.centre, f.sphere.radius_mm),
+                                    };
+                                    (
+                                        centre.coords.dot(&sight) - depth - true_front,
+                                        depth,
+                                        truth.coords.norm() - true_front,
+                                    )
+                                });
                             // The error along the line of sight and across it, and the
                             // answer's radius against the truth's.
                             let p = answer.position_mm.unwrap_or(truth);
@@ -291,7 +322,7 @@ fn main() {
                                     o.radius_px - scan.camera.fx_px * theta.tan()
                                 });
                             format!(
-                                "ok {e:6.2} mm (outline {outline_px:+.2} px, along {along:+.2}, across {across:.2}, radius {:+.1} mm, points {behind:+.2} mm behind; sigma {sigma:.1} mm, {} of its {} points on the fruit): {}",
+                                "ok {e:6.2} mm (outline {outline_px:+.2} px, along {along:+.2}, across {across:.2}, radius {:+.1} mm, points {behind:+.2} mm behind, front {front:+.2}, centre {depth:.1} behind it for {true_depth:.1}; sigma {sigma:.1} mm, {} of its {} points on the fruit): {}",
                                 radius - truth_radius,
                                 on_truth.0,
                                 on_truth.1,
