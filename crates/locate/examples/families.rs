@@ -286,8 +286,10 @@ fn main() {
                                         origin: nalgebra::Point3::origin(),
                                         direction: sight,
                                     };
-                                    let true_front =
-                                        scan.scene.first_hit(&ray, 1.0).map_or(f64::NAN, |h| h.t);
+                                    let true_front = scan
+                                        .scene
+                                        .first_hit_among(&ray, 1.0, std::iter::once(0))
+                                        .map_or(f64::NAN, |h| h.t);
                                     // An ellipsoid's half extent along a unit direction s is
                                     // sqrt(s' A^-1 s).
                                     let (centre, depth) = match &f.ellipsoid {

@@ -68,6 +68,11 @@ const INSIDE_MM: f64 = 4.0;
 /// cut lose the line too, so even an unoccluded fruit shows only half to
 /// three quarters of its predicted rows; absence is weak evidence, which
 /// still tells a sphere that crosses empty space from one that does not.
+///
+/// A frame's missing rows count in proportion to the rows of its search
+/// where it shows the line at all, on anything: a frame whose line the
+/// leaves' shadow or a dark scene hides everywhere says nothing about
+/// where the fruit is not.
 const MISSING_ROW_COST: f64 = 0.05;
 
 /// A predicted point counts only where the surface faces both the camera
@@ -123,6 +128,9 @@ pub(crate) struct FrameEvidence {
     rows: BTreeMap<i64, Vec<Point3<f64>>>,
     /// Rows the frame's stripe search covered.
     searched: (i64, i64),
+    /// The share of those rows where the frame shows the line at all, on
+    /// anything: how far its absence from a row is evidence.
+    shown: f64,
 }
 
 /// Everything the score looks at.
@@ -164,11 +172,16 @@ impl<'a> Evidence<'a> {
                 });
             let searched =
                 (searched.0.max(0), searched.1.min(i64::from(context.camera.height_px) - 1));
+            let shown_rows: std::collections::BTreeSet<i64> =
+                result.stripe.iter().map(|s| s.v_px.round() as i64).collect();
+            let span = (searched.1 - searched.0 + 1).max(1);
+            let shown = shown_rows.range(searched.0..=searched.1).count() as f64 / span as f64;
             frames.push(FrameEvidence {
                 plane,
                 laser_origin: context.laser.origin_in_camera(result.slide_mm),
                 rows,
                 searched,
+                shown,
             });
         }
         let rough = context.prior.rough_position_mm;
@@ -237,18 +250,18 @@ pub(crate) fn score(sphere: &Sphere, evidence: &Evidence) -> Score {
             reward += OUTLINE_WEIGHT * (1.0 - (e / SURFACE_BAND_MM).powi(2));
         }
     }
-    let (mut missing, mut predicted) = (0, 0);
+    let (mut missing, mut predicted, mut absence) = (0, 0, 0.0);
     for frame in &evidence.frames {
         let (m, p) = missing_rows(sphere, frame, evidence.camera);
         missing += m;
         predicted += p;
+        absence += frame.shown * m as f64;
     }
     let r0 = evidence.prior.fruit_radius_mm;
     let radius_cost = 0.5 * ((sphere.radius_mm - r0) / (RADIUS_PRIOR_STD * r0)).powi(2);
     let offset = sphere.centre - evidence.prior.rough_position_mm;
     let rough_cost = 0.5 * offset.dot(&(evidence.rough_information * offset));
-    let total =
-        -reward + hidden as f64 + MISSING_ROW_COST * missing as f64 + radius_cost + rough_cost;
+    let total = -reward + hidden as f64 + MISSING_ROW_COST * absence + radius_cost + rough_cost;
     Score {
         total,
         explained,

@@ -15,7 +15,7 @@ use alacs_vision::{read_colour_image, read_laser_off_image};
 use image::RgbImage;
 use rayon::prelude::*;
 
-use crate::frame::{FrameContext, SearchBall};
+use crate::frame::{FrameContext, FrameCrop, SearchBall, unlit_views};
 use crate::locate::{check_frame, check_options, check_prior, conclude};
 use crate::{Error, FrameImages, FrameResult, Localization, LocateOptions, Prior, Result, locate};
 
@@ -225,8 +225,8 @@ pub fn locate_frames<'a>(
     let total = total.unwrap_or(0);
     let done = AtomicUsize::new(0);
     let chunk = rayon::current_num_threads().clamp(1, MAX_FRAMES_IN_FLIGHT);
-    // Per fruit, per frame.
-    let mut results: Vec<Vec<FrameResult>> = priors.iter().map(|_| Vec::new()).collect();
+    // Per fruit, per frame: the pixels around its search ball.
+    let mut crops: Vec<Vec<FrameCrop>> = priors.iter().map(|_| Vec::new()).collect();
     // The per-pixel minimum of the frames' views: the scene without the
     // laser, all the outline and `drop_unlit_points` need.
     let mut least: Option<RgbImage> = None;
@@ -241,8 +241,8 @@ pub fn locate_frames<'a>(
             }
             batch.push((index, frame?));
         }
-        // Per frame: each fruit's result, and the frame's images.
-        let processed: Vec<(Vec<FrameResult>, FrameImagePair)> = batch
+        // Per frame: each fruit's crop, and the frame's images.
+        let processed: Vec<(Vec<FrameCrop>, FrameImagePair)> = batch
             .into_par_iter()
             .map(|(index, pending)| {
                 let PendingFrame { slide_mm, name, decode } = pending;
@@ -250,16 +250,13 @@ pub fn locate_frames<'a>(
                 progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
                 let frame = FrameImages { image: &on, image_laser_off: off.as_ref(), slide_mm };
                 check_frame(camera, index, &frame).map_err(|e| in_named(&name, e))?;
-                let per_fruit = contexts
-                    .iter()
-                    .map(|context| context.frame(index, &frame))
-                    .collect::<Result<Vec<_>>>()?;
+                let per_fruit = contexts.iter().map(|context| context.crop(&frame)).collect();
                 Ok((per_fruit, (on, off)))
             })
             .collect::<Result<_>>()?;
         for (per_fruit, (on, off)) in processed {
-            for (fruit, result) in results.iter_mut().zip(per_fruit) {
-                fruit.push(result);
+            for (fruit, crop) in crops.iter_mut().zip(per_fruit) {
+                fruit.push(crop);
             }
             darken(&mut least, off.unwrap_or(on));
         }
@@ -268,11 +265,20 @@ pub fn locate_frames<'a>(
         return Err(Error::InvalidInput("the scan has no frames".into()));
     }
     let views: Vec<&RgbImage> = least.iter().collect();
-    Ok(results
-        .into_iter()
+    crops
+        .iter()
         .zip(&contexts)
-        .map(|(r, context)| conclude(r, context, &views))
-        .collect())
+        .map(|(crops, context)| {
+            let unlit = unlit_views(crops);
+            let results = crops
+                .par_iter()
+                .zip(&unlit)
+                .enumerate()
+                .map(|(index, (crop, unlit))| context.frame(index, crop, unlit.as_ref()))
+                .collect::<Result<Vec<FrameResult>>>()?;
+            Ok(conclude(results, context, &views))
+        })
+        .collect()
 }
 
 /// Folds `view` into the per-pixel minimum `least` (the views share their

@@ -253,10 +253,129 @@ impl PlaneFrame {
     }
 }
 
+/// A frame's pixels around the search ball's image: all its stripe search
+/// reads, and what another frame's search needs of it as a view without
+/// that frame's laser ([`unlit_views`]).
+pub(crate) struct FrameCrop {
+    /// Column and row of the crop's first pixel in the frame.
+    origin: (u32, u32),
+    /// The frame (laser on).
+    on: RgbImage,
+    /// The frame's own laser-off image, where it has one.
+    off: Option<RgbImage>,
+    /// Slide travel, mm.
+    slide_mm: f64,
+}
+
+impl FrameCrop {
+    /// The crop's view without the laser: its laser-off image, or itself
+    /// where it has none (the laser then lights one line of it).
+    fn view(&self) -> &RgbImage {
+        self.off.as_ref().unwrap_or(&self.on)
+    }
+}
+
+/// Pixels the crop around the search ball's image keeps beyond it on
+/// each side: more than the line detector reads beyond a search region's
+/// span (`LocalBackground`'s gap and window, 9 px for the orchard's).
+const CROP_MARGIN_PX: f64 = 24.0;
+
+/// Points on the search ball's silhouette projected to find its image.
+const SILHOUETTE_POINTS: usize = 64;
+
+/// Per frame, the scan's other frames as its view without the laser: the
+/// per-pixel minimum of the frames at least [`MIN_SLIDES_APART_MM`] from
+/// it, where the laser lit other lines of a scene that stood still (their
+/// laser-off images where they have them). `None` for a frame with its own
+/// laser-off image, or with no such other frame. Its stripe is then
+/// searched on its difference to that view, the laser's own light, as a
+/// frame with a laser-off image is: the fruit's and the leaves' colours
+/// cancel, so a line on green or sunlit red skin, or spread by the flesh
+/// to a few DN, stands out where the colour score loses it.
+pub(crate) fn unlit_views(crops: &[FrameCrop]) -> Vec<Option<RgbImage>> {
+    crops
+        .iter()
+        .map(|crop| {
+            if crop.off.is_some() {
+                return None;
+            }
+            let mut others = crops
+                .iter()
+                .filter(|o| (o.slide_mm - crop.slide_mm).abs() >= MIN_SLIDES_APART_MM)
+                .filter(|o| o.origin == crop.origin && o.on.dimensions() == crop.on.dimensions());
+            let mut least = others.next()?.view().clone();
+            for other in others {
+                for (l, v) in least.iter_mut().zip(other.view().iter()) {
+                    *l = (*l).min(*v);
+                }
+            }
+            Some(least)
+        })
+        .collect()
+}
+
 impl FrameContext<'_> {
-    pub(crate) fn frame(&self, index: usize, frame: &FrameImages) -> Result<FrameResult> {
-        let mut result = FrameResult {
+    /// The pixel box (first column, first row, columns, rows) around the
+    /// search ball's image, with [`CROP_MARGIN_PX`]: the ball's silhouette
+    /// projected, or the whole image where the ball reaches behind the
+    /// camera.
+    fn ball_box(&self) -> (u32, u32, u32, u32) {
+        let (width, height) = (self.camera.width_px, self.camera.height_px);
+        let whole = (0, 0, width, height);
+        let (centre, radius) = (self.search.centre.coords, self.search.radius_mm);
+        let distance = centre.norm();
+        if !(distance > radius && radius > 0.0) {
+            return whole;
+        }
+        // The silhouette: the circle where the camera's rays touch the ball.
+        let sight = centre / distance;
+        let along = (distance * distance - radius * radius) / distance;
+        let rho = radius * (distance * distance - radius * radius).sqrt() / distance;
+        let Some(e1) = sight.cross(&Vector3::x()).try_normalize(1e-9) else { return whole };
+        let e2 = sight.cross(&e1);
+        let (mut lo, mut hi) = (
+            Point2::new(f64::INFINITY, f64::INFINITY),
+            Point2::new(f64::NEG_INFINITY, f64::NEG_INFINITY),
+        );
+        for k in 0..SILHOUETTE_POINTS {
+            let t = std::f64::consts::TAU * k as f64 / SILHOUETTE_POINTS as f64;
+            let p = Point3::from(sight * along + (e1 * t.cos() + e2 * t.sin()) * rho);
+            let Some(px) = self.camera.project(&p).ok().filter(|_| p.z > 0.0) else {
+                return whole;
+            };
+            (lo.x, lo.y, hi.x, hi.y) =
+                (lo.x.min(px.x), lo.y.min(px.y), hi.x.max(px.x), hi.y.max(px.y));
+        }
+        let clamp = |x: f64, limit: u32| x.clamp(0.0, f64::from(limit)) as u32;
+        let (u0, v0) = (clamp(lo.x - CROP_MARGIN_PX, width), clamp(lo.y - CROP_MARGIN_PX, height));
+        let (u1, v1) =
+            (clamp(hi.x + CROP_MARGIN_PX + 1.0, width), clamp(hi.y + CROP_MARGIN_PX + 1.0, height));
+        (u0, v0, u1.saturating_sub(u0), v1.saturating_sub(v0))
+    }
+
+    /// The frame's pixels around the search ball's image.
+    pub(crate) fn crop(&self, frame: &FrameImages) -> FrameCrop {
+        let (u0, v0, w, h) = self.ball_box();
+        let cut = |image: &RgbImage| image::imageops::crop_imm(image, u0, v0, w, h).to_image();
+        FrameCrop {
+            origin: (u0, v0),
+            on: cut(frame.image),
+            off: frame.image_laser_off.map(cut),
             slide_mm: frame.slide_mm,
+        }
+    }
+
+    /// Steps 1-4 for one frame: its crop ([`FrameContext::crop`]) and,
+    /// where it has no laser-off image, the scan's other frames as one
+    /// ([`unlit_views`]).
+    pub(crate) fn frame(
+        &self,
+        index: usize,
+        crop: &FrameCrop,
+        unlit: Option<&RgbImage>,
+    ) -> Result<FrameResult> {
+        let mut result = FrameResult {
+            slide_mm: crop.slide_mm,
             region_outline_px: Vec::new(),
             stripe: Vec::new(),
             points_in_camera: Vec::new(),
@@ -265,7 +384,7 @@ impl FrameContext<'_> {
             rejected: None,
             stripe_red_dn: Vec::new(),
         };
-        let Some(plane) = PlaneFrame::new(self.laser, frame.slide_mm) else {
+        let Some(plane) = PlaneFrame::new(self.laser, crop.slide_mm) else {
             result.rejected = Some("the laser plane is degenerate".into());
             return Ok(result);
         };
@@ -289,21 +408,23 @@ impl FrameContext<'_> {
                 self.camera.project(&p).ok()
             })
             .collect();
-        let region = Region::convex_polygon(
-            &result.region_outline_px,
-            0.0,
-            self.camera.width_px,
-            self.camera.height_px,
-        );
-        // 2. The stripe.
-        result.stripe =
-            extract_stripe_rgb(frame.image, frame.image_laser_off, &region, &self.options.stripe)?;
-        if frame.image_laser_off.is_none() {
+        // 2. The stripe, searched in the crop.
+        let (u0, v0) = (f64::from(crop.origin.0), f64::from(crop.origin.1));
+        let in_crop: Vec<Point2<f64>> =
+            result.region_outline_px.iter().map(|p| Point2::new(p.x - u0, p.y - v0)).collect();
+        let region = Region::convex_polygon(&in_crop, 0.0, crop.on.width(), crop.on.height());
+        let off = crop.off.as_ref().or(unlit);
+        result.stripe = extract_stripe_rgb(&crop.on, off, &region, &self.options.stripe)?;
+        if off.is_none() {
             // The pixel's red: the per-pixel minimum of this one image.
             let red_at = |s: &StripePoint| {
-                least_at_px(&[frame.image], s.u_px.round(), s.v_px.round()).map_or(0, |rgb| rgb[0])
+                least_at_px(&[&crop.on], s.u_px.round(), s.v_px.round()).map_or(0, |rgb| rgb[0])
             };
             result.stripe_red_dn = result.stripe.iter().map(red_at).collect();
+        }
+        for point in &mut result.stripe {
+            point.u_px += u0;
+            point.v_px += v0;
         }
         // 3. Triangulated points inside the ball.
         let prepared = self.laser.prepare();
@@ -313,7 +434,7 @@ impl FrameContext<'_> {
             .enumerate()
             .filter_map(|(i, s)| {
                 let normalized = self.camera.undistort_pixel(&Point2::new(s.u_px, s.v_px)).ok()?;
-                let p = prepared.triangulate(&normalized, frame.slide_mm).ok()?;
+                let p = prepared.triangulate(&normalized, crop.slide_mm).ok()?;
                 ((p - self.search.centre).norm() <= self.search.radius_mm).then_some((i, p))
             })
             .collect();
@@ -571,5 +692,70 @@ mod tests {
         let cov = nalgebra::Matrix3::from_diagonal_element(9.0);
         assert!(ball.contradiction(&Point3::new(0.0, 0.0, 1040.0), Some(&cov)).is_none());
         assert!(ball.contradiction(&Point3::new(0.0, 0.0, 1045.0), Some(&cov)).is_some());
+    }
+
+    /// A bicolour fruit's rows: greenish-yellow skin with a red streak at
+    /// column 30 (skin colour, 120 DN of colour contrast), and the laser at
+    /// `line_px` adding 20 DN of red with a sigma of 2.5 px (a line spread
+    /// by the flesh).
+    fn bicolour_rows(line_px: f64) -> RgbImage {
+        RgbImage::from_fn(120, 12, |u, _| {
+            let u = f64::from(u);
+            let streak = 120.0 * (-0.5 * ((u - 30.0) / 1.5).powi(2)).exp();
+            let laser = 20.0 * (-0.5 * ((u - line_px) / 2.5).powi(2)).exp();
+            image::Rgb([(110.0 + streak + laser) as u8, 130, 40])
+        })
+    }
+
+    fn crop(on: RgbImage, off: Option<RgbImage>, slide_mm: f64) -> FrameCrop {
+        FrameCrop { origin: (0, 0), on, off, slide_mm }
+    }
+
+    #[test]
+    fn the_other_frames_are_a_frames_view_without_its_laser() {
+        let crops = [
+            crop(bicolour_rows(60.0), None, 0.0),
+            crop(bicolour_rows(75.0), None, 10.0),
+            crop(bicolour_rows(90.0), None, 20.0),
+            crop(bicolour_rows(91.0), None, 21.0),
+            crop(bicolour_rows(60.0), Some(bicolour_rows(-100.0)), 30.0),
+        ];
+        let unlit = unlit_views(&crops);
+        // The first frame's view: the skin without any line at 60 px.
+        let view = unlit[0].as_ref().unwrap();
+        assert_eq!(view.get_pixel(60, 5), bicolour_rows(-100.0).get_pixel(60, 5));
+        assert_eq!(view.get_pixel(30, 5), bicolour_rows(-100.0).get_pixel(30, 5));
+        // A frame with its own laser-off image keeps it.
+        assert!(unlit[4].is_none());
+        // Only frames at other slides count: none for a lone frame.
+        assert!(unlit_views(&crops[..1])[0].is_none());
+        assert!(
+            unlit_views(&[
+                crop(bicolour_rows(60.0), None, 0.0),
+                crop(bicolour_rows(61.0), None, 1.0)
+            ])[0]
+                .is_none()
+        );
+    }
+
+    #[test]
+    fn a_weak_line_beside_a_skin_streak_is_found_against_the_other_frames() {
+        let options = LocateOptions::default().stripe;
+        let region = Region::full(120, 12);
+        let on = bicolour_rows(60.0);
+        // On the colour score the streak outshines the line six to one (the
+        // orchard search drops peaks under a fifth of the row's strongest).
+        let by_colour = extract_stripe_rgb(&on, None, &region, &options).unwrap();
+        assert!(by_colour.iter().all(|p| (p.u_px - 60.0).abs() > 3.0), "{by_colour:?}");
+        // Against the other frames the streak cancels and the line is found.
+        let crops = [
+            crop(on.clone(), None, 0.0),
+            crop(bicolour_rows(75.0), None, 10.0),
+            crop(bicolour_rows(90.0), None, 20.0),
+        ];
+        let unlit = unlit_views(&crops);
+        let found = extract_stripe_rgb(&on, unlit[0].as_ref(), &region, &options).unwrap();
+        assert_eq!(found.len(), 12, "{found:?}");
+        assert!(found.iter().all(|p| (p.u_px - 60.0).abs() < 0.1), "{found:?}");
     }
 }

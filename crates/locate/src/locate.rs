@@ -66,10 +66,13 @@ pub fn locate(
     check_inputs(camera, prior, frames, options)?;
     let search = SearchBall::new(prior, options);
     let context = FrameContext { camera, laser, prior, search: &search, options };
-    let results: Vec<FrameResult> = frames
+    let crops: Vec<frame::FrameCrop> = frames.par_iter().map(|f| context.crop(f)).collect();
+    let unlit = frame::unlit_views(&crops);
+    let results: Vec<FrameResult> = crops
         .par_iter()
+        .zip(&unlit)
         .enumerate()
-        .map(|(index, frame)| context.frame(index, frame))
+        .map(|(index, (crop, unlit))| context.frame(index, crop, unlit.as_ref()))
         .collect::<Result<_>>()?;
     let views: Vec<&RgbImage> =
         frames.iter().map(|f| f.image_laser_off.unwrap_or(f.image)).collect();

@@ -138,8 +138,9 @@ fn family_three_fifths_hidden() {
 }
 
 /// Clusters of 2-4 apples, 30 % hidden, a branch in front of some: at
-/// least six of eight found, none wrong (never a neighbour), median within
-/// 3 mm.
+/// least seven of eight found, none wrong (never a neighbour), median
+/// within 4 mm (a neighbour touching the target lends the sphere its
+/// points: 3-5 mm on half of these eight, docs/ACCURACY.md).
 #[test]
 fn family_clusters_never_a_neighbour() {
     let f = family(130_000, 8, false, |i| OrchardOptions {
@@ -147,7 +148,7 @@ fn family_clusters_never_a_neighbour() {
         front_branches: ((i / 3) % 2) as usize,
         ..hidden(0.3)
     });
-    f.assert_gate("clusters", 6, 3.0, WRONG_MM);
+    f.assert_gate("clusters", 7, 4.0, WRONG_MM);
 }
 
 /// With the renderer randomized (laser, light in the flesh, colours, the
