@@ -182,7 +182,7 @@ fn main() {
             ],
         ),
         (
-            "calibrate laser --samples /dev/zero (refused at the size limit)",
+            "calibrate laser --samples /dev/zero (refused: not a regular file)",
             vec!["calibrate", "laser", "--samples", &zero],
         ),
         (
