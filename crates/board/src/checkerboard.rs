@@ -100,12 +100,6 @@ pub fn board_gray(image: &DynamicImage) -> GrayImage {
 
 /// Finds the `board.cols x board.rows` inner corners in a grey image.
 pub fn detect_checkerboard(gray: &GrayImage, board: &BoardSpec) -> Result<BoardCorners> {
-    let no_board = |reason: String| Error::NoBoard {
-        kind: "checkerboard",
-        cols: board.cols,
-        rows: board.rows,
-        reason,
-    };
     // The corner grid is searched at half resolution first (the ChESS
     // response, which dominates the cost, over a quarter of the pixels),
     // positions mapped back and refined at full resolution below; there,
@@ -138,8 +132,8 @@ pub fn detect_checkerboard(gray: &GrayImage, board: &BoardSpec) -> Result<BoardC
             Err(_) => {}
         }
     }
-    let found = best.ok_or_else(|| full_error.unwrap_or_else(|| "no corner grid".into()));
-    let (mut corners, refined) = found.map_err(no_board)?;
+    let (mut corners, refined) =
+        best.ok_or_else(|| full_error.unwrap_or_else(|| no_checkerboard(board, "no corner grid")))?;
     let half_window = refine_half_window(corners.cell_size_px().unwrap_or(0.0));
     refined.apply(gray, &mut corners, half_window);
     Ok(corners)
@@ -204,7 +198,7 @@ fn labelled_grid(
     scale: f64,
     board: &BoardSpec,
     gray: &GrayImage,
-) -> std::result::Result<(BoardCorners, Refined), String> {
+) -> Result<(BoardCorners, Refined)> {
     let corners = chess_corners(level, region);
     let starts: Vec<Point2<f64>> =
         corners.iter().map(|c| level_to_image((c.position.x, c.position.y), scale)).collect();
@@ -224,9 +218,9 @@ fn grid_labelling(
     scale: f64,
     board: &BoardSpec,
     gray: &GrayImage,
-) -> std::result::Result<BoardCorners, String> {
+) -> Result<BoardCorners> {
     let mut best: Option<BoardCorners> = None;
-    let mut last_error = String::from("no corner grid");
+    let mut last_error = no_checkerboard(board, "no corner grid");
     for params in ChessboardParams::sweep_default() {
         let Some(detection) =
             chessboard::ChessboardDetector::new(params).ok().and_then(|d| d.detect(corners))
@@ -441,6 +435,11 @@ pub(crate) fn keep_more<T>(
     best.as_ref().map_or(0, found)
 }
 
+/// No checkerboard of `board`'s size found, for `reason`.
+fn no_checkerboard(board: &BoardSpec, reason: impl Into<String>) -> Error {
+    Error::NoBoard { kind: "checkerboard", cols: board.cols, rows: board.rows, reason: reason.into() }
+}
+
 /// Fits a labelled corner grid (grid coordinates, pixel) to the board:
 /// chooses the window and the labelling (see the module docs).
 fn label_grid(
@@ -448,7 +447,8 @@ fn label_grid(
     board: &BoardSpec,
     width: u32,
     height: u32,
-) -> std::result::Result<BoardCorners, String> {
+) -> Result<BoardCorners> {
+    let refused = |reason: String| no_checkerboard(board, reason);
     let (cols, rows) = (board.cols as i64, board.rows as i64);
     let needed = board.corner_count();
     let allowed_missing = (needed as f64 * MAX_MISSING_FRACTION).floor() as usize;
@@ -461,19 +461,9 @@ fn label_grid(
         let whole = !grid.is_empty() && grid.len() as i64 == span_i.saturating_mul(span_j);
         let one_short = |a: i64, b: i64| a == cols - 1 && b == rows - 1;
         if whole && (one_short(span_i, span_j) || one_short(span_j, span_i)) {
-            return Err(format!(
-                "only {} of {} corners found: a whole {} x {} grid of inner corners; the board counts inner corners (squares - 1 each way), so a board of {} x {} squares is {} x {}",
-                grid.len(),
-                needed,
-                cols - 1,
-                rows - 1,
-                cols,
-                rows,
-                cols - 1,
-                rows - 1
-            ));
+            return Err(Error::GivenBySquares { cols: board.cols, rows: board.rows, found: grid.len() });
         }
-        return Err(format!("only {} of {} corners found", grid.len(), needed));
+        return Err(refused(format!("only {} of {} corners found", grid.len(), needed)));
     }
     // Candidate windows (origin, width along i, height along j) of the board's size.
     let mut best: Option<(usize, i64, i64, i64, i64)> = None;
@@ -500,22 +490,22 @@ fn label_grid(
         }
     }
     let Some((inside, i0, j0, w, h)) = best else {
-        return Err("no corners".into());
+        return Err(refused("no corners".into()));
     };
     if inside + allowed_missing < needed {
-        return Err(format!(
+        return Err(refused(format!(
             "the largest {}-corner window of the detected {} x {} grid holds only {inside} corners",
             needed,
             max_i - min_i + 1,
             max_j - min_j + 1
-        ));
+        )));
     }
     if tie {
-        return Err(format!(
+        return Err(refused(format!(
             "the detected {} x {} grid fits the board in more than one place",
             max_i - min_i + 1,
             max_j - min_j + 1
-        ));
+        )));
     }
     // Corners of the window by window coordinates (a, b), a along i, b along j.
     let mut window = vec![None; needed];
@@ -556,14 +546,18 @@ fn label_grid(
             chosen = Some((distance, corners));
         }
     }
-    let (_, corners_px) = chosen.ok_or("the corner grid is degenerate (no board axes)")?;
+    let (_, corners_px) =
+        chosen.ok_or_else(|| refused("the corner grid is degenerate (no board axes)".into()))?;
     if let Some((i, p)) = corners_px.iter().enumerate().find_map(|(i, p)| {
         p.filter(|p| {
             p.x < -0.5 || p.y < -0.5 || p.x > width as f64 - 0.5 || p.y > height as f64 - 0.5
         })
         .map(|p| (i, p))
     }) {
-        return Err(format!("corner {i} at ({:.1}, {:.1}) lies outside the image", p.x, p.y));
+        return Err(refused(format!(
+            "corner {i} at ({:.1}, {:.1}) lies outside the image",
+            p.x, p.y
+        )));
     }
     Ok(BoardCorners { cols: cols as usize, rows: rows as usize, corners_px })
 }

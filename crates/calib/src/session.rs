@@ -136,7 +136,7 @@ pub struct ViewBoard {
     /// The image the corners were found in.
     pub image: String,
     /// The corners, or why none were found.
-    pub corners: std::result::Result<BoardCorners, String>,
+    pub corners: std::result::Result<BoardCorners, alacs_board::Error>,
 }
 
 /// Finds the board in every distinct pose of a session: a view's laser-off
@@ -161,7 +161,7 @@ pub fn detect_session_boards(
             let decoded = read_image(&session.path_of(image))?;
             let size = (decoded.width(), decoded.height());
             let gray = board_gray(&decoded);
-            let corners = detect_board_precise(&gray, &session.board).map_err(|e| e.to_string());
+            let corners = detect_board_precise(&gray, &session.board);
             progress();
             Ok((size, ViewBoard { image: image.display().to_string(), corners }))
         })
@@ -234,6 +234,17 @@ pub fn calibrate_camera_session(
     let (_, observations) =
         pose_observations(&found.iter().map(Option::as_ref).collect::<Vec<_>>());
     if observations.len() < options.min_views {
+        // Most images show a whole grid one corner short each way (a stray
+        // corner spoils the rest): session.yaml's board counts squares, bad
+        // input rather than a failed job.
+        let squares: Vec<&alacs_board::Error> = boards
+            .iter()
+            .filter_map(|b| b.corners.as_ref().err())
+            .filter(|e| matches!(e, alacs_board::Error::GivenBySquares { .. }))
+            .collect();
+        if observations.is_empty() && squares.len() * 2 > boards.len() {
+            return Err(Error::Board(squares[0].clone()));
+        }
         let reasons: Vec<(&str, String)> = boards
             .iter()
             .filter_map(|b| b.corners.as_ref().err().map(|e| (b.image.as_str(), e.to_string())))
@@ -256,7 +267,7 @@ pub fn calibrate_camera_session(
             name: board.image.clone(),
             camera_from_board: None,
             rms_px: None,
-            rejected: Some(reason.clone()),
+            rejected: Some(reason.to_string()),
         })
     }));
     fit.images = boards.len();

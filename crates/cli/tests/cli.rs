@@ -543,8 +543,9 @@ fn a_board_given_by_its_squares_gets_the_hint_once_not_once_per_view() {
     // The photographs' board has 10 x 7 squares: 9 x 6 inner corners.
     let init = alacs(&cmdline("session init --board 10x7 --square-mm 25 {}", &[&dir]));
     assert!(init.status.success(), "{}", stderr(&init));
+    // Every view says so: session.yaml is wrong, bad input (exit 2).
     let output = alacs(&cmdline("calibrate camera --session {}", &[&dir]));
-    assert_eq!(output.status.code(), Some(1));
+    assert_eq!(output.status.code(), Some(2), "{}", stderr(&output));
     let text = stderr(&output);
     let hint = "so a board of 10 x 7 squares is 9 x 6";
     assert_eq!(text.matches(hint).count(), 1, "{text}");
