@@ -249,14 +249,15 @@ fn view_image(
     let image = image.to_rgb8();
     let draw = |max_width_px: u32, path: &Path| {
         let mut canvas = Canvas::whole(&image, max_width_px);
+        let (mark, dot) = (canvas.mark_px(), canvas.dot_px());
         for (p, r) in view.stripe_px.iter().zip(&view.residuals_mm) {
-            canvas.dot(p, 1, if r.abs() <= threshold_mm { CYAN } else { ORANGE });
+            canvas.dot(p, dot, if r.abs() <= threshold_mm { CYAN } else { ORANGE });
         }
         for p in &view.corners_px {
-            canvas.cross(p, 5.0, GREEN);
+            canvas.cross(p, mark, GREEN);
         }
         for p in &view.missing_corners_px {
-            canvas.circle(p, 6.0, MAGENTA);
+            canvas.circle(p, 1.2 * mark / canvas.scale(), MAGENTA);
         }
         canvas.jpeg(path)
     };

@@ -54,6 +54,14 @@ pub fn palette(index: usize) -> Rgb<u8> {
     PALETTE[index % PALETTE.len()]
 }
 
+/// A mark's half-size as a share of the canvas's width: 6 px on a
+/// 1200 px page image, 12 px on a 5 MP frame at full size.
+const MARK_SHARE: f64 = 1.0 / 200.0;
+
+/// The smallest half-size of a mark, canvas pixels: smaller crosses are
+/// lost on a textured image.
+const MIN_MARK_PX: f64 = 4.0;
+
 /// A region of a frame to draw on: frame pixel (u, v) maps to canvas
 /// ((u - u0 + 1/2) scale - 1/2, (v - v0 + 1/2) scale - 1/2).
 pub struct Canvas {
@@ -101,6 +109,20 @@ impl Canvas {
     /// Canvas pixels per frame pixel.
     pub fn scale(&self) -> f64 {
         self.scale
+    }
+
+    /// Half-size of a mark (a cross, a circle around a point), canvas
+    /// pixels: [`MARK_SHARE`] of the canvas's width, at least
+    /// [`MIN_MARK_PX`], so that a mark covers the same share of the picture
+    /// in a thumbnail as at full size.
+    pub fn mark_px(&self) -> f64 {
+        (f64::from(self.image.width()) * MARK_SHARE).max(MIN_MARK_PX)
+    }
+
+    /// Radius of a dot (a stripe sample, an edge pixel), canvas pixels: a
+    /// fifth of [`Canvas::mark_px`], at least one.
+    pub fn dot_px(&self) -> i32 {
+        ((self.mark_px() / 5.0).round() as i32).max(1)
     }
 
     /// The canvas position of frame pixel `p`.
@@ -240,5 +262,16 @@ mod tests {
         // The horizontal segment through the image is drawn, and only it.
         assert_eq!(canvas.image.get_pixel(20, 5), &MAGENTA);
         assert_eq!(canvas.image.get_pixel(20, 20), &Rgb([0, 0, 0]));
+    }
+
+    #[test]
+    fn marks_cover_the_same_share_of_a_thumbnail_and_of_the_full_frame() {
+        let frame = RgbImage::new(2448, 2048);
+        let (thumbnail, full) = (Canvas::whole(&frame, 1224), Canvas::whole(&frame, 2448));
+        let share = |c: &Canvas| c.mark_px() / f64::from(c.image.width());
+        assert!((share(&thumbnail) - share(&full)).abs() < 1e-12);
+        assert_eq!((thumbnail.dot_px(), full.dot_px()), (1, 2));
+        // A small canvas keeps marks large enough to see.
+        assert_eq!(Canvas::whole(&RgbImage::new(100, 80), 100).mark_px(), MIN_MARK_PX);
     }
 }

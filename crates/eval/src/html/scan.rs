@@ -113,12 +113,13 @@ fn draw_frame(canvas: &mut Canvas, report: &ScanReport, index: usize, silhouette
     let Some(frame) = answer.frames.get(index) else {
         return;
     };
+    let (mark, dot) = (canvas.mark_px(), canvas.dot_px());
     canvas.polyline(&frame.region_outline_px, true, YELLOW);
     canvas.polyline(silhouette, true, MAGENTA);
     if let Some(outline) = answer.fused.as_ref().and_then(|f| f.outline.as_ref()) {
         canvas.circle(&outline.centre_px, outline.radius_px, ORANGE);
         for p in &outline.edges_px {
-            canvas.dot(p, 1, ORANGE);
+            canvas.dot(p, dot, ORANGE);
         }
     }
     let mut on_fruit = vec![false; frame.stripe.len()];
@@ -129,20 +130,20 @@ fn draw_frame(canvas: &mut Canvas, report: &ScanReport, index: usize, silhouette
     }
     for (point, fruit) in frame.stripe.iter().zip(&on_fruit) {
         let p = Point2::new(point.u_px, point.v_px);
-        canvas.dot(&p, 1, if *fruit { LIME } else { BLUE });
+        canvas.dot(&p, dot, if *fruit { LIME } else { BLUE });
     }
     let project = |p: &Point3<f64>| report.camera.project(p).ok();
     if let Some(candidate) = &frame.candidate
         && let Some(p) = project(&candidate.position_mm)
     {
         let chosen = answer.holistic.and_then(|h| answer.candidates.get(h)) == Some(candidate);
-        canvas.cross(&p, if chosen { 9.0 } else { 6.0 }, CYAN);
+        canvas.cross(&p, if chosen { 1.5 * mark } else { mark }, CYAN);
         if chosen {
-            canvas.circle(&p, 12.0 / canvas.scale(), CYAN);
+            canvas.circle(&p, 2.0 * mark / canvas.scale(), CYAN);
         }
     }
     if let Some(p) = answer.position_mm.as_ref().and_then(project) {
-        canvas.x_mark(&p, 8.0, WHITE);
+        canvas.x_mark(&p, 1.3 * mark, WHITE);
     }
 }
 
@@ -181,7 +182,7 @@ pub fn write_scan_html(out: &mut OutputDir, report: &ScanReport) -> Result<Vec<P
                 }
                 draw_frame(&mut canvas, report, middle, &silhouette);
                 if let Some(p) = &rough_px {
-                    canvas.cross(p, 12.0, ORANGE);
+                    canvas.cross(p, 2.0 * canvas.mark_px(), ORANGE);
                 }
                 return canvas.jpeg(&path);
             }
