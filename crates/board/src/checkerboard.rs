@@ -437,7 +437,12 @@ pub(crate) fn keep_more<T>(
 
 /// No checkerboard of `board`'s size found, for `reason`.
 fn no_checkerboard(board: &BoardSpec, reason: impl Into<String>) -> Error {
-    Error::NoBoard { kind: "checkerboard", cols: board.cols, rows: board.rows, reason: reason.into() }
+    Error::NoBoard {
+        kind: "checkerboard",
+        cols: board.cols,
+        rows: board.rows,
+        reason: reason.into(),
+    }
 }
 
 /// Fits a labelled corner grid (grid coordinates, pixel) to the board:
@@ -461,7 +466,11 @@ fn label_grid(
         let whole = !grid.is_empty() && grid.len() as i64 == span_i.saturating_mul(span_j);
         let one_short = |a: i64, b: i64| a == cols - 1 && b == rows - 1;
         if whole && (one_short(span_i, span_j) || one_short(span_j, span_i)) {
-            return Err(Error::GivenBySquares { cols: board.cols, rows: board.rows, found: grid.len() });
+            return Err(Error::GivenBySquares {
+                cols: board.cols,
+                rows: board.rows,
+                found: grid.len(),
+            });
         }
         return Err(refused(format!("only {} of {} corners found", grid.len(), needed)));
     }

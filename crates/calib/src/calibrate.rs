@@ -120,6 +120,17 @@ pub struct ParameterStdDev {
 }
 
 impl ParameterStdDev {
+    /// As laser.yaml's `std_dev` block holds them, the source in words.
+    pub fn to_laser_std(&self) -> alacs_model::LaserStdDev {
+        alacs_model::LaserStdDev {
+            alpha_deg: self.alpha_deg,
+            beta_deg: self.beta_deg,
+            l0_mm: self.l0_mm,
+            slide_scale: self.slide_scale,
+            source: self.source.describe(),
+        }
+    }
+
     /// From standard deviations of the parameters of `layout`, in its order.
     pub(crate) fn from_parameters(std: &[f64], layout: Layout, source: StdSource) -> Option<Self> {
         let (alpha, l0) = (*std.first()?, *std.get(1)?);

@@ -299,7 +299,7 @@ fn triangulate_maps_pixels_to_points_on_the_laser_plane() {
     camera.to_yaml_file(&camera_yaml).unwrap();
     let laser = alacs::LaserModel::seed_paper();
     let laser_yaml = dir.join("laser.yaml");
-    laser.to_yaml_file(&laser_yaml, "test").unwrap();
+    laser.to_yaml_file(&laser_yaml, "test", None).unwrap();
     let pixels = dir.join("pixels.csv");
     // The last row is far right: its ray misses the laser plane in front of the camera.
     std::fs::write(&pixels, "u_px,v_px\n1000,100\n1100.5,1024\n1200,2000\n2447,1000\n").unwrap();
@@ -582,6 +582,12 @@ fn calibrate_from_a_simulated_session_end_to_end() {
     assert!((json["slide_scale"].as_f64().unwrap() - 1.0).abs() < 0.002, "{json}");
     assert!(json["slide_scale_std"].as_f64().unwrap() > 0.0, "{json}");
     assert!(std::fs::read_to_string(&laser).unwrap().contains("slide_scale:"));
+    // laser.yaml carries the standard deviations calibrate laser printed.
+    let (_, std) = alacs::LaserModel::from_yaml_file_with_std(&laser).unwrap();
+    let std = std.expect("a std_dev block");
+    assert_eq!(Some(std.alpha_deg), json["alpha_std_deg"].as_f64(), "{json}");
+    assert_eq!(std.slide_scale, json["slide_scale_std"].as_f64(), "{json}");
+    assert_eq!(Some(std.source.as_str()), json["std_source"].as_str(), "{json}");
     // The exported samples calibrate to the same laser.
     let again = stdout_json(&alacs(&cmdline("calibrate laser --samples {} --json", &[&samples])));
     assert_eq!(again["alpha_deg"], json["alpha_deg"]);
@@ -629,6 +635,8 @@ fn calibrate_from_a_simulated_session_end_to_end() {
     let flagged = report["flagged"].as_array().unwrap();
     assert!(flagged.len() <= 2, "{report}");
     let html = std::fs::read_to_string(report_dir.join("index.html")).unwrap();
+    // One sigma per quantity: the report shows the laser's as its calibration estimated them.
+    assert!(html.contains("laser.yaml&#39;s std_dev"), "the laser's sigmas are not laser.yaml's");
     for view in flagged {
         assert!(html.contains(view.as_str().unwrap()), "{view}");
     }

@@ -80,7 +80,7 @@ fn calibration_report_is_self_contained_and_flags_a_bad_view() {
     );
     blank.save(session.path_of(&session.views[1].image)).unwrap();
 
-    let report = calibration_report(&session, &simulated.camera, &laser(), &|| {}).unwrap();
+    let report = calibration_report(&session, &simulated.camera, &laser(), None, &|| {}).unwrap();
     assert_eq!(report.views.len(), 8);
     assert!(report.views[1].flag.as_deref().unwrap().contains("not used"));
     let good = &report.views[0];

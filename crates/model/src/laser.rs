@@ -126,6 +126,37 @@ pub struct LaserFile {
     pub slide_scale: Option<f64>,
 }
 
+/// One standard deviation of each laser parameter as the calibration that
+/// wrote a laser.yaml estimated it: its optional `std_dev` block
+/// (FORMATS.md), so that a report on the file shows the calibration's own
+/// sigmas, not a second estimate.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LaserStdDev {
+    /// Of alpha, degrees.
+    pub alpha_deg: f64,
+    /// Of beta, degrees (absent for the low-fidelity model).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub beta_deg: Option<f64>,
+    /// Of L0, mm.
+    pub l0_mm: f64,
+    /// Of the slide scale k (absent where k was not fitted).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub slide_scale: Option<f64>,
+    /// How they were estimated, in words.
+    pub source: String,
+}
+
+impl LaserStdDev {
+    /// Checks that every sigma is finite and not negative.
+    fn validate(&self) -> std::result::Result<(), String> {
+        let values = [Some(self.alpha_deg), self.beta_deg, Some(self.l0_mm), self.slide_scale];
+        match values.into_iter().flatten().find(|v| !(v.is_finite() && *v >= 0.0)) {
+            Some(bad) => Err(format!("std_dev: {bad} is not a standard deviation (finite, >= 0)")),
+            None => Ok(()),
+        }
+    }
+}
+
 /// The range of k a laser.yaml or a fit may hold: a slide whose travel is
 /// off by more than a fifth is a wrong steps-per-mm setting (or a wrong
 /// unit), not a calibration result.
@@ -338,6 +369,23 @@ impl LaserModel {
         Self::parse_yaml(&text, path)
     }
 
+    /// Reads laser.yaml with its `std_dev` block, where it has one.
+    pub fn from_yaml_file_with_std(path: &Path) -> Result<(Self, Option<LaserStdDev>)> {
+        #[derive(Deserialize)]
+        struct WithStd {
+            std_dev: Option<LaserStdDev>,
+        }
+        let text = crate::io::read_text(path)?;
+        let model = Self::parse_yaml(&text, path)?;
+        let parse_error = |message: String| Error::Parse { path: path.to_path_buf(), message };
+        let file: WithStd = serde_saphyr::from_str(&text)
+            .map_err(|e| parse_error(crate::error::yaml_message(&e)))?;
+        if let Some(std) = &file.std_dev {
+            std.validate().map_err(parse_error)?;
+        }
+        Ok((model, file.std_dev))
+    }
+
     fn parse_yaml(text: &str, path: &Path) -> Result<Self> {
         let parse_error = |message: String| Error::Parse { path: path.to_path_buf(), message };
         let file: LaserFile = serde_saphyr::from_str(text)
@@ -380,10 +428,26 @@ impl LaserModel {
         )
     }
 
-    /// Writes laser.yaml, with `header` (e.g. provenance) as leading `#` comment lines.
-    pub fn to_yaml_file(&self, path: &Path, header: &str) -> Result<()> {
+    /// Writes laser.yaml, with `header` (e.g. provenance) as leading `#`
+    /// comment lines and the calibration's standard deviations, where it
+    /// estimated them, as its `std_dev` block.
+    pub fn to_yaml_file(&self, path: &Path, header: &str, std: Option<&LaserStdDev>) -> Result<()> {
         let mut text: String = header.lines().map(|line| format!("# {line}\n")).collect();
         text.push_str(&self.to_yaml_string());
+        if let Some(std) = std {
+            text.push_str("std_dev:                    # one standard deviation of each, as the calibration estimated it\n");
+            text.push_str(&format!("  alpha_deg: {}\n", std.alpha_deg));
+            if let Some(beta) = std.beta_deg {
+                text.push_str(&format!("  beta_deg: {beta}\n"));
+            }
+            text.push_str(&format!("  l0_mm: {}\n", std.l0_mm));
+            if let Some(k) = std.slide_scale {
+                text.push_str(&format!("  slide_scale: {k}\n"));
+            }
+            // A JSON string is a YAML double-quoted scalar.
+            let source = serde_json::Value::String(std.source.clone());
+            text.push_str(&format!("  source: {source}\n"));
+        }
         crate::io::write_file(path, text)
     }
 }

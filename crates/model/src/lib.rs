@@ -48,7 +48,8 @@ pub use camera::*;
 pub use error::{Error, ErrorClass, Num, PlusMinus, Result, yaml_message};
 pub use geometry::{Plane, Ray};
 pub use laser::{
-    Fidelity, LaserFile, LaserModel, PreparedLaser, SLIDE_SCALE_RANGE, SLIDE_STROKE_MM, SlideTarget,
+    Fidelity, LaserFile, LaserModel, LaserStdDev, PreparedLaser, SLIDE_SCALE_RANGE,
+    SLIDE_STROKE_MM, SlideTarget,
 };
 pub use pixels::{TriangulateJsonWriter, TriangulateOutput, for_each_pixel, read_pixels_csv};
 pub use samples::{

@@ -705,7 +705,7 @@ impl SimulatedScan {
         } else {
             "true laser of the simulated scan"
         };
-        self.laser.to_yaml_file(&out.file("laser.yaml")?, comment)?;
+        self.laser.to_yaml_file(&out.file("laser.yaml")?, comment, None)?;
         save_json(out, "truth.json", &self.truth_json())
     }
 }

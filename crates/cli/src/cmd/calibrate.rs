@@ -109,7 +109,8 @@ pub fn laser(args: &CalibrateLaserArgs) -> CmdResult {
         } else {
             "; slide_scale is held, not fitted (samples at one slide position, or --hold-slide-scale)"
         };
-        fit.laser.to_yaml_file(path, &header)?;
+        let std = fit.std_dev.as_ref().map(|s| s.to_laser_std());
+        fit.laser.to_yaml_file(path, &header, std.as_ref())?;
     }
 
     if args.json {

@@ -166,10 +166,12 @@ fn image_pipeline(
         .iter()
         .map(|view| (samples.by_ref().take(view.n_samples).copied().collect(), view.clone()))
         .collect();
+    let laser_std = laser_fit.calibration.std_dev.as_ref().map(|s| s.to_laser_std());
     let report = calibration_report_from_views(
         &session,
         &fit.camera,
         &laser_fit.calibration.laser,
+        laser_std.as_ref(),
         per_view,
         &|| {},
     );

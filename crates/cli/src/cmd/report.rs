@@ -32,11 +32,11 @@ fn report_json(out: &Path, files: &[PathBuf], extra: Value) -> Value {
 pub fn calibration(args: &ReportCalibrationArgs) -> CmdResult {
     let session = Session::read(&args.session)?;
     let camera = Camera::from_yaml_file(&args.camera)?;
-    let laser = LaserModel::from_yaml_file(&args.laser)?;
+    let (laser, laser_std) = LaserModel::from_yaml_file_with_std(&args.laser)?;
     let mut out = open_output(&args.out, OutputKind::ReportCalibration, args.folder.force)?;
     let bar = output::progress_bar(args.json, "views");
     output::start_progress(&bar, 2 * session.views.len(), "views: corners, board pose, stripe");
-    let report = calibration_report(&session, &camera, &laser, &|| bar.inc(1));
+    let report = calibration_report(&session, &camera, &laser, laser_std.as_ref(), &|| bar.inc(1));
     let report = report.map_err(|e| Failure::from(e).with_context(&args.session));
     let report = match report {
         Ok(report) => report,

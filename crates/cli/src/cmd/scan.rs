@@ -404,7 +404,7 @@ fn write(
     } else {
         "true laser of the simulated rig"
     };
-    laser.to_yaml_file(&out.file("laser.yaml")?, header)?;
+    laser.to_yaml_file(&out.file("laser.yaml")?, header, None)?;
     let Some(sim) = sim else {
         return Ok(());
     };

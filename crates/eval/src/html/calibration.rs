@@ -5,12 +5,12 @@
 use std::path::{Path, PathBuf};
 
 use alacs_calib::{
-    BoardObservation, CalibrationOptions, LaserSample, ParameterStdDev, ViewSamples,
-    depth_error_mm, detect_session_boards, intrinsics_std_dev_at, laser_std_dev_at,
-    pose_observations, session_view_samples,
+    BoardObservation, CalibrationOptions, LaserSample, ViewSamples, depth_error_mm,
+    detect_session_boards, intrinsics_std_dev_at, laser_std_dev_at, pose_observations,
+    session_view_samples,
 };
 use alacs_model::io::OutputDir;
-use alacs_model::{Camera, LaserModel, PlusMinus, Session};
+use alacs_model::{Camera, LaserModel, LaserStdDev, PlusMinus, Session};
 use alacs_vision::{StripeOptions, read_image};
 use nalgebra::Point2;
 use rayon::prelude::*;
@@ -85,10 +85,13 @@ pub struct CalibrationReport {
     /// corners (fx, fy, cx, cy, then the distortion coefficients), where
     /// defined ([`alacs_calib::intrinsics_std_dev_at`]).
     pub camera_std: Option<Vec<f64>>,
-    /// Standard deviations of the reported laser on this session's samples
-    /// (a bootstrap over board poses at the laser,
-    /// [`alacs_calib::laser_std_dev_at`]), where defined.
-    pub laser_std: Option<ParameterStdDev>,
+    /// Standard deviations of the reported laser: those its calibration
+    /// estimated (laser.yaml's `std_dev`) where given, else a bootstrap over
+    /// this session's board poses at the laser
+    /// ([`alacs_calib::laser_std_dev_at`]), where defined.
+    pub laser_std: Option<LaserStdDev>,
+    /// Whether [`Self::laser_std`] is the calibration's own (given with the laser).
+    pub laser_std_given: bool,
 }
 
 impl CalibrationReport {
@@ -112,18 +115,21 @@ impl CalibrationReport {
 /// Measures `camera` and `laser` on `session`: per view the board corners
 /// (searched once per distinct board image), the board pose and the laser
 /// samples ([`alacs_calib::view_samples`]) with their residuals under `laser`; Table 1
-/// on all samples; the accuracy experiment on the same views. `progress` is
-/// called once per board image searched and once per view.
+/// on all samples; the accuracy experiment on the same views. `laser_std`:
+/// the laser's standard deviations as its calibration estimated them,
+/// where known (laser.yaml's `std_dev`). `progress` is called once per
+/// board image searched and once per view.
 pub fn calibration_report(
     session: &Session,
     camera: &Camera,
     laser: &LaserModel,
+    laser_std: Option<&LaserStdDev>,
     progress: &(dyn Fn() + Sync),
 ) -> Result<CalibrationReport> {
     camera.validate()?;
     laser.validate()?;
     let per_view = session_view_samples(session, camera, &StripeOptions::default(), progress)?;
-    calibration_report_from_views(session, camera, laser, per_view, progress)
+    calibration_report_from_views(session, camera, laser, laser_std, per_view, progress)
 }
 
 /// [`calibration_report`] on the views' samples as a laser calibration of
@@ -135,6 +141,7 @@ pub fn calibration_report_from_views(
     session: &Session,
     camera: &Camera,
     laser: &LaserModel,
+    laser_std: Option<&LaserStdDev>,
     per_view: Vec<(Vec<LaserSample>, ViewSamples)>,
     progress: &(dyn Fn() + Sync),
 ) -> Result<CalibrationReport> {
@@ -211,7 +218,11 @@ pub fn calibration_report_from_views(
     for ((view_samples, _), group) in per_view.iter().zip(&groups) {
         posed_samples.extend(view_samples.iter().map(|s| LaserSample { pose: *group, ..*s }));
     }
-    let laser_std = laser_std_dev_at(&posed_samples, laser, threshold_mm);
+    let laser_std_given = laser_std.is_some();
+    let laser_std = match laser_std {
+        Some(std) => Some(std.clone()),
+        None => laser_std_dev_at(&posed_samples, laser, threshold_mm).map(|s| s.to_laser_std()),
+    };
     let table_1 = evaluate_calibration(&samples, &options).map_err(|e| e.to_string());
     // The laser was probably fitted on these samples: those beyond the
     // threshold are the ones a RANSAC fit with it rejects.
@@ -230,6 +241,7 @@ pub fn calibration_report_from_views(
         threshold_mm,
         camera_std,
         laser_std,
+        laser_std_given,
     })
 }
 
@@ -543,7 +555,7 @@ fn summary(page: &mut Page, report: &CalibrationReport, coverage: &CornerCoverag
     }
     page.heading("Laser");
     let laser = &report.laser;
-    let std = report.laser_std;
+    let std = report.laser_std.as_ref();
     let pm = plus_minus;
     page.table(
         &[
@@ -580,9 +592,13 @@ fn summary(page: &mut Page, report: &CalibrationReport, coverage: &CornerCoverag
     );
     page.paragraph(
         &format!(
-            "+- one standard deviation on this session: the camera's from its corners (sigma^2 (J^T J)^-1 over the intrinsics and the board poses at the reported camera; {}), the laser's a bootstrap over the board poses at the reported laser with the camera taken as exact, so smaller than calibrate laser's, which re-calibrates the camera in each replicate ({}).",
+            "+- one standard deviation: the camera's on this session's corners (sigma^2 (J^T J)^-1 over the intrinsics and the board poses at the reported camera; {}); the laser's {}.",
             if report.camera_std.is_some() { "held intrinsics 0" } else { "not defined here" },
-            std.map_or("not defined here: fewer than 5 board poses".to_string(), |s| s.source.describe())
+            match (std, report.laser_std_given) {
+                (Some(s), true) => format!("as its calibration estimated them (laser.yaml's std_dev: {}), the same that calibrate laser printed", s.source),
+                (Some(s), false) => format!("on this session, laser.yaml holding none: a bootstrap over the board poses at the reported laser with the camera taken as exact ({}), so smaller than calibrate laser's, which re-calibrates the camera in each replicate", s.source),
+                (None, _) => "not defined here: laser.yaml holds none and the session has fewer than 5 board poses".to_string(),
+            }
         ),
         Some("note"),
     );
