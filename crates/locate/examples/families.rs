@@ -109,6 +109,25 @@ fn percentile(sorted: &[f64], p: f64) -> f64 {
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
+    const USAGE: &str = "families [--seeds tune|report] [--n N] [--scale S] [--randomize on|off|both] [--family NAME] [--scans] [--round] [--no-outline] [--true-calibration] [--no-extension]";
+    const VALUED: [&str; 5] = ["--seeds", "--n", "--scale", "--randomize", "--family"];
+    const SWITCHES: [&str; 5] =
+        ["--scans", "--round", "--no-outline", "--true-calibration", "--no-extension"];
+    if args.iter().any(|a| a == "--help" || a == "-h") {
+        println!("usage: {USAGE}");
+        return;
+    }
+    let mut k = 0;
+    while k < args.len() {
+        let arg = args[k].as_str();
+        if VALUED.contains(&arg) {
+            assert!(k + 1 < args.len(), "{arg} needs a value; usage: {USAGE}");
+            k += 2;
+        } else {
+            assert!(SWITCHES.contains(&arg), "unknown argument {arg}; usage: {USAGE}");
+            k += 1;
+        }
+    }
     let value = |flag: &str| args.iter().position(|a| a == flag).map(|k| args[k + 1].clone());
     let report = match value("--seeds").as_deref() {
         None | Some("tune") => false,
