@@ -6,7 +6,9 @@
 //! Randomized scans draw, per scan, what real rigs vary in (alacs-sim's
 //! `RigVariation`: laser, light in the flesh, fruit and leaf colours, lens,
 //! sensor, exposure, calibration error, the rough position's error); the
-//! table then also breaks them down by the fruit's colour.
+//! table then also breaks them down by the fruit's colour. The last column
+//! counts the `ok` answers whose position covariance's 99 % ellipsoid
+//! holds the truth: whether the stated uncertainty can be trusted.
 //!
 //! A scan whose fruit is not found in the seed's five frames is extended
 //! as the scan controller extends it (`ScanStrategy::extension`: frames
@@ -97,7 +99,15 @@ struct Tally {
     errors_mm: Vec<f64>,
     /// Scans that took the extension's frames.
     extended: usize,
+    /// `ok` answers with a covariance, and those whose 99 % ellipsoid
+    /// holds the truth.
+    with_covariance: usize,
+    covered: usize,
 }
+
+/// Squared Mahalanobis distance within which 99 % of a 3-D Gaussian lies
+/// (chi-square, 3 degrees of freedom).
+const CHI2_3_99: f64 = 11.345;
 
 fn percentile(sorted: &[f64], p: f64) -> f64 {
     if sorted.is_empty() {
@@ -156,9 +166,9 @@ fn main() {
         if report { "Reporting" } else { "Tuning" },
     );
     println!(
-        "| family | randomized | found | not found | wrong | median | 90th pct | worst | extended |"
+        "| family | randomized | found | not found | wrong | median | 90th pct | worst | extended | truth in its 99 % ellipsoid |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
     let mut colours: Vec<(String, Tally)> = Vec::new();
     let mut unbuilt = 0;
     for &randomize in &modes {
@@ -236,14 +246,21 @@ fn main() {
                     (Status::Ok, Some(p)) => Some((p - truth).norm()),
                     _ => None,
                 };
-                tally.add(error, extended > 0);
+                // Whether the answer's 99 % ellipsoid holds the truth.
+                let covered = match (answer.status, answer.position_mm, answer.position_cov_mm2) {
+                    (Status::Ok, Some(p), Some(cov)) => cov
+                        .try_inverse()
+                        .map(|inverse| (p - truth).dot(&(inverse * (p - truth))) <= CHI2_3_99),
+                    _ => None,
+                };
+                tally.add(error, extended > 0, covered);
                 if let Some(v) = &scan.variation {
                     let name = format!("{:?}", v.fruit_colour).to_lowercase();
                     match colours.iter_mut().find(|(c, _)| *c == name) {
-                        Some((_, t)) => t.add(error, extended > 0),
+                        Some((_, t)) => t.add(error, extended > 0, covered),
                         None => {
                             let mut t = Tally::default();
-                            t.add(error, extended > 0);
+                            t.add(error, extended > 0, covered);
                             colours.push((name, t));
                         }
                     }
@@ -413,9 +430,13 @@ fn main() {
 }
 
 impl Tally {
-    fn add(&mut self, error_mm: Option<f64>, extended: bool) {
+    fn add(&mut self, error_mm: Option<f64>, extended: bool, covered: Option<bool>) {
         self.scans += 1;
         self.extended += usize::from(extended);
+        if let Some(covered) = covered {
+            self.with_covariance += 1;
+            self.covered += usize::from(covered);
+        }
         match error_mm {
             Some(e) if e > WRONG_MM => self.wrong += 1,
             Some(e) => {
@@ -432,6 +453,8 @@ impl Tally {
         self.wrong += other.wrong;
         self.errors_mm.extend(other.errors_mm);
         self.extended += other.extended;
+        self.with_covariance += other.with_covariance;
+        self.covered += other.covered;
     }
 }
 
@@ -441,7 +464,7 @@ fn print_row(name: &str, randomized: bool, tally: &Tally) {
     let pct = 100.0 * tally.found as f64 / tally.scans.max(1) as f64;
     let mm = |v: f64| if v.is_nan() { "-".to_string() } else { format!("{v:.2} mm") };
     println!(
-        "| {name} | {} | {} of {} ({pct:.0} %) | {} | {} | {} | {} | {} | {} |",
+        "| {name} | {} | {} of {} ({pct:.0} %) | {} | {} | {} | {} | {} | {} | {} of {} |",
         if randomized { "yes" } else { "no" },
         tally.found,
         tally.scans,
@@ -451,5 +474,7 @@ fn print_row(name: &str, randomized: bool, tally: &Tally) {
         mm(percentile(&errors, 0.9)),
         mm(errors.last().copied().unwrap_or(f64::NAN)),
         tally.extended,
+        tally.covered,
+        tally.with_covariance,
     );
 }
