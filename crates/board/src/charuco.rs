@@ -29,21 +29,15 @@ pub const MIN_CHARUCO_CORNERS: usize = 6;
 const SMALL_SQUARE_PX: f64 = 40.0;
 
 /// The factor a missed board is searched again at (see [`detect_charuco`]):
-/// on a simulated half-scale session (squares of 15-35 px, `simulate
-/// session --seed 101 --scale 0.5 --charuco DICT_5X5_100 --cut-by-border`)
-/// one resolution found the board in 14 of 24 images, the retry in all 24
-/// (OpenCV's `CharucoDetector`: 24).
+/// at twice the size squares of 15-35 px (a half-scale 5 MP view) reach the
+/// size at which the marker decoder reads them.
 const UPSCALE: u32 = 2;
 
 /// The refinement's radius in white margins (between a marker and its
 /// square's edge): the window must not reach the markers, whose edges would
-/// pull the corner.
-/// On a simulated half-scale session (squares of 15-35 px; the test
-/// `charuco_corners_are_found_with_their_labels_also_on_boards_cut_by_the_border`,
-/// seed 1) 1.0, 1.3, 1.6 and 2.0 margins
-/// gave corner errors of 0.101, 0.081, 0.123 and 0.148 px RMS (seed 1's
-/// session without boards cut, 1.3 margins: 0.073 px; the same poses as a
-/// plain checkerboard: 0.053 px).
+/// pull the corner, and a little more than one margin holds most of
+/// the corner's edges (measured on simulated half-scale boards: smaller and
+/// larger windows both gave larger corner errors).
 const REFINE_RADIUS_PER_MARGIN: f64 = 1.3;
 
 /// calib-targets' description of the board.
