@@ -595,7 +595,7 @@ fn summary(page: &mut Page, report: &CalibrationReport, coverage: &CornerCoverag
             "+- one standard deviation: the camera's on this session's corners (sigma^2 (J^T J)^-1 over the intrinsics and the board poses at the reported camera; {}); the laser's {}.",
             if report.camera_std.is_some() { "held intrinsics 0" } else { "not defined here" },
             match (std, report.laser_std_given) {
-                (Some(s), true) => format!("as its calibration estimated them (laser.yaml's std_dev: {}), the same that calibrate laser printed", s.source),
+                (Some(s), true) => format!("as its calibration estimated them, the ones calibrate laser prints and writes to laser.yaml's std_dev ({})", s.source),
                 (Some(s), false) => format!("on this session, laser.yaml holding none: a bootstrap over the board poses at the reported laser with the camera taken as exact ({}), so smaller than calibrate laser's, which re-calibrates the camera in each replicate", s.source),
                 (None, _) => "not defined here: laser.yaml holds none and the session has fewer than 5 board poses".to_string(),
             }
