@@ -121,6 +121,7 @@ const REFINE_STEPS: usize = 12;
 
 /// One frame's evidence: its laser plane, the laser's origin, and the
 /// laser points by image row.
+#[derive(Clone)]
 pub(crate) struct FrameEvidence {
     plane: PlaneFrame,
     laser_origin: Point3<f64>,
@@ -134,6 +135,7 @@ pub(crate) struct FrameEvidence {
 }
 
 /// Everything the score looks at.
+#[derive(Clone)]
 pub(crate) struct Evidence<'a> {
     pub(crate) frames: Vec<FrameEvidence>,
     /// Every laser point with its frame.
@@ -202,6 +204,56 @@ impl<'a> Evidence<'a> {
             outline_rays,
         }
     }
+}
+
+impl Evidence<'_> {
+    /// This evidence without the laser points that `neighbours` (other
+    /// fruit: spheres apart from `target`, each explaining points of its
+    /// own) explain better than `target` does: where apples touch, a
+    /// neighbour's points near the contact lie within the band of the
+    /// target's sphere and would lend it their surface. A point goes only
+    /// where it lies within the band of a neighbour and nearer to it than
+    /// to the target.
+    pub(crate) fn without_neighbours(&self, target: &Sphere, neighbours: &[Sphere]) -> Self {
+        let mut reduced = self.clone();
+        reduced.points.retain(|(_, p)| {
+            let own = target.distance_mm(p).abs();
+            !neighbours.iter().any(|n| {
+                let d = n.distance_mm(p).abs();
+                d < SURFACE_BAND_MM && d < own
+            })
+        });
+        reduced
+    }
+}
+
+/// Two spheres are different fruit when their centres lie at least this
+/// fraction of their radii's sum apart: touching apples sit at about the
+/// sum (their skins give a little), while one fruit's rival fits (a mirror
+/// across a laser plane, a larger or smaller sphere through the same
+/// points) overlap it by far more.
+pub(crate) const APART_FRACTION: f64 = 0.85;
+
+/// The neighbour fruit among `ranked`: spheres apart from `target` (see
+/// [`APART_FRACTION`]) that explain as many points as a frame must show
+/// of a fruit ([`crate::frame::MIN_POINTS`]) and score better than the
+/// empty scene.
+pub(crate) fn neighbours(target: &Sphere, ranked: &[Hypothesis]) -> Vec<Sphere> {
+    let mut found: Vec<Sphere> = Vec::new();
+    for h in ranked {
+        let s = h.sphere;
+        let apart = |o: &Sphere| {
+            (s.centre - o.centre).norm() >= APART_FRACTION * (s.radius_mm + o.radius_mm)
+        };
+        if h.score.total < 0.0
+            && h.score.explained >= crate::frame::MIN_POINTS
+            && apart(target)
+            && found.iter().all(apart)
+        {
+            found.push(s);
+        }
+    }
+    found
 }
 
 /// A hypothesis's score and what it is made of.
@@ -607,5 +659,58 @@ mod tests {
         // Too little evidence against the empty scene.
         let Decision::Refuse(reason) = accept(&[h(0.0, -11.0, 20)], &prior) else { panic!() };
         assert!(reason.contains("no fruit at all"), "{reason}");
+    }
+
+    /// Points on the camera's side of a sphere, none inside `other`.
+    fn front_points(sphere: &Sphere, other: &Sphere) -> Vec<(usize, Point3<f64>)> {
+        let mut points = Vec::new();
+        for i in 1..=16 {
+            let theta = f64::from(i) * 80f64.to_radians() / 16.0;
+            for j in 0..32 {
+                let phi = f64::from(j) * std::f64::consts::TAU / 32.0;
+                let direction =
+                    Vector3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), -theta.cos());
+                let p = sphere.centre + direction * sphere.radius_mm;
+                if (p - other.centre).norm() > other.radius_mm {
+                    points.push((0, p));
+                }
+            }
+        }
+        points
+    }
+
+    #[test]
+    fn a_touching_neighbour_explains_its_own_points_and_no_longer_pulls_the_target() {
+        let camera = Camera::blackfly_s_5mp();
+        let target = Sphere { centre: Point3::new(0.0, 0.0, 800.0), radius_mm: 40.0 };
+        let neighbour = Sphere { centre: Point3::new(78.0, 0.0, 800.0), radius_mm: 40.0 };
+        let prior = Prior { rough_position_mm: target.centre, fruit_radius_mm: 40.0 };
+        let mut points = front_points(&target, &neighbour);
+        points.extend(front_points(&neighbour, &target));
+        let evidence = Evidence {
+            frames: Vec::new(),
+            points,
+            camera: &camera,
+            prior: &prior,
+            rough_information: nalgebra::Matrix3::identity() * 1e-6,
+            outline_rays: Vec::new(),
+        };
+        let error = |s: Sphere| (s.centre - target.centre).norm() + (s.radius_mm - 40.0).abs();
+        let pulled = error(refine(&target, &evidence));
+        // The neighbour is found among the hypotheses; a sphere overlapping
+        // the target (the same fruit fitted otherwise) is not a neighbour.
+        let hypothesis = |sphere: Sphere| Hypothesis {
+            sphere,
+            score: score(&sphere, &evidence),
+            source: Source::Points,
+        };
+        let overlapping = Sphere { centre: Point3::new(10.0, 0.0, 805.0), radius_mm: 44.0 };
+        let found = neighbours(&target, &[hypothesis(overlapping), hypothesis(neighbour)]);
+        assert_eq!(found, vec![neighbour]);
+        let reduced = evidence.without_neighbours(&target, &found);
+        let kept = error(refine(&target, &reduced));
+        // Noise-free points: the contact's points pull the target by about
+        // 0.2 mm (centre and radius); without them nothing does.
+        assert!(pulled > 0.1 && kept < 0.01, "{pulled} mm pulled, {kept} mm kept");
     }
 }

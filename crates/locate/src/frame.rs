@@ -216,6 +216,7 @@ pub(crate) struct FrameContext<'a> {
 const OUTLINE_POINTS: usize = 48;
 
 /// A laser plane with a unit normal and an orthonormal basis in it.
+#[derive(Clone)]
 pub(crate) struct PlaneFrame {
     pub(crate) normal: Unit<Vector3<f64>>,
     pub(crate) origin: Point3<f64>,

@@ -82,17 +82,28 @@ pub(crate) fn estimate_fruit(
     ));
     // Prune what cannot be the target: a radius out of the options' range
     // or a centre beyond the rough position's error (a neighbour's).
-    let ranked: Vec<_> = estimate::rank(&starts, &evidence)
-        .into_iter()
-        .filter(|h| {
-            (radius_range_mm.0..=radius_range_mm.1).contains(&h.sphere.radius_mm)
-                && context.search.centre_rejection(&h.sphere.centre).is_none()
-                && h.sphere.centre.z > 0.0
-        })
-        .collect();
+    let can_be_target = |h: &estimate::Hypothesis| {
+        (radius_range_mm.0..=radius_range_mm.1).contains(&h.sphere.radius_mm)
+            && context.search.centre_rejection(&h.sphere.centre).is_none()
+            && h.sphere.centre.z > 0.0
+    };
+    let all = estimate::rank(&starts, &evidence);
+    let ranked: Vec<_> = all.iter().copied().filter(can_be_target).collect();
     if ranked.iter().all(|h| h.score.explained == 0) {
         return Err(no_candidate_reason(results));
     }
+    // Neighbour fruit explain their own points: ranked again without the
+    // points they explain better than the best target does.
+    let neighbours = ranked.first().map(|b| estimate::neighbours(&b.sphere, &all));
+    let (evidence, ranked) = match neighbours.filter(|n| !n.is_empty()) {
+        Some(neighbours) => {
+            let reduced = evidence.without_neighbours(&ranked[0].sphere, &neighbours);
+            let again: Vec<_> =
+                estimate::rank(&starts, &reduced).into_iter().filter(can_be_target).collect();
+            (reduced, again)
+        }
+        None => (evidence, ranked),
+    };
     let (best, margin) = match estimate::accept(&ranked, prior) {
         Decision::Accept { best, margin } => (best, margin),
         Decision::Refuse(reason) => return Err(reason),
