@@ -1,7 +1,7 @@
 //! The localizer judged per family of simulated scans: found rate, wrong
 //! rate and error percentiles, as docs/ACCURACY.md's table.
 //!
-//! `cargo run --release -p alacs-locate --example families -- [--seeds tune|report] [--n N] [--scale S] [--randomize on|off|both] [--family NAME] [--scans] [--round] [--no-outline] [--true-calibration] [--no-extension]`
+//! `cargo run --release -p alacs-locate --example families -- [--seeds tune|report] [--n N] [--scale S] [--randomize on|off|both] [--family NAME] [--scans] [--round] [--no-form] [--no-glow] [--no-outline] [--true-calibration] [--no-extension]`
 //!
 //! Randomized scans draw, per scan, what real rigs vary in (alacs-sim's
 //! `RigVariation`: laser, light in the flesh, fruit and leaf colours, lens,
@@ -25,18 +25,20 @@
 //! the true surface along their camera rays (median: the stripe's own
 //! error, apart from the fit's), and along the line of sight how far the
 //! answer's front lies behind the fruit's and its centre behind its front
-//! (against the truth's centre behind the fruit's front). Three switches take a cause out to measure it:
+//! (against the truth's centre behind the fruit's front). Five switches take a cause out to measure it:
 //! `--round` makes every fruit's ellipsoid a sphere (a randomized apple
 //! keeps its form, its cavities and taper, within it), `--no-outline`
 //! locates without the fruit's outline, `--true-calibration` locates a randomized scan
 //! with the calibration its images were rendered with (no calibration
-//! error). Progress goes to standard error, the table
+//! error), and on randomized rigs `--no-form` renders the apple's plain
+//! ellipsoid (no taper, flat cheek or cavities) and `--no-glow` no light in
+//! its flesh. Progress goes to standard error, the table
 //! (markdown) to standard output.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use alacs_locate::{FrameImages, LocateOptions, Prior, Status, locate};
 use alacs_model::{Camera, LaserModel, Ray, ScanStrategy};
-use alacs_sim::{OrchardOptions, ScanOptions, simulate_rendered_scan};
+use alacs_sim::{OrchardOptions, ScanOptions, TakeOut, simulate_rendered_scan};
 
 /// First seed of the tuning range.
 const TUNE_SEEDS: u64 = 10_000;
@@ -119,10 +121,17 @@ fn percentile(sorted: &[f64], p: f64) -> f64 {
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    const USAGE: &str = "families [--seeds tune|report] [--n N] [--scale S] [--randomize on|off|both] [--family NAME] [--scans] [--round] [--no-outline] [--true-calibration] [--no-extension]";
+    const USAGE: &str = "families [--seeds tune|report] [--n N] [--scale S] [--randomize on|off|both] [--family NAME] [--scans] [--round] [--no-form] [--no-glow] [--no-outline] [--true-calibration] [--no-extension]";
     const VALUED: [&str; 5] = ["--seeds", "--n", "--scale", "--randomize", "--family"];
-    const SWITCHES: [&str; 5] =
-        ["--scans", "--round", "--no-outline", "--true-calibration", "--no-extension"];
+    const SWITCHES: [&str; 7] = [
+        "--scans",
+        "--round",
+        "--no-form",
+        "--no-glow",
+        "--no-outline",
+        "--true-calibration",
+        "--no-extension",
+    ];
     if args.iter().any(|a| a == "--help" || a == "-h") {
         println!("usage: {USAGE}");
         return;
@@ -184,8 +193,19 @@ fn main() {
                 if args.iter().any(|a| a == "--round") {
                     orchard.max_ellipticity = 0.0;
                 }
-                let options =
-                    ScanOptions { orchard, sun, scale, seed, randomize, ..ScanOptions::default() };
+                let take_out = TakeOut {
+                    glow: args.iter().any(|a| a == "--no-glow"),
+                    form: args.iter().any(|a| a == "--no-form"),
+                };
+                let options = ScanOptions {
+                    orchard,
+                    sun,
+                    scale,
+                    seed,
+                    randomize,
+                    take_out,
+                    ..ScanOptions::default()
+                };
                 // A scene the simulator cannot build (a sliver of occlusion
                 // no leaf can make) is left out and counted.
                 let Ok(sim) = simulate_rendered_scan(&Camera::blackfly_s_5mp(), &nominal, &options)

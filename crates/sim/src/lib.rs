@@ -78,4 +78,4 @@ pub use session::{
 };
 pub use slide::{MAX_SLIDE_ANGLE_DEG, SlideError};
 pub use truth::{camera_to_json, laser_to_json};
-pub use variation::{DrawRange, FruitColour, FruitColourRanges, RigVariation};
+pub use variation::{DrawRange, FruitColour, FruitColourRanges, RigVariation, TakeOut};

@@ -131,6 +131,17 @@ const APPLE_STEP: f64 = 0.02;
 const APPLE_BISECTIONS: usize = 40;
 
 impl AppleForm {
+    /// No departure from the ellipsoid.
+    pub const NONE: AppleForm = AppleForm {
+        taper: 0.0,
+        lopsided: 0.0,
+        lopsided_axis: [1.0, 0.0, 0.0],
+        stem_cavity_depth: 0.0,
+        stem_cavity_width_rad: 1.0,
+        calyx_cavity_depth: 0.0,
+        calyx_cavity_width_rad: 1.0,
+    };
+
     /// The surface's distance from the centre in the direction `unit` (body
     /// frame, scaled to the unit sphere).
     fn radius(&self, unit: &Vector3<f64>) -> f64 {

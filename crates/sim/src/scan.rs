@@ -37,7 +37,7 @@ use crate::render::{
     AmbientCache, Exposure, LaserLight, LaserStripe, Lighting, RayMap, RenderOptions, Scene,
     Sensor, SurfaceHit, mix_seed,
 };
-use crate::variation::RigVariation;
+use crate::variation::{RigVariation, TakeOut};
 use crate::{Error, Result, SlideError, camera_to_json, laser_to_json};
 
 /// How to simulate a scan. `Default`: an unoccluded apple at 0.6-1.2 m in
@@ -85,6 +85,9 @@ pub struct ScanOptions {
     /// error (replacing `rough_depth_error` and `rough_lateral_sigma_mm`).
     /// The scene, its lighting and the fruit are the same either way.
     pub randomize: bool,
+    /// With `randomize`, causes of error rendered without, to measure what
+    /// each costs ([`TakeOut`]; none by default).
+    pub take_out: TakeOut,
 }
 
 impl Default for ScanOptions {
@@ -113,6 +116,7 @@ impl Default for ScanOptions {
             seed: 0,
             slide: SlideError::default(),
             randomize: false,
+            take_out: TakeOut::default(),
         }
     }
 }
@@ -326,7 +330,8 @@ pub fn simulate_scan(
     let camera = camera.scaled(options.scale);
     camera.validate()?;
     options.render.validate()?;
-    let variation = options.randomize.then(|| RigVariation::for_seed(options.seed));
+    let variation =
+        options.randomize.then(|| RigVariation::for_seed(options.seed).without(options.take_out));
     let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
     let mut draws = 0;
     let (scene, rough_position_mm, plan) = loop {

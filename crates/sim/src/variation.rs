@@ -65,6 +65,20 @@ fn laser_calibration_error(seed: u64) -> [f64; 3] {
     ]
 }
 
+/// Causes of error a randomized scan can be rendered without
+/// ([`ScanOptions::take_out`](crate::ScanOptions::take_out)): to measure
+/// what each costs the localizer, not a rig or a fruit anyone has. Nothing
+/// is taken out by default.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct TakeOut {
+    /// No light in the fruit's flesh: the stripe on the fruit as on a
+    /// leaf ([`RigVariation::subsurface_sigma_mm`] 0).
+    pub glow: bool,
+    /// The target apple's plain ellipsoid: no taper, flat cheek or
+    /// cavities ([`RigVariation::apple_form`] none).
+    pub form: bool,
+}
+
 /// A range of a uniform draw, (low, high), both included.
 pub type DrawRange = (f64, f64);
 
@@ -373,15 +387,7 @@ impl RigVariation {
             rough_depth_error: draw(Self::ROUGH_DEPTH_ERROR),
             rough_lateral_sigma_mm: draw(Self::ROUGH_LATERAL_SIGMA_MM),
             // Drawn last, below, after the calibration's value.
-            apple_form: AppleForm {
-                taper: 0.0,
-                lopsided: 0.0,
-                lopsided_axis: [1.0, 0.0, 0.0],
-                stem_cavity_depth: 0.0,
-                stem_cavity_width_rad: 1.0,
-                calyx_cavity_depth: 0.0,
-                calyx_cavity_width_rad: 1.0,
-            },
+            apple_form: AppleForm::NONE,
         };
         [variation.alpha_error_deg, variation.l0_error_mm, variation.beta_error_deg] =
             laser_calibration_error(rng.random());
@@ -399,6 +405,19 @@ impl RigVariation {
         variation
     }
 
+    /// The variation with the causes `take_out` names left out; the other
+    /// draws stay as they are.
+    pub fn without(mut self, take_out: TakeOut) -> RigVariation {
+        if take_out.glow {
+            self.subsurface_sigma_mm = 0.0;
+            self.subsurface_shift = 0.0;
+        }
+        if take_out.form {
+            self.apple_form = AppleForm::NONE;
+        }
+        self
+    }
+
     /// `shape` given the drawn apple's form, where it is an ellipsoid (the
     /// target fruit), placed so that the apple's volume centroid lies at the
     /// ellipsoid's centre (the truth stays the fruit's centre); any other
@@ -408,6 +427,7 @@ impl RigVariation {
     /// half a millimetre.
     pub fn apple_shape(&self, shape: &Shape) -> Shape {
         match shape {
+            Shape::Ellipsoid { .. } if self.apple_form == AppleForm::NONE => shape.clone(),
             Shape::Ellipsoid { centre, rotation, semi_axes_mm } => Shape::Apple {
                 centre: centre - rotation * semi_axes_mm.component_mul(&self.apple_form.centroid()),
                 rotation: *rotation,
@@ -524,5 +544,30 @@ mod tests {
             "RMS alpha {alpha:.4} deg, L0 {l0:.3} mm, beta {beta:.4} deg; mean depth error at 0.8 m: {correlated:.3} mm as fitted, {independent:.3} mm independent"
         );
         assert!(correlated < 0.5 * independent, "{correlated} vs {independent}");
+    }
+
+    /// Taking a cause out leaves every other draw as it was: no glow leaves
+    /// the apple's form, no form renders the scene's own ellipsoid (its
+    /// centre the truth), and nothing taken out is the seed's variation.
+    #[test]
+    fn taking_a_cause_out_changes_that_cause_only() {
+        let drawn = RigVariation::for_seed(7);
+        assert!(drawn.subsurface_sigma_mm > 0.0 && drawn.apple_form != AppleForm::NONE);
+        assert_eq!(drawn.without(TakeOut::default()), drawn);
+        let no_glow = drawn.without(TakeOut { glow: true, form: false });
+        assert_eq!((no_glow.subsurface_sigma_mm, no_glow.subsurface_shift), (0.0, 0.0));
+        assert_eq!(
+            RigVariation { subsurface_sigma_mm: 0.3, subsurface_shift: 0.2, ..no_glow },
+            RigVariation { subsurface_sigma_mm: 0.3, subsurface_shift: 0.2, ..drawn }
+        );
+        let no_form = drawn.without(TakeOut { glow: false, form: true });
+        assert_eq!(RigVariation { apple_form: drawn.apple_form, ..no_form }, drawn);
+        let ellipsoid = Shape::Ellipsoid {
+            centre: nalgebra::Point3::new(10.0, -5.0, 900.0),
+            rotation: nalgebra::Rotation3::from_euler_angles(0.3, -0.2, 1.1),
+            semi_axes_mm: nalgebra::Vector3::new(38.0, 40.0, 41.0),
+        };
+        assert_eq!(no_form.apple_shape(&ellipsoid), ellipsoid);
+        assert!(matches!(drawn.apple_shape(&ellipsoid), Shape::Apple { .. }));
     }
 }
