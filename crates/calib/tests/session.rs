@@ -171,15 +171,8 @@ fn a_slide_scale_error_is_fitted_to_the_noise_floor() {
 /// part of the board), and k is fitted.
 ///
 /// Not claimed: that such sessions calibrate better than a checkerboard
-/// seen whole. Measured before the corners were fitted as X-junctions
-/// (seeds 100-105, `--charuco DICT_5X5_100 --cut-by-border`): k within
-/// 0.02 % in 6 of 6; the depth error over the working volume within 1 mm
-/// at every slide in 3 of 6 (0.67-1.00 mm at worst; the others 1.02, 2.6
-/// and 5.4 mm); seed 101's fx 1163.95 for 1160 (poses that show 10-20 % of
-/// the board fix the focal length poorly; the reported standard deviations
-/// say so); seed 105 used 7 of its 8 poses. With the fit, seeds 100 and
-/// 101: 0.34 and 1.89 mm at worst, seed 101's fx 1160.49, k -0.005 and
-/// -0.022 % off.
+/// seen whole: poses that show 10-20 % of the board fix the focal length
+/// poorly, and the reported standard deviations say so.
 #[test]
 fn a_charuco_session_cut_by_the_border_uses_every_pose() {
     use alacs_model::ArucoDictionary;
