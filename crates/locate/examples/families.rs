@@ -1,7 +1,7 @@
 //! The localizer judged per family of simulated scans: found rate, wrong
 //! rate and error percentiles, as docs/ACCURACY.md's table.
 //!
-//! `cargo run --release -p alacs-locate --example families -- [--seeds tune|report] [--n N] [--scale S] [--randomize on|off|both] [--family NAME] [--scans] [--round] [--no-form] [--no-glow] [--no-outline] [--true-calibration] [--no-extension]`
+//! `cargo run --release -p alacs-locate --example families -- [--seeds tune|report] [--n N] [--scale S] [--randomize on|off|both] [--family NAME] [--scans] [--round] [--no-form] [--no-glow] [--no-outline] [--true-calibration] [--no-extension] [--anatomy]`
 //!
 //! Randomized scans draw, per scan, what real rigs vary in (alacs-sim's
 //! `RigVariation`: laser, light in the flesh, fruit and leaf colours, lens,
@@ -32,8 +32,10 @@
 //! with the calibration its images were rendered with (no calibration
 //! error), and on randomized rigs `--no-form` renders the apple's plain
 //! ellipsoid (no taper, flat cheek or cavities) and `--no-glow` no light in
-//! its flesh. Progress goes to standard error, the table
-//! (markdown) to standard output.
+//! its flesh. `--anatomy` measures the randomized families once per row of
+//! docs/ACCURACY.md's table of what the randomized error is made of (each
+//! row a set of these switches) and prints that table. Progress goes to
+//! standard error, the table (markdown) to standard output.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use alacs_locate::{FrameImages, LocateOptions, Prior, Status, locate};
@@ -92,7 +94,7 @@ const FAMILIES: &[Family] = &[
     },
 ];
 
-#[derive(Default)]
+#[derive(Default, Clone)]
 struct Tally {
     scans: usize,
     found: usize,
@@ -121,9 +123,10 @@ fn percentile(sorted: &[f64], p: f64) -> f64 {
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    const USAGE: &str = "families [--seeds tune|report] [--n N] [--scale S] [--randomize on|off|both] [--family NAME] [--scans] [--round] [--no-form] [--no-glow] [--no-outline] [--true-calibration] [--no-extension]";
+    const USAGE: &str = "families [--seeds tune|report] [--n N] [--scale S] [--randomize on|off|both] [--family NAME] [--scans] [--round] [--no-form] [--no-glow] [--no-outline] [--true-calibration] [--no-extension] [--anatomy]";
     const VALUED: [&str; 5] = ["--seeds", "--n", "--scale", "--randomize", "--family"];
-    const SWITCHES: [&str; 7] = [
+    const SWITCHES: [&str; 8] = [
+        "--anatomy",
         "--scans",
         "--round",
         "--no-form",
@@ -167,13 +170,22 @@ fn main() {
         None | Some("both") => vec![false, true],
         Some(other) => panic!("--randomize on|off|both, not {other}"),
     };
-    let only = value("--family");
-    let base = if report { REPORT_SEEDS } else { TUNE_SEEDS };
-    let nominal = LaserModel::seed_paper();
     println!(
         "{} seeds, {n} scans a family, camera scale {scale}; found: `ok` within {WRONG_MM} mm of the truth; wrong: `ok` beyond it; errors of the found.\n",
         if report { "Reporting" } else { "Tuning" },
     );
+    let settings = Settings {
+        only: value("--family"),
+        n,
+        base: if report { REPORT_SEEDS } else { TUNE_SEEDS },
+        scale,
+        per_scan,
+        switches: Switches::from_args(&args),
+    };
+    if args.iter().any(|a| a == "--anatomy") {
+        anatomy(&settings);
+        return;
+    }
     println!(
         "| family | randomized | found | not found | wrong | median | 90th pct | worst | extended | truth in its 99 % ellipsoid |"
     );
@@ -181,264 +193,13 @@ fn main() {
     let mut colours: Vec<(String, Tally)> = Vec::new();
     let mut unbuilt = 0;
     for &randomize in &modes {
-        let mut total = Tally::default();
-        for (f, family) in FAMILIES.iter().enumerate() {
-            if only.as_deref().is_some_and(|o| !family.name.contains(o)) {
-                continue;
-            }
-            let mut tally = Tally::default();
-            for i in 0..n {
-                let seed = base + f as u64 * FAMILY_STRIDE + i;
-                let (mut orchard, sun) = (family.options)(i);
-                if args.iter().any(|a| a == "--round") {
-                    orchard.max_ellipticity = 0.0;
-                }
-                let take_out = TakeOut {
-                    glow: args.iter().any(|a| a == "--no-glow"),
-                    form: args.iter().any(|a| a == "--no-form"),
-                };
-                let options = ScanOptions {
-                    orchard,
-                    sun,
-                    scale,
-                    seed,
-                    randomize,
-                    take_out,
-                    ..ScanOptions::default()
-                };
-                // A scene the simulator cannot build (a sliver of occlusion
-                // no leaf can make) is left out and counted.
-                let Ok(sim) = simulate_rendered_scan(&Camera::blackfly_s_5mp(), &nominal, &options)
-                else {
-                    unbuilt += 1;
-                    continue;
-                };
-                let scan = &sim.scan;
-                let frames: Vec<FrameImages> = sim.frames().map(FrameImages::from).collect();
-                // The RGB-D camera's radius: 13 % below to 15 % above the
-                // truth, as a detector's circle at 0.6-1.6 m gives it.
-                let truth_radius = scan.scene.fruit_radius_mm;
-                let prior = Prior {
-                    rough_position_mm: scan.rough_position_mm,
-                    fruit_radius_mm: truth_radius * spread(seed, 7, 0.87, 1.15),
-                };
-                let locate_options = LocateOptions {
-                    use_outline: !args.iter().any(|a| a == "--no-outline"),
-                    ..LocateOptions::default()
-                };
-                // The calibration the localizer is given, or (to measure what
-                // the randomized calibration error costs) the one the images
-                // were rendered with.
-                let (camera, laser) = if args.iter().any(|a| a == "--true-calibration") {
-                    (&scan.rendered_camera, &scan.rendered_laser)
-                } else {
-                    (&scan.camera, &scan.laser)
-                };
-                let mut answer = locate(camera, laser, &prior, &frames, &locate_options)
-                    .expect("a simulated scan is valid input");
-                // Not found in the sweep for want of evidence: the strategy's
-                // extension frames (beyond both ends of it), as the scan
-                // controller takes them (nearest first does not matter here).
-                let mut extended = 0;
-                if answer.status != Status::Ok
-                    && !answer.contradicted
-                    && !args.iter().any(|a| a == "--no-extension")
-                {
-                    let slides = ScanStrategy::default().extension(&scan.plan);
-                    let images: Vec<_> = slides
-                        .iter()
-                        .enumerate()
-                        .map(|(k, &d)| {
-                            let index = (scan.frames.len() + k) as u64;
-                            (scan.render_at(d, true, index).expect("renders"), d)
-                        })
-                        .collect();
-                    if !images.is_empty() {
-                        extended = images.len();
-                        let mut all = frames.clone();
-                        all.extend(images.iter().map(|(image, d)| FrameImages::from((image, *d))));
-                        answer = locate(camera, laser, &prior, &all, &locate_options)
-                            .expect("a simulated scan is valid input");
-                    }
-                }
-                let truth = scan.scene.fruit_centre;
-                let error = match (answer.status, answer.position_mm) {
-                    (Status::Ok, Some(p)) => Some((p - truth).norm()),
-                    _ => None,
-                };
-                // Whether the answer's 99 % ellipsoid holds the truth.
-                let covered = match (answer.status, answer.position_mm, answer.position_cov_mm2) {
-                    (Status::Ok, Some(p), Some(cov)) => cov
-                        .try_inverse()
-                        .map(|inverse| (p - truth).dot(&(inverse * (p - truth))) <= CHI2_3_99),
-                    _ => None,
-                };
-                tally.add(error, extended > 0, covered);
-                if let Some(v) = &scan.variation {
-                    let name = format!("{:?}", v.fruit_colour).to_lowercase();
-                    match colours.iter_mut().find(|(c, _)| *c == name) {
-                        Some((_, t)) => t.add(error, extended > 0, covered),
-                        None => {
-                            let mut t = Tally::default();
-                            t.add(error, extended > 0, covered);
-                            colours.push((name, t));
-                        }
-                    }
-                }
-                if per_scan {
-                    let line = match error {
-                        Some(e) => {
-                            // The answer's worst standard deviation, to set against its error.
-                            let sigma = answer.position_cov_mm2.map_or(f64::NAN, |c| {
-                                c.symmetric_eigenvalues().max().max(0.0).sqrt()
-                            });
-                            // Of the answer's points, those on the true fruit.
-                            let on_truth = answer.fused.as_ref().map_or((0, 0), |f| {
-                                let points = answer.frames.iter().flat_map(|r| &r.points_in_camera);
-                                let on = |p: &nalgebra::Point3<f64>,
-                                          c: nalgebra::Point3<f64>,
-                                          r: f64| {
-                                    ((p - c).norm() - r).abs() < 2.5
-                                };
-                                points.fold((0, 0), |(t, n), (_, p)| {
-                                    if on(p, f.sphere.centre, f.sphere.radius_mm) {
-                                        (t + usize::from(on(p, truth, truth_radius)), n + 1)
-                                    } else {
-                                        (t, n)
-                                    }
-                                })
-                            });
-                            // How far the answer's points lie behind the true surface
-                            // along their camera rays (median, mm): the stripe's own bias
-                            // (a wide or glowing stripe, the calibration), apart from the fit.
-                            let behind = answer.fused.as_ref().map_or(f64::NAN, |f| {
-                                let mut offsets: Vec<f64> = answer
-                                    .frames
-                                    .iter()
-                                    .flat_map(|r| &r.points_in_camera)
-                                    .filter(|(_, p)| {
-                                        ((p - f.sphere.centre).norm() - f.sphere.radius_mm).abs()
-                                            < 2.5
-                                    })
-                                    .filter_map(|(_, p)| {
-                                        let ray = Ray {
-                                            origin: nalgebra::Point3::origin(),
-                                            direction: p.coords.normalize(),
-                                        };
-                                        let hit = scan.scene.first_hit(&ray, 1.0)?;
-                                        (hit.object == 0).then(|| p.coords.norm() - hit.t)
-                                    })
-                                    .collect();
-                                offsets.sort_by(f64::total_cmp);
-                                offsets.get(offsets.len() / 2).copied().unwrap_or(f64::NAN)
-                            });
-                            // Where the answer's front lies against the fruit's, along
-                            // the line of sight through the truth, and how far its centre
-                            // lies behind that front against the truth's (mm).
-                            let (front, depth, true_depth) =
-                                answer.fused.as_ref().map_or((f64::NAN, f64::NAN, f64::NAN), |f| {
-                                    let sight = truth.coords.normalize();
-                                    let ray = Ray {
-                                        origin: nalgebra::Point3::origin(),
-                                        direction: sight,
-                                    };
-                                    let true_front = scan
-                                        .scene
-                                        .first_hit_among(&ray, 1.0, std::iter::once(0))
-                                        .map_or(f64::NAN, |h| h.t);
-                                    // An ellipsoid's half extent along a unit direction s is
-                                    // sqrt(s' A^-1 s).
-                                    let (centre, depth) = match &f.ellipsoid {
-                                        Some(e) => (
-                                            e.centre,
-                                            e.shape.try_inverse().map_or(f64::NAN, |inverse| {
-                                                sight.dot(&(inverse * sight)).sqrt()
-                                            }),
-                                        ),
-                                        None => (f.sphere.centre, f.sphere.radius_mm),
-                                    };
-                                    (
-                                        centre.coords.dot(&sight) - depth - true_front,
-                                        depth,
-                                        truth.coords.norm() - true_front,
-                                    )
-                                });
-                            // The error along the line of sight and across it, and the
-                            // answer's radius against the truth's.
-                            let p = answer.position_mm.unwrap_or(truth);
-                            let sight = truth.coords.normalize();
-                            let along = (p - truth).dot(&sight);
-                            let across = ((p - truth) - sight * along).norm();
-                            let radius = answer.radius_mm.unwrap_or(f64::NAN);
-                            // The outline's radius against the true silhouette's, px.
-                            let outline_px = answer
-                                .fused
-                                .as_ref()
-                                .and_then(|f| f.outline.as_ref())
-                                .map_or(f64::NAN, |o| {
-                                    let theta = (truth_radius / truth.coords.norm()).asin();
-                                    o.radius_px - scan.camera.fx_px * theta.tan()
-                                });
-                            format!(
-                                "ok {e:6.2} mm (outline {outline_px:+.2} px, along {along:+.2}, across {across:.2}, radius {:+.1} mm, points {behind:+.2} mm behind, front {front:+.2}, centre {depth:.1} behind it for {true_depth:.1}; sigma {sigma:.1} mm, {} of its {} points on the fruit): {}",
-                                radius - truth_radius,
-                                on_truth.0,
-                                on_truth.1,
-                                answer.reason
-                            )
-                        }
-                        None => format!("NOT FOUND: {}", answer.reason),
-                    };
-                    if let Some(v) = &scan.variation {
-                        println!(
-                            "  variation: {:?} sigma {:.2} px power {:.2} exposure {:.2} subsurface {:.1} mm blur {:.2} px",
-                            v.fruit_colour,
-                            v.stripe_sigma_px,
-                            v.laser_power,
-                            v.exposure_factor,
-                            v.subsurface_sigma_mm,
-                            v.blur_sigma_px
-                        );
-                    }
-                    let extension = if extended > 0 {
-                        format!(" (after {extended} extension frames)")
-                    } else {
-                        String::new()
-                    };
-                    println!(
-                        "  seed {seed} z {:.0} r {:.1} hidden {:.0} %{extension}: {line}",
-                        truth.z,
-                        truth_radius,
-                        100.0 * scan.scene.occlusion
-                    );
-                    // Each frame's stripe points, those on the fruit's colour, and
-                    // those within 2.5 mm of the true fruit.
-                    let frames: Vec<String> = answer
-                        .frames
-                        .iter()
-                        .map(|r| {
-                            let on = r
-                                .points_in_camera
-                                .iter()
-                                .filter(|(_, p)| ((p - truth).norm() - truth_radius).abs() < 2.5)
-                                .count();
-                            format!("{}/{}/{on}", r.stripe.len(), r.fruit.len())
-                        })
-                        .collect();
-                    println!("    frames (stripe/fruit/on the true fruit): {}", frames.join(" "));
-                }
-                eprint!(
-                    "\r{} ({}): {}/{n}   ",
-                    family.name,
-                    if randomize { "randomized" } else { "fixed" },
-                    i + 1
-                );
-            }
-            eprintln!();
-            print_row(family.name, randomize, &tally);
-            total.merge(tally);
+        let measured = measure(&settings, randomize);
+        for (name, tally) in &measured.families {
+            print_row(name, randomize, tally);
         }
-        print_row("all families", randomize, &total);
+        print_row("all families", randomize, &measured.total);
+        colours.extend(measured.colours);
+        unbuilt += measured.unbuilt;
     }
     colours.sort_by(|a, b| a.0.cmp(&b.0));
     for (colour, tally) in &colours {
@@ -446,6 +207,383 @@ fn main() {
     }
     if unbuilt > 0 {
         println!("\n{unbuilt} scene(s) the simulator could not build were left out.");
+    }
+}
+
+/// The switches that take a cause out (module docs).
+#[derive(Clone, Copy, Default)]
+struct Switches {
+    round: bool,
+    no_form: bool,
+    no_glow: bool,
+    no_outline: bool,
+    true_calibration: bool,
+    no_extension: bool,
+}
+
+impl Switches {
+    fn from_args(args: &[String]) -> Switches {
+        let on = |flag: &str| args.iter().any(|a| a == flag);
+        Switches {
+            round: on("--round"),
+            no_form: on("--no-form"),
+            no_glow: on("--no-glow"),
+            no_outline: on("--no-outline"),
+            true_calibration: on("--true-calibration"),
+            no_extension: on("--no-extension"),
+        }
+    }
+}
+
+/// What a run measures: which families, how many scans from which seed,
+/// at which scale, with which causes taken out.
+struct Settings {
+    only: Option<String>,
+    n: u64,
+    base: u64,
+    scale: f64,
+    per_scan: bool,
+    switches: Switches,
+}
+
+/// One run's tallies: each family's, all of them, and by fruit colour.
+struct Measured {
+    families: Vec<(&'static str, Tally)>,
+    total: Tally,
+    colours: Vec<(String, Tally)>,
+    unbuilt: usize,
+}
+
+/// Every family's scans, rendered with randomization on or off, located
+/// and tallied.
+fn measure(settings: &Settings, randomize: bool) -> Measured {
+    let (n, scale) = (settings.n, settings.scale);
+    let nominal = LaserModel::seed_paper();
+    let mut measured =
+        Measured { families: Vec::new(), total: Tally::default(), colours: Vec::new(), unbuilt: 0 };
+    let (colours, unbuilt) = (&mut measured.colours, &mut measured.unbuilt);
+    for (f, family) in FAMILIES.iter().enumerate() {
+        if settings.only.as_deref().is_some_and(|o| !family.name.contains(o)) {
+            continue;
+        }
+        let mut tally = Tally::default();
+        for i in 0..settings.n {
+            let seed = settings.base + f as u64 * FAMILY_STRIDE + i;
+            let (mut orchard, sun) = (family.options)(i);
+            if settings.switches.round {
+                orchard.max_ellipticity = 0.0;
+            }
+            let take_out =
+                TakeOut { glow: settings.switches.no_glow, form: settings.switches.no_form };
+            let options = ScanOptions {
+                orchard,
+                sun,
+                scale,
+                seed,
+                randomize,
+                take_out,
+                ..ScanOptions::default()
+            };
+            // A scene the simulator cannot build (a sliver of occlusion
+            // no leaf can make) is left out and counted.
+            let Ok(sim) = simulate_rendered_scan(&Camera::blackfly_s_5mp(), &nominal, &options)
+            else {
+                *unbuilt += 1;
+                continue;
+            };
+            let scan = &sim.scan;
+            let frames: Vec<FrameImages> = sim.frames().map(FrameImages::from).collect();
+            // The RGB-D camera's radius: 13 % below to 15 % above the
+            // truth, as a detector's circle at 0.6-1.6 m gives it.
+            let truth_radius = scan.scene.fruit_radius_mm;
+            let prior = Prior {
+                rough_position_mm: scan.rough_position_mm,
+                fruit_radius_mm: truth_radius * spread(seed, 7, 0.87, 1.15),
+            };
+            let locate_options = LocateOptions {
+                use_outline: !settings.switches.no_outline,
+                ..LocateOptions::default()
+            };
+            // The calibration the localizer is given, or (to measure what
+            // the randomized calibration error costs) the one the images
+            // were rendered with.
+            let (camera, laser) = if settings.switches.true_calibration {
+                (&scan.rendered_camera, &scan.rendered_laser)
+            } else {
+                (&scan.camera, &scan.laser)
+            };
+            let mut answer = locate(camera, laser, &prior, &frames, &locate_options)
+                .expect("a simulated scan is valid input");
+            // Not found in the sweep for want of evidence: the strategy's
+            // extension frames (beyond both ends of it), as the scan
+            // controller takes them (nearest first does not matter here).
+            let mut extended = 0;
+            if answer.status != Status::Ok
+                && !answer.contradicted
+                && !settings.switches.no_extension
+            {
+                let slides = ScanStrategy::default().extension(&scan.plan);
+                let images: Vec<_> = slides
+                    .iter()
+                    .enumerate()
+                    .map(|(k, &d)| {
+                        let index = (scan.frames.len() + k) as u64;
+                        (scan.render_at(d, true, index).expect("renders"), d)
+                    })
+                    .collect();
+                if !images.is_empty() {
+                    extended = images.len();
+                    let mut all = frames.clone();
+                    all.extend(images.iter().map(|(image, d)| FrameImages::from((image, *d))));
+                    answer = locate(camera, laser, &prior, &all, &locate_options)
+                        .expect("a simulated scan is valid input");
+                }
+            }
+            let truth = scan.scene.fruit_centre;
+            let error = match (answer.status, answer.position_mm) {
+                (Status::Ok, Some(p)) => Some((p - truth).norm()),
+                _ => None,
+            };
+            // Whether the answer's 99 % ellipsoid holds the truth.
+            let covered = match (answer.status, answer.position_mm, answer.position_cov_mm2) {
+                (Status::Ok, Some(p), Some(cov)) => cov
+                    .try_inverse()
+                    .map(|inverse| (p - truth).dot(&(inverse * (p - truth))) <= CHI2_3_99),
+                _ => None,
+            };
+            tally.add(error, extended > 0, covered);
+            if let Some(v) = &scan.variation {
+                let name = format!("{:?}", v.fruit_colour).to_lowercase();
+                match colours.iter_mut().find(|(c, _)| *c == name) {
+                    Some((_, t)) => t.add(error, extended > 0, covered),
+                    None => {
+                        let mut t = Tally::default();
+                        t.add(error, extended > 0, covered);
+                        colours.push((name, t));
+                    }
+                }
+            }
+            if settings.per_scan {
+                let line = match error {
+                    Some(e) => {
+                        // The answer's worst standard deviation, to set against its error.
+                        let sigma = answer
+                            .position_cov_mm2
+                            .map_or(f64::NAN, |c| c.symmetric_eigenvalues().max().max(0.0).sqrt());
+                        // Of the answer's points, those on the true fruit.
+                        let on_truth = answer.fused.as_ref().map_or((0, 0), |f| {
+                            let points = answer.frames.iter().flat_map(|r| &r.points_in_camera);
+                            let on =
+                                |p: &nalgebra::Point3<f64>, c: nalgebra::Point3<f64>, r: f64| {
+                                    ((p - c).norm() - r).abs() < 2.5
+                                };
+                            points.fold((0, 0), |(t, n), (_, p)| {
+                                if on(p, f.sphere.centre, f.sphere.radius_mm) {
+                                    (t + usize::from(on(p, truth, truth_radius)), n + 1)
+                                } else {
+                                    (t, n)
+                                }
+                            })
+                        });
+                        // How far the answer's points lie behind the true surface
+                        // along their camera rays (median, mm): the stripe's own bias
+                        // (a wide or glowing stripe, the calibration), apart from the fit.
+                        let behind = answer.fused.as_ref().map_or(f64::NAN, |f| {
+                            let mut offsets: Vec<f64> = answer
+                                .frames
+                                .iter()
+                                .flat_map(|r| &r.points_in_camera)
+                                .filter(|(_, p)| {
+                                    ((p - f.sphere.centre).norm() - f.sphere.radius_mm).abs() < 2.5
+                                })
+                                .filter_map(|(_, p)| {
+                                    let ray = Ray {
+                                        origin: nalgebra::Point3::origin(),
+                                        direction: p.coords.normalize(),
+                                    };
+                                    let hit = scan.scene.first_hit(&ray, 1.0)?;
+                                    (hit.object == 0).then(|| p.coords.norm() - hit.t)
+                                })
+                                .collect();
+                            offsets.sort_by(f64::total_cmp);
+                            offsets.get(offsets.len() / 2).copied().unwrap_or(f64::NAN)
+                        });
+                        // Where the answer's front lies against the fruit's, along
+                        // the line of sight through the truth, and how far its centre
+                        // lies behind that front against the truth's (mm).
+                        let (front, depth, true_depth) =
+                            answer.fused.as_ref().map_or((f64::NAN, f64::NAN, f64::NAN), |f| {
+                                let sight = truth.coords.normalize();
+                                let ray =
+                                    Ray { origin: nalgebra::Point3::origin(), direction: sight };
+                                let true_front = scan
+                                    .scene
+                                    .first_hit_among(&ray, 1.0, std::iter::once(0))
+                                    .map_or(f64::NAN, |h| h.t);
+                                // An ellipsoid's half extent along a unit direction s is
+                                // sqrt(s' A^-1 s).
+                                let (centre, depth) = match &f.ellipsoid {
+                                    Some(e) => (
+                                        e.centre,
+                                        e.shape.try_inverse().map_or(f64::NAN, |inverse| {
+                                            sight.dot(&(inverse * sight)).sqrt()
+                                        }),
+                                    ),
+                                    None => (f.sphere.centre, f.sphere.radius_mm),
+                                };
+                                (
+                                    centre.coords.dot(&sight) - depth - true_front,
+                                    depth,
+                                    truth.coords.norm() - true_front,
+                                )
+                            });
+                        // The error along the line of sight and across it, and the
+                        // answer's radius against the truth's.
+                        let p = answer.position_mm.unwrap_or(truth);
+                        let sight = truth.coords.normalize();
+                        let along = (p - truth).dot(&sight);
+                        let across = ((p - truth) - sight * along).norm();
+                        let radius = answer.radius_mm.unwrap_or(f64::NAN);
+                        // The outline's radius against the true silhouette's, px.
+                        let outline_px = answer
+                            .fused
+                            .as_ref()
+                            .and_then(|f| f.outline.as_ref())
+                            .map_or(f64::NAN, |o| {
+                                let theta = (truth_radius / truth.coords.norm()).asin();
+                                o.radius_px - scan.camera.fx_px * theta.tan()
+                            });
+                        format!(
+                            "ok {e:6.2} mm (outline {outline_px:+.2} px, along {along:+.2}, across {across:.2}, radius {:+.1} mm, points {behind:+.2} mm behind, front {front:+.2}, centre {depth:.1} behind it for {true_depth:.1}; sigma {sigma:.1} mm, {} of its {} points on the fruit): {}",
+                            radius - truth_radius,
+                            on_truth.0,
+                            on_truth.1,
+                            answer.reason
+                        )
+                    }
+                    None => format!("NOT FOUND: {}", answer.reason),
+                };
+                if let Some(v) = &scan.variation {
+                    println!(
+                        "  variation: {:?} sigma {:.2} px power {:.2} exposure {:.2} subsurface {:.1} mm blur {:.2} px",
+                        v.fruit_colour,
+                        v.stripe_sigma_px,
+                        v.laser_power,
+                        v.exposure_factor,
+                        v.subsurface_sigma_mm,
+                        v.blur_sigma_px
+                    );
+                }
+                let extension = if extended > 0 {
+                    format!(" (after {extended} extension frames)")
+                } else {
+                    String::new()
+                };
+                println!(
+                    "  seed {seed} z {:.0} r {:.1} hidden {:.0} %{extension}: {line}",
+                    truth.z,
+                    truth_radius,
+                    100.0 * scan.scene.occlusion
+                );
+                // Each frame's stripe points, those on the fruit's colour, and
+                // those within 2.5 mm of the true fruit.
+                let frames: Vec<String> = answer
+                    .frames
+                    .iter()
+                    .map(|r| {
+                        let on = r
+                            .points_in_camera
+                            .iter()
+                            .filter(|(_, p)| ((p - truth).norm() - truth_radius).abs() < 2.5)
+                            .count();
+                        format!("{}/{}/{on}", r.stripe.len(), r.fruit.len())
+                    })
+                    .collect();
+                println!("    frames (stripe/fruit/on the true fruit): {}", frames.join(" "));
+            }
+            eprint!(
+                "\r{} ({}): {}/{n}   ",
+                family.name,
+                if randomize { "randomized" } else { "fixed" },
+                i + 1
+            );
+        }
+        eprintln!();
+        measured.total.merge(tally.clone());
+        measured.families.push((family.name, tally));
+    }
+    measured
+}
+
+/// The rows of the table of what the randomized error is made of
+/// (docs/ACCURACY.md): the causes each row takes out.
+const ANATOMY: [(&str, Switches); 7] = {
+    const NONE: Switches = Switches {
+        round: false,
+        no_form: false,
+        no_glow: false,
+        no_outline: false,
+        true_calibration: false,
+        no_extension: false,
+    };
+    [
+        ("nothing", NONE),
+        ("`--no-glow --no-form`", Switches { no_glow: true, no_form: true, ..NONE }),
+        ("`--true-calibration`", Switches { true_calibration: true, ..NONE }),
+        (
+            "`--true-calibration --no-glow`",
+            Switches { true_calibration: true, no_glow: true, ..NONE },
+        ),
+        (
+            "`--true-calibration --no-form`",
+            Switches { true_calibration: true, no_form: true, ..NONE },
+        ),
+        (
+            "`--true-calibration --no-glow --no-form`",
+            Switches { true_calibration: true, no_glow: true, no_form: true, ..NONE },
+        ),
+        (
+            "`--true-calibration --no-glow --no-form --round`",
+            Switches { true_calibration: true, no_glow: true, no_form: true, round: true, ..NONE },
+        ),
+    ]
+};
+
+/// `--anatomy`: the randomized families once per row of [`ANATOMY`], one
+/// line each.
+fn anatomy(settings: &Settings) {
+    println!(
+        "| taken out | found | wrong | median shade / sun | unoccluded median / worst | all families median / 90th pct |"
+    );
+    println!("|---|---|---|---|---|---|");
+    for (name, switches) in ANATOMY {
+        let measured = measure(&Settings { switches, only: None, ..*settings }, true);
+        let family = |prefix: &str| {
+            let mut errors = measured
+                .families
+                .iter()
+                .find(|(n, _)| n.starts_with(prefix))
+                .map(|(_, t)| t.errors_mm.clone())
+                .unwrap_or_default();
+            errors.sort_by(f64::total_cmp);
+            errors
+        };
+        let (shade, sun, unoccluded) = (family("shade"), family("sun"), family("unoccluded"));
+        let mut all = measured.total.errors_mm.clone();
+        all.sort_by(f64::total_cmp);
+        let mm = |v: f64| format!("{v:.2}");
+        println!(
+            "| {name} | {} of {} | {} | {} / {} mm | {} / {} mm | {} / {} mm |",
+            measured.total.found,
+            measured.total.scans,
+            measured.total.wrong,
+            mm(percentile(&shade, 0.5)),
+            mm(percentile(&sun, 0.5)),
+            mm(percentile(&unoccluded, 0.5)),
+            mm(unoccluded.last().copied().unwrap_or(f64::NAN)),
+            mm(percentile(&all, 0.5)),
+            mm(percentile(&all, 0.9)),
+        );
     }
 }
 
