@@ -204,9 +204,7 @@ impl<'a> Evidence<'a> {
             outline_rays,
         }
     }
-}
 
-impl Evidence<'_> {
     /// This evidence without the laser points that `neighbours` (other
     /// fruit: spheres apart from `target`, each explaining points of its
     /// own) explain better than `target` does: where apples touch, a
@@ -217,9 +215,9 @@ impl Evidence<'_> {
     pub(crate) fn without_neighbours(&self, target: &Sphere, neighbours: &[Sphere]) -> Self {
         let mut reduced = self.clone();
         reduced.points.retain(|(_, p)| {
-            let own = target.distance_mm(p).abs();
+            let own = target.distance_mm(p);
             !neighbours.iter().any(|n| {
-                let d = n.distance_mm(p).abs();
+                let d = n.distance_mm(p);
                 d < SURFACE_BAND_MM && d < own
             })
         });
