@@ -18,8 +18,8 @@ use crate::frame::{
     facing_fraction, no_candidate_reason,
 };
 use crate::outline::{
-    OUTLINE_WEIGHT, Outline, PixelBox, find_outline, fit_outline_sphere, is_fruit_coloured_at,
-    outline_rays, rays_through, silhouette_edges,
+    FruitColours, LearnedColours, OUTLINE_WEIGHT, Outline, PixelBox, find_outline,
+    fit_outline_sphere, is_fruit_coloured_at, outline_rays, rays_through, silhouette_edges,
 };
 use crate::{Candidate, FrameResult, FusedFit, Localization, LocateOptions, Status};
 
@@ -169,6 +169,44 @@ pub(crate) fn answer_fused(
     answer.position_cov_mm2 = covariance;
 }
 
+/// The fruit's outline around the accepted `sphere`'s image, in the colours
+/// learned from the pixels its laser points lie on against the surround's
+/// ([`LearnedColours`]), with those colours; `None` where too few points
+/// lie on the sphere to learn them or no outline is found.
+fn outline_around(
+    sphere: &Sphere,
+    evidence: &crate::estimate::Evidence,
+    context: &FrameContext,
+    views: &[&RgbImage],
+) -> Option<(Outline, FruitColours)> {
+    use crate::estimate::SURFACE_BAND_MM;
+    let camera = context.camera;
+    let centre_px = camera.project(&sphere.centre).ok()?;
+    let f_px = 0.5 * (camera.fx_px + camera.fy_px);
+    let radius_px = f_px * sphere.radius_mm / sphere.centre.z;
+    let area = PixelBox::around(&centre_px, 1.5 * radius_px + 5.0, camera);
+    let on_fruit: Vec<Point2<f64>> = evidence
+        .points
+        .iter()
+        .filter(|(_, p)| sphere.distance_mm(p) < SURFACE_BAND_MM)
+        .filter_map(|(_, p)| camera.project(p).ok())
+        .collect();
+    let surround = area.pixels().filter(|&(u, v)| {
+        (Point2::new(f64::from(u), f64::from(v)) - centre_px).norm() > SURROUND_FROM * radius_px
+    });
+    let colours = FruitColours::Learned(LearnedColours::learn(views, &on_fruit, surround)?);
+    let outline = find_outline(
+        views,
+        area,
+        &colours,
+        (OUTLINE_RADIUS_RANGE.0 * radius_px, OUTLINE_RADIUS_RANGE.1 * radius_px),
+        |c| (c - centre_px).norm() <= radius_px / 3.0,
+        context.options.seed,
+    )
+    .ok()?;
+    Some((outline, colours))
+}
+
 /// The accepted sphere refined to the fruit's ellipsoid (its MAP estimate
 /// under the roundness prior, [`fit_ellipsoid_with_rays`]): the laser
 /// points the sphere explains and, where the fruit's outline is found
@@ -180,7 +218,8 @@ pub(crate) fn answer_fused(
 /// shape and the same explanation (its centre within the estimator's
 /// rival distance, [`MIN_KEPT_SHARE`] of the sphere's points kept);
 /// without the outline's rays the sphere stands, as the front alone does
-/// not fix the depth semi-axis.
+/// not fix the depth semi-axis. The outline is the one the sphere came
+/// from, or the one found around it ([`outline_around`]).
 fn refine_to_ellipsoid(
     fit: FusedFit,
     evidence: &crate::estimate::Evidence,
@@ -193,31 +232,18 @@ fn refine_to_ellipsoid(
     // ellipsoid then refines it, but the laser saw too little of the fruit
     // for the outline to be a refinement of what it saw.
     let from_outline = fit.outline.is_some();
-    let outline = match fit.outline.clone() {
-        Some(outline) => Some(outline),
-        None if options.use_outline => {
-            let Ok(centre_px) = camera.project(&sphere.centre) else { return fit };
-            let f_px = 0.5 * (camera.fx_px + camera.fy_px);
-            let radius_px = f_px * sphere.radius_mm / sphere.centre.z;
-            let area = PixelBox::around(&centre_px, 1.5 * radius_px + 5.0, camera);
-            find_outline(
-                views,
-                area,
-                (OUTLINE_RADIUS_RANGE.0 * radius_px, OUTLINE_RADIUS_RANGE.1 * radius_px),
-                |c| (c - centre_px).norm() <= radius_px / 3.0,
-                options.seed,
-            )
-            .ok()
-        }
+    let found = match fit.outline.clone() {
+        Some(outline) => Some((outline, FruitColours::Apple)),
+        None if options.use_outline => outline_around(&sphere, evidence, context, views),
         None => None,
     };
-    let Some(outline) = outline else { return fit };
+    let Some((outline, colours)) = found else { return fit };
     // The fruit's departure from round: two standard deviations of a
     // semi-axis, beyond the surface band.
     let band = SURFACE_BAND_MM + 2.0 * options.shape_std * sphere.radius_mm;
     let band_px = band * 0.5 * (camera.fx_px + camera.fy_px) / sphere.centre.z.max(1.0);
     let directions: Vec<Vector3<f64>> =
-        rays_through(camera, &silhouette_edges(views, &outline, band_px))
+        rays_through(camera, &silhouette_edges(views, &outline, &colours, band_px))
             .into_iter()
             .filter(|ray| (ray_distance_mm(&sphere.centre, ray) - sphere.radius_mm).abs() < band)
             .collect();
@@ -269,6 +295,13 @@ fn refine_to_ellipsoid(
 /// edges of a few pixels of outline (a small fruit at 1.6 m and half scale
 /// is about 20 px round, 160 edges), too few to show its shape below this.
 const MIN_OUTLINE_RAYS: usize = 12;
+
+/// The surround a fruit's colours are learned against
+/// ([`LearnedColours`]) begins this many of the sphere's image radii from
+/// its centre: beyond the largest outline searched for
+/// ([`OUTLINE_RADIUS_RANGE`]), so no pixel of this fruit counts as its
+/// surround.
+const SURROUND_FROM: f64 = OUTLINE_RADIUS_RANGE.1;
 
 /// Share of the sphere's laser points the ellipsoid must keep on its
 /// surface: the refinement moves the surface by the fruit's departure from
@@ -549,7 +582,14 @@ pub(crate) fn find_scene_outline(
     let (lo_mm, hi_mm) = context.radius_range_mm();
     let f_px = 0.5 * (camera.fx_px + camera.fy_px);
     let radius_range_px = (f_px * lo_mm / (centre.z + search.radius_mm), f_px * hi_mm / near_mm);
-    find_outline(views, area, radius_range_px, |c| (c - centre_px).norm() <= ball_px, options.seed)
+    find_outline(
+        views,
+        area,
+        &FruitColours::Apple,
+        radius_range_px,
+        |c| (c - centre_px).norm() <= ball_px,
+        options.seed,
+    )
 }
 
 /// A hypothesis from the fruit's outline ([`crate::outline`]) in the

@@ -11,7 +11,11 @@
 //!    without the stripe. A pixel is fruit-coloured when red is not far
 //!    below green (an apple's red blush or its yellow-green ground; foliage
 //!    has green well above red) and blue is low (bark, sky and specular
-//!    highlights are not).
+//!    highlights are not). Once a sphere is accepted, the fruit's own
+//!    colours are learned from the pixels its laser points lie on, against
+//!    its surround's ([`LearnedColours`]), and added to the test's: a green
+//!    apple, which the fixed test takes for a leaf, is then told from the
+//!    leaves around it.
 //! 2. **Outline.** The edges between fruit-coloured pixels and the rest,
 //!    each with its outward direction, and a RANSAC circle through them
 //!    whose edges face outwards: the fruit's silhouette. Leaf edges that
@@ -85,6 +89,136 @@ fn is_fruit_colour(rgb: [u8; 3]) -> bool {
     max >= f32::from(MIN_FRUIT_DN) && r >= MIN_RED_OVER_GREEN * g && b <= MAX_BLUE_FRACTION * max
 }
 
+/// Which pixels are the fruit's: the fixed colour test (module docs, step
+/// 1), or one fruit's colours learned from the view ([`LearnedColours`]).
+#[derive(Debug, Clone)]
+pub(crate) enum FruitColours {
+    /// Any apple's colour: red blush or yellow-green ground, not foliage.
+    Apple,
+    /// Any apple's colour, or the colours of the fruit the laser lies on
+    /// against its surround's: the learned colours add a green apple's
+    /// skin, and leave every pixel the fixed test knows for an apple's.
+    Learned(LearnedColours),
+}
+
+impl FruitColours {
+    /// Whether `rgb` (a pixel of the view without the stripe) is the fruit's.
+    fn contains(&self, rgb: [u8; 3]) -> bool {
+        match self {
+            FruitColours::Apple => is_fruit_colour(rgb),
+            FruitColours::Learned(learned) => is_fruit_colour(rgb) || learned.contains(rgb),
+        }
+    }
+}
+
+/// Bins per axis of a [`LearnedColours`] histogram over chromaticity
+/// (r, g) / (r + g + b): 1/32 is about the chromaticity noise of a
+/// pixel at 60 DN with a few DN of sensor noise, so neighbouring bins
+/// share a colour and the histograms are smoothed over one bin.
+const CHROMA_BINS: usize = 32;
+
+/// Fewest samples of the fruit a [`LearnedColours`] is learned from: a
+/// histogram of fewer says little beyond the noise.
+const MIN_COLOUR_SAMPLES: usize = 30;
+
+/// One fruit's colours against its surround's, learned from the view: a
+/// pixel is the fruit's where its chromaticity is more common on the fruit
+/// (the pixels the laser points on the fruit lie on) than around it
+/// (histogram back-projection, Swain and Ballard 1991, as a likelihood
+/// ratio of the two classes at equal odds). Chromaticity is the same in
+/// shade and in light, so the fruit's own shading does not split it; a
+/// fruit the fixed test takes for a leaf (a green apple: red well below
+/// green) is told from the leaves around it by the colours this scene
+/// shows of each.
+#[derive(Debug, Clone)]
+pub(crate) struct LearnedColours {
+    /// The fruit's chromaticity density, smoothed, row-major (r, g).
+    fruit: Vec<f32>,
+    /// The surround's chromaticity density, smoothed, row-major (r, g).
+    surround: Vec<f32>,
+}
+
+impl LearnedColours {
+    /// The model from the view's colours at `fruit_px` (with their
+    /// 8-neighbours) and at `surround_px`; `None` where fewer than
+    /// [`MIN_COLOUR_SAMPLES`] pixels of either are bright enough to read.
+    pub(crate) fn learn(
+        images: &[&RgbImage],
+        fruit_px: &[Point2<f64>],
+        surround_px: impl Iterator<Item = (u32, u32)>,
+    ) -> Option<LearnedColours> {
+        let mut fruit = vec![0.0f32; CHROMA_BINS * CHROMA_BINS];
+        let mut n_fruit = 0;
+        for px in fruit_px {
+            for (du, dv) in (-1..=1).flat_map(|du| (-1..=1).map(move |dv| (du, dv))) {
+                let (u, v) = (px.x.round() + f64::from(du), px.y.round() + f64::from(dv));
+                if let Some(bin) = least_at_px(images, u, v).and_then(chroma_bin) {
+                    fruit[bin] += 1.0;
+                    n_fruit += 1;
+                }
+            }
+        }
+        let mut surround = vec![0.0f32; CHROMA_BINS * CHROMA_BINS];
+        let mut n_surround = 0;
+        for (u, v) in surround_px {
+            if let Some(bin) = least_at_px(images, f64::from(u), f64::from(v)).and_then(chroma_bin)
+            {
+                surround[bin] += 1.0;
+                n_surround += 1;
+            }
+        }
+        // Nine samples a laser point (its pixel and 8 neighbours).
+        if n_fruit < 9 * MIN_COLOUR_SAMPLES || n_surround < MIN_COLOUR_SAMPLES {
+            return None;
+        }
+        Some(LearnedColours {
+            fruit: smoothed_density(&fruit, n_fruit),
+            surround: smoothed_density(&surround, n_surround),
+        })
+    }
+
+    /// Whether `rgb` is more likely the fruit's than its surround's.
+    fn contains(&self, rgb: [u8; 3]) -> bool {
+        chroma_bin(rgb).is_some_and(|bin| self.fruit[bin] > self.surround[bin])
+    }
+}
+
+/// The chromaticity bin of a pixel, `None` where it is too dark to read
+/// ([`MIN_FRUIT_DN`]).
+fn chroma_bin(rgb: [u8; 3]) -> Option<usize> {
+    let [r, g, b] = rgb.map(f32::from);
+    if r.max(g).max(b) < f32::from(MIN_FRUIT_DN) {
+        return None;
+    }
+    let sum = r + g + b;
+    let bin = |x: f32| ((x / sum * CHROMA_BINS as f32) as usize).min(CHROMA_BINS - 1);
+    Some(bin(r) * CHROMA_BINS + bin(g))
+}
+
+/// A histogram over chromaticity bins as a density, smoothed by [1 2 1] / 4
+/// along each axis.
+fn smoothed_density(counts: &[f32], n: usize) -> Vec<f32> {
+    let at = |i: usize, j: usize| counts[i * CHROMA_BINS + j];
+    let mut out = vec![0.0f32; counts.len()];
+    for i in 0..CHROMA_BINS {
+        for j in 0..CHROMA_BINS {
+            let mut sum = 0.0;
+            for (di, a) in [(-1i32, 1.0f32), (0, 2.0), (1, 1.0)] {
+                for (dj, b) in [(-1i32, 1.0f32), (0, 2.0), (1, 1.0)] {
+                    let (ii, jj) = (i as i32 + di, j as i32 + dj);
+                    if (0..CHROMA_BINS as i32).contains(&ii)
+                        && (0..CHROMA_BINS as i32).contains(&jj)
+                    {
+                        sum += a * b * at(ii as usize, jj as usize);
+                    }
+                }
+            }
+            out[i * CHROMA_BINS + j] = sum / (16.0 * n as f32);
+        }
+    }
+    out
+}
+
 /// A pixel box `[u0, v0, u1, v1)`.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct PixelBox {
@@ -112,6 +246,11 @@ impl PixelBox {
         }
     }
 
+    /// Every pixel of the box, row by row.
+    pub(crate) fn pixels(self) -> impl Iterator<Item = (u32, u32)> {
+        (self.v0..self.v1).flat_map(move |v| (self.u0..self.u1).map(move |u| (u, v)))
+    }
+
     /// Too small (or outside the image) to hold an outline.
     fn is_empty(&self) -> bool {
         self.u1 <= self.u0 + 2 || self.v1 <= self.v0 + 2
@@ -127,12 +266,12 @@ struct Edge {
 
 /// The fruit mask of the box: the per-pixel minimum over `images`
 /// classified by colour, row-major.
-fn fruit_mask(images: &[&RgbImage], area: PixelBox) -> Vec<bool> {
+fn fruit_mask(images: &[&RgbImage], area: PixelBox, colours: &FruitColours) -> Vec<bool> {
     let (w, h) = (area.u1 - area.u0, area.v1 - area.v0);
     let mut mask = Vec::with_capacity((w * h) as usize);
     for v in area.v0..area.v1 {
         for u in area.u0..area.u1 {
-            mask.push(is_fruit_colour(least_at(images, u, v)));
+            mask.push(colours.contains(least_at(images, u, v)));
         }
     }
     mask
@@ -248,8 +387,12 @@ fn half_coverage_px(images: &[&RgbImage], edge: &Edge) -> Option<Point2<f64>> {
 
 /// The fruit mask of `area` and its edges, each moved to half coverage
 /// ([`half_coverage_px`]) where it can be.
-fn edges_at_half_coverage(images: &[&RgbImage], area: PixelBox) -> (Vec<bool>, Vec<Edge>) {
-    let mask = fruit_mask(images, area);
+fn edges_at_half_coverage(
+    images: &[&RgbImage],
+    area: PixelBox,
+    colours: &FruitColours,
+) -> (Vec<bool>, Vec<Edge>) {
+    let mask = fruit_mask(images, area, colours);
     let mut edges = mask_edges(&mask, area);
     for edge in &mut edges {
         edge.at_px = half_coverage_px(images, edge).unwrap_or(edge.at_px);
@@ -304,6 +447,7 @@ impl Estimator for OutlineEstimator<'_> {
 pub(crate) fn find_outline(
     images: &[&RgbImage],
     area: PixelBox,
+    colours: &FruitColours,
     radius_range_px: (f64, f64),
     centre_ok: impl Fn(&Point2<f64>) -> bool,
     seed: u64,
@@ -311,7 +455,7 @@ pub(crate) fn find_outline(
     if images.is_empty() || area.is_empty() {
         return Err("the search region is outside the image".into());
     }
-    let (mask, edges) = edges_at_half_coverage(images, area);
+    let (mask, edges) = edges_at_half_coverage(images, area, colours);
     let estimator = OutlineEstimator {
         points: edges.iter().map(|e| e.at_px).collect(),
         edges: &edges,
@@ -399,6 +543,7 @@ fn ray_through(camera: &Camera, px: &Point2<f64>) -> Option<Vector3<f64>> {
 pub(crate) fn silhouette_edges(
     images: &[&RgbImage],
     outline: &Outline,
+    colours: &FruitColours,
     band_px: f64,
 ) -> Vec<Point2<f64>> {
     let size = images.first().map_or((0, 0), |i| i.dimensions());
@@ -408,7 +553,7 @@ pub(crate) fn silhouette_edges(
     if area.is_empty() {
         return Vec::new();
     }
-    edges_at_half_coverage(images, area)
+    edges_at_half_coverage(images, area, colours)
         .1
         .into_iter()
         .filter_map(|edge| {
@@ -591,7 +736,8 @@ mod tests {
             image::Rgb(std::array::from_fn(|c| (a * fruit[c] + (1.0 - a) * leaf[c]).round() as u8))
         });
         let area = PixelBox { u0: 0, v0: 0, u1: w, v1: h };
-        let outline = find_outline(&[&image], area, (20.0, 80.0), |_| true, 1).unwrap();
+        let outline =
+            find_outline(&[&image], area, &FruitColours::Apple, (20.0, 80.0), |_| true, 1).unwrap();
         assert!((outline.radius_px - radius).abs() < 0.1, "{} px", outline.radius_px);
         assert!((outline.centre_px - Point2::new(cu, cv)).norm() < 0.1, "{:?}", outline.centre_px);
     }
@@ -607,16 +753,54 @@ mod tests {
             }
         }
         let area = PixelBox { u0: 0, v0: 0, u1: 200, v1: 200 };
-        let outline = find_outline(&[&image], area, (20.0, 80.0), |_| true, 1).unwrap();
+        let outline =
+            find_outline(&[&image], area, &FruitColours::Apple, (20.0, 80.0), |_| true, 1).unwrap();
         assert!((outline.centre_px - Point2::new(90.3, 110.7)).norm() < 1.0, "{outline:?}");
         assert!((outline.radius_px - 50.0).abs() < 1.0);
         assert!(outline.support > 0.4 && outline.support < 0.8, "{}", outline.support);
+    }
+
+    /// A green apple among leaves: red well below green in both, so the
+    /// fixed test sees no fruit; the colours learned from a stripe of
+    /// pixels down the fruit's middle, against the box's corners, find its
+    /// outline.
+    #[test]
+    fn a_green_fruits_outline_from_its_learned_colours() {
+        let (fruit, leaf, light_leaf) = ([60, 130, 30], [25, 80, 20], [45, 120, 40]);
+        let mut image = RgbImage::from_pixel(200, 200, image::Rgb(leaf));
+        for (u, v, p) in image.enumerate_pixels_mut() {
+            let (x, y) = (f64::from(u) - 100.4, f64::from(v) - 97.6);
+            // Lighter leaves on the left, the fruit's shading across it.
+            if u < 60 {
+                *p = image::Rgb(light_leaf);
+            }
+            if x * x + y * y < 45.0 * 45.0 {
+                let shade = 0.6 + 0.4 * (1.0 - (x * x + y * y) / 2025.0);
+                *p = image::Rgb(fruit.map(|c| (f64::from(c) * shade) as u8));
+            }
+        }
+        let area = PixelBox { u0: 30, v0: 27, u1: 171, v1: 168 };
+        assert!(
+            find_outline(&[&image], area, &FruitColours::Apple, (30.0, 60.0), |_| true, 1).is_err()
+        );
+        let on_fruit: Vec<Point2<f64>> =
+            (60..140).map(|v| Point2::new(104.0, f64::from(v))).collect();
+        let surround = area.pixels().filter(|&(u, v)| {
+            (Point2::new(f64::from(u), f64::from(v)) - Point2::new(100.4, 97.6)).norm() > 60.0
+        });
+        let colours = LearnedColours::learn(&[&image], &on_fruit, surround).unwrap();
+        let colours = FruitColours::Learned(colours);
+        let outline = find_outline(&[&image], area, &colours, (30.0, 60.0), |_| true, 1).unwrap();
+        assert!((outline.radius_px - 45.0).abs() < 1.0, "{outline:?}");
+        assert!((outline.centre_px - Point2::new(100.4, 97.6)).norm() < 1.0, "{outline:?}");
     }
 
     #[test]
     fn no_outline_in_foliage() {
         let image = RgbImage::from_pixel(100, 100, image::Rgb([30, 90, 25]));
         let area = PixelBox { u0: 0, v0: 0, u1: 100, v1: 100 };
-        assert!(find_outline(&[&image], area, (10.0, 40.0), |_| true, 1).is_err());
+        assert!(
+            find_outline(&[&image], area, &FruitColours::Apple, (10.0, 40.0), |_| true, 1).is_err()
+        );
     }
 }
