@@ -559,18 +559,15 @@ fn anatomy(settings: &Settings) {
     for (name, switches) in ANATOMY {
         let measured = measure(&Settings { switches, only: None, ..*settings }, true);
         let family = |prefix: &str| {
-            let mut errors = measured
+            measured
                 .families
                 .iter()
                 .find(|(n, _)| n.starts_with(prefix))
-                .map(|(_, t)| t.errors_mm.clone())
-                .unwrap_or_default();
-            errors.sort_by(f64::total_cmp);
-            errors
+                .map(|(_, t)| t.sorted_errors_mm())
+                .unwrap_or_default()
         };
         let (shade, sun, unoccluded) = (family("shade"), family("sun"), family("unoccluded"));
-        let mut all = measured.total.errors_mm.clone();
-        all.sort_by(f64::total_cmp);
+        let all = measured.total.sorted_errors_mm();
         let mm = |v: f64| format!("{v:.2}");
         println!(
             "| {name} | {} of {} | {} | {} / {} mm | {} / {} mm | {} / {} mm |",
@@ -605,6 +602,13 @@ impl Tally {
         }
     }
 
+    /// The errors of the found, smallest first.
+    fn sorted_errors_mm(&self) -> Vec<f64> {
+        let mut errors = self.errors_mm.clone();
+        errors.sort_by(f64::total_cmp);
+        errors
+    }
+
     fn merge(&mut self, other: Tally) {
         self.scans += other.scans;
         self.found += other.found;
@@ -617,8 +621,7 @@ impl Tally {
 }
 
 fn print_row(name: &str, randomized: bool, tally: &Tally) {
-    let mut errors = tally.errors_mm.clone();
-    errors.sort_by(f64::total_cmp);
+    let errors = tally.sorted_errors_mm();
     let pct = 100.0 * tally.found as f64 / tally.scans.max(1) as f64;
     let mm = |v: f64| if v.is_nan() { "-".to_string() } else { format!("{v:.2} mm") };
     println!(

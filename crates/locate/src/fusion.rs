@@ -170,27 +170,22 @@ pub(crate) fn answer_fused(
 }
 
 /// The fruit's outline around the accepted `sphere`'s image, in the colours
-/// learned from the pixels its laser points lie on against the surround's
-/// ([`LearnedColours`]), with those colours; `None` where too few points
-/// lie on the sphere to learn them or no outline is found.
+/// learned from the pixels its laser points (`points`, those on the
+/// sphere) lie on against the surround's ([`LearnedColours`]), with those
+/// colours; `None` where too few points lie on the sphere to learn them or
+/// no outline is found.
 fn outline_around(
     sphere: &Sphere,
-    evidence: &crate::estimate::Evidence,
+    points: &[Point3<f64>],
     context: &FrameContext,
     views: &[&RgbImage],
 ) -> Option<(Outline, FruitColours)> {
-    use crate::estimate::SURFACE_BAND_MM;
     let camera = context.camera;
     let centre_px = camera.project(&sphere.centre).ok()?;
     let f_px = 0.5 * (camera.fx_px + camera.fy_px);
     let radius_px = f_px * sphere.radius_mm / sphere.centre.z;
     let area = PixelBox::around(&centre_px, 1.5 * radius_px + 5.0, camera);
-    let on_fruit: Vec<Point2<f64>> = evidence
-        .points
-        .iter()
-        .filter(|(_, p)| sphere.distance_mm(p) < SURFACE_BAND_MM)
-        .filter_map(|(_, p)| camera.project(p).ok())
-        .collect();
+    let on_fruit: Vec<Point2<f64>> = points.iter().filter_map(|p| camera.project(p).ok()).collect();
     let surround = area.pixels().filter(|&(u, v)| {
         (Point2::new(f64::from(u), f64::from(v)) - centre_px).norm() > SURROUND_FROM * radius_px
     });
@@ -232,9 +227,18 @@ fn refine_to_ellipsoid(
     // ellipsoid then refines it, but the laser saw too little of the fruit
     // for the outline to be a refinement of what it saw.
     let from_outline = fit.outline.is_some();
+    // The laser points on the sphere: what its colours are learned from and
+    // what the ellipsoid is fitted to.
+    let near: Vec<(usize, Point3<f64>)> = evidence
+        .points
+        .iter()
+        .copied()
+        .filter(|(_, p)| sphere.distance_mm(p) < SURFACE_BAND_MM)
+        .collect();
+    let points: Vec<Point3<f64>> = near.iter().map(|(_, p)| *p).collect();
     let found = match fit.outline.clone() {
         Some(outline) => Some((outline, FruitColours::Apple)),
-        None if options.use_outline => outline_around(&sphere, evidence, context, views),
+        None if options.use_outline => outline_around(&sphere, &points, context, views),
         None => None,
     };
     let Some((outline, colours)) = found else { return fit };
@@ -250,13 +254,6 @@ fn refine_to_ellipsoid(
     if directions.len() < MIN_OUTLINE_RAYS {
         return fit;
     }
-    let near: Vec<(usize, Point3<f64>)> = evidence
-        .points
-        .iter()
-        .copied()
-        .filter(|(_, p)| sphere.distance_mm(p).abs() < SURFACE_BAND_MM)
-        .collect();
-    let points: Vec<Point3<f64>> = near.iter().map(|(_, p)| *p).collect();
     let rays = Rays { directions, weight: OUTLINE_WEIGHT };
     let noise = fit.rms_mm.max(MIN_NOISE_MM);
     let start = Ellipsoid::from_sphere(&sphere);

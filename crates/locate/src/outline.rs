@@ -151,26 +151,14 @@ impl LearnedColours {
         fruit_px: &[Point2<f64>],
         surround_px: impl Iterator<Item = (u32, u32)>,
     ) -> Option<LearnedColours> {
-        let mut fruit = vec![0.0f32; CHROMA_BINS * CHROMA_BINS];
-        let mut n_fruit = 0;
-        for px in fruit_px {
-            for (du, dv) in (-1..=1).flat_map(|du| (-1..=1).map(move |dv| (du, dv))) {
-                let (u, v) = (px.x.round() + f64::from(du), px.y.round() + f64::from(dv));
-                if let Some(bin) = least_at_px(images, u, v).and_then(chroma_bin) {
-                    fruit[bin] += 1.0;
-                    n_fruit += 1;
-                }
-            }
-        }
-        let mut surround = vec![0.0f32; CHROMA_BINS * CHROMA_BINS];
-        let mut n_surround = 0;
-        for (u, v) in surround_px {
-            if let Some(bin) = least_at_px(images, f64::from(u), f64::from(v)).and_then(chroma_bin)
-            {
-                surround[bin] += 1.0;
-                n_surround += 1;
-            }
-        }
+        let around = |px: &Point2<f64>| {
+            let (u, v) = (px.x.round(), px.y.round());
+            (-1..=1)
+                .flat_map(move |du| (-1..=1).map(move |dv| (u + f64::from(du), v + f64::from(dv))))
+        };
+        let (fruit, n_fruit) = chroma_histogram(images, fruit_px.iter().flat_map(around));
+        let (surround, n_surround) =
+            chroma_histogram(images, surround_px.map(|(u, v)| (f64::from(u), f64::from(v))));
         // Nine samples a laser point (its pixel and 8 neighbours).
         if n_fruit < 9 * MIN_COLOUR_SAMPLES || n_surround < MIN_COLOUR_SAMPLES {
             return None;
@@ -185,6 +173,24 @@ impl LearnedColours {
     fn contains(&self, rgb: [u8; 3]) -> bool {
         chroma_bin(rgb).is_some_and(|bin| self.fruit[bin] > self.surround[bin])
     }
+}
+
+/// The histogram over chromaticity bins of the view's pixels at `pixels`
+/// (their colours in the per-pixel minimum of `images`), and how many were
+/// bright enough to count.
+fn chroma_histogram(
+    images: &[&RgbImage],
+    pixels: impl Iterator<Item = (f64, f64)>,
+) -> (Vec<f32>, usize) {
+    let mut counts = vec![0.0f32; CHROMA_BINS * CHROMA_BINS];
+    let mut n = 0;
+    for (u, v) in pixels {
+        if let Some(bin) = least_at_px(images, u, v).and_then(chroma_bin) {
+            counts[bin] += 1.0;
+            n += 1;
+        }
+    }
+    (counts, n)
 }
 
 /// The chromaticity bin of a pixel, `None` where it is too dark to read
