@@ -151,8 +151,12 @@ pub(crate) struct Evidence<'a> {
 
 impl<'a> Evidence<'a> {
     /// The evidence of every frame's laser points (those inside the search
-    /// ball the laser lit), without an outline.
-    pub(crate) fn new(results: &[FrameResult], context: &FrameContext<'a>) -> Self {
+    /// ball the laser lit).
+    pub(crate) fn new(
+        results: &[FrameResult],
+        context: &FrameContext<'a>,
+        outline_rays: Vec<Vector3<f64>>,
+    ) -> Self {
         let mut frames = Vec::new();
         let mut points = Vec::new();
         for (k, result) in results.iter().enumerate() {
@@ -197,19 +201,8 @@ impl<'a> Evidence<'a> {
             camera: context.camera,
             prior: context.prior,
             rough_information,
-            outline_rays: Vec::new(),
+            outline_rays,
         }
-    }
-
-    /// The laser points within the surface band of `sphere`.
-    pub(crate) fn points_near(&self, sphere: &Sphere) -> Vec<Point3<f64>> {
-        let near = |p: &&(usize, Point3<f64>)| sphere.distance_mm(&p.1) < SURFACE_BAND_MM;
-        self.points.iter().filter(near).map(|(_, p)| *p).collect()
-    }
-
-    /// This evidence with the rays through the fruit's outline.
-    pub(crate) fn with_outline_rays(self, outline_rays: Vec<Vector3<f64>>) -> Self {
-        Evidence { outline_rays, ..self }
     }
 
     /// This evidence without the laser points that `neighbours` (other

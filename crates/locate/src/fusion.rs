@@ -19,7 +19,7 @@ use crate::frame::{
 };
 use crate::outline::{
     FruitColours, LearnedColours, OUTLINE_WEIGHT, Outline, PixelBox, find_outline,
-    fit_outline_sphere, outline_rays, rays_through, silhouette_edges,
+    fit_outline_sphere, is_fruit_coloured_at, outline_rays, rays_through, silhouette_edges,
 };
 use crate::{Candidate, FrameResult, FusedFit, Localization, LocateOptions, Status};
 
@@ -33,9 +33,7 @@ pub(crate) struct Accepted {
 }
 
 /// The fused fit by the one estimator ([`crate::estimate`]): every fit
-/// below proposes a sphere (whatever its own checks say; the outline's is
-/// found in an apple's colours, or else in the colours learned from the
-/// fruit the best hypothesis without it lies on), as do robust
+/// below proposes a sphere (whatever its own checks say), as do robust
 /// spheres through all frames' points, each frame's arc at the prior
 /// radius on both sides of its laser plane, and the rough position; all
 /// are refined and scored by one objective, and the best is the answer
@@ -49,7 +47,10 @@ pub(crate) fn estimate_fruit(
     views: &[&RgbImage],
 ) -> std::result::Result<Accepted, String> {
     use crate::estimate::{self, Decision, Evidence, Source};
-    let evidence = Evidence::new(results, context);
+    let scene_outline =
+        if context.options.use_outline { find_scene_outline(context, views).ok() } else { None };
+    let rays = scene_outline.as_ref().map(|o| outline_rays(context.camera, o)).unwrap_or_default();
+    let evidence = Evidence::new(results, context, rays);
     let (prior, options) = (context.prior, context.options);
     let radius_range_mm = context.radius_range_mm();
     let mut starts = estimate::point_starts(&evidence, radius_range_mm, options.seed);
@@ -62,16 +63,23 @@ pub(crate) fn estimate_fruit(
         ));
     }
     let positions: Vec<Point3<f64>> = candidates.iter().map(|c| c.position_mm).collect();
+    let mut outline = None;
     if let Ok(fit) = fuse(results, context) {
         starts.push((fit.sphere, Source::FreeFit));
     }
     if let Ok(fit) = fit_prior_radius(results, context, &positions) {
         starts.push((fit.sphere, Source::PriorRadiusFit));
     }
-    let rough = (
+    if let Some(found) = scene_outline.clone()
+        && let Ok(fit) = fit_with_this_outline(results, context, views, found)
+    {
+        starts.push((fit.sphere, Source::Outline));
+        outline = fit.outline;
+    }
+    starts.push((
         Sphere { centre: prior.rough_position_mm, radius_mm: prior.fruit_radius_mm },
         Source::Rough,
-    );
+    ));
     // Prune what cannot be the target: a radius out of the options' range
     // or a centre beyond the rough position's error (a neighbour's).
     let can_be_target = |h: &estimate::Hypothesis| {
@@ -79,36 +87,6 @@ pub(crate) fn estimate_fruit(
             && context.search.centre_rejection(&h.sphere.centre).is_none()
             && h.sphere.centre.z > 0.0
     };
-    // The fruit's outline in an apple's colours, or else in the colours of
-    // the fruit the best hypothesis without an outline lies on.
-    let scene_outline = if options.use_outline {
-        find_scene_outline(context, views, &FruitColours::Apple)
-            .ok()
-            .map(|outline| (outline, FruitColours::Apple))
-            .or_else(|| {
-                let all: Vec<_> = starts.iter().copied().chain([rough]).collect();
-                let best = estimate::rank(&all, &evidence)
-                    .into_iter()
-                    .find(|h| can_be_target(h) && h.score.explained > 0)?;
-                let points = evidence.points_near(&best.sphere);
-                let colours = learn_colours_around(&best.sphere, &points, context, views)?;
-                let outline = find_scene_outline(context, views, &colours).ok()?;
-                Some((outline, colours))
-            })
-    } else {
-        None
-    };
-    let rays =
-        scene_outline.as_ref().map(|(o, _)| outline_rays(context.camera, o)).unwrap_or_default();
-    let evidence = evidence.with_outline_rays(rays);
-    let mut outline = None;
-    if let Some((found, colours)) = scene_outline
-        && let Ok(fit) = fit_with_this_outline(results, context, views, found, &colours)
-    {
-        starts.push((fit.sphere, Source::Outline));
-        outline = fit.outline.map(|o| (o, colours));
-    }
-    starts.push(rough);
     let all = estimate::rank(&starts, &evidence);
     let ranked: Vec<_> = all.iter().copied().filter(can_be_target).collect();
     if ranked.iter().all(|h| h.score.explained == 0) {
@@ -139,15 +117,13 @@ pub(crate) fn estimate_fruit(
         rms_mm: rms,
         // One cut fixes a circle: the radius then rests on the prior.
         radius_from_prior: best.score.frames < 2,
-        outline: None,
+        outline: if best.source == Source::Outline { outline } else { None },
         outline_refined: false,
     };
-    let outline = outline.filter(|_| best.source == Source::Outline);
-    fit.outline = outline.as_ref().map(|(o, _)| o.clone());
     // The accepted sphere refined to the fruit's ellipsoid by its outline
     // (two cuts or more: one fixes only a circle).
     if best.score.frames >= 2 {
-        fit = refine_to_ellipsoid(fit, outline, &evidence, context, views);
+        fit = refine_to_ellipsoid(fit, &evidence, context, views);
     }
     let covariance = crate::uncertainty::position_covariance(&fit, results, options);
     if let Some(cov) = &covariance {
@@ -193,47 +169,27 @@ pub(crate) fn answer_fused(
     answer.position_cov_mm2 = covariance;
 }
 
-/// The colours of the fruit `sphere` is, learned from the pixels its laser
-/// points (`points`, those on the sphere) lie on against its surround's
-/// ([`LearnedColours`]); `None` where too few points lie on the sphere or
-/// the sphere is not in view.
-fn learn_colours_around(
-    sphere: &Sphere,
-    points: &[Point3<f64>],
-    context: &FrameContext,
-    views: &[&RgbImage],
-) -> Option<FruitColours> {
-    let (area, centre_px, radius_px) = sphere_image(sphere, context)?;
-    let camera = context.camera;
-    let on_fruit: Vec<Point2<f64>> = points.iter().filter_map(|p| camera.project(p).ok()).collect();
-    let surround = area.pixels().filter(|&(u, v)| {
-        (Point2::new(f64::from(u), f64::from(v)) - centre_px).norm() > SURROUND_FROM * radius_px
-    });
-    Some(FruitColours::Learned(LearnedColours::learn(views, &on_fruit, surround)?))
-}
-
-/// The image of `sphere`: the box its outline is searched in (beyond the
-/// largest outline, [`OUTLINE_RADIUS_RANGE`]), its centre and radius
-/// (pixels).
-fn sphere_image(sphere: &Sphere, context: &FrameContext) -> Option<(PixelBox, Point2<f64>, f64)> {
-    let camera = context.camera;
-    let centre_px = camera.project(&sphere.centre).ok()?;
-    let f_px = 0.5 * (camera.fx_px + camera.fy_px);
-    let radius_px = f_px * sphere.radius_mm / sphere.centre.z;
-    Some((PixelBox::around(&centre_px, 1.5 * radius_px + 5.0, camera), centre_px, radius_px))
-}
-
 /// The fruit's outline around the accepted `sphere`'s image, in the colours
-/// learned from the fruit it is ([`learn_colours_around`]), with those
-/// colours; `None` where they cannot be learned or no outline is found.
+/// learned from the pixels its laser points (`points`, those on the
+/// sphere) lie on against the surround's ([`LearnedColours`]), with those
+/// colours; `None` where too few points lie on the sphere to learn them or
+/// no outline is found.
 fn outline_around(
     sphere: &Sphere,
     points: &[Point3<f64>],
     context: &FrameContext,
     views: &[&RgbImage],
 ) -> Option<(Outline, FruitColours)> {
-    let colours = learn_colours_around(sphere, points, context, views)?;
-    let (area, centre_px, radius_px) = sphere_image(sphere, context)?;
+    let camera = context.camera;
+    let centre_px = camera.project(&sphere.centre).ok()?;
+    let f_px = 0.5 * (camera.fx_px + camera.fy_px);
+    let radius_px = f_px * sphere.radius_mm / sphere.centre.z;
+    let area = PixelBox::around(&centre_px, 1.5 * radius_px + 5.0, camera);
+    let on_fruit: Vec<Point2<f64>> = points.iter().filter_map(|p| camera.project(p).ok()).collect();
+    let surround = area.pixels().filter(|&(u, v)| {
+        (Point2::new(f64::from(u), f64::from(v)) - centre_px).norm() > SURROUND_FROM * radius_px
+    });
+    let colours = FruitColours::Learned(LearnedColours::learn(views, &on_fruit, surround)?);
     let outline = find_outline(
         views,
         area,
@@ -258,11 +214,9 @@ fn outline_around(
 /// rival distance, [`MIN_KEPT_SHARE`] of the sphere's points kept);
 /// without the outline's rays the sphere stands, as the front alone does
 /// not fix the depth semi-axis. The outline is the one the sphere came
-/// from (`its_outline`, with the colours it was found in), or the one
-/// found around it ([`outline_around`]).
+/// from, or the one found around it ([`outline_around`]).
 fn refine_to_ellipsoid(
     fit: FusedFit,
-    its_outline: Option<(Outline, FruitColours)>,
     evidence: &crate::estimate::Evidence,
     context: &FrameContext,
     views: &[&RgbImage],
@@ -272,7 +226,7 @@ fn refine_to_ellipsoid(
     // A sphere that came from the outline keeps it as its source: the
     // ellipsoid then refines it, but the laser saw too little of the fruit
     // for the outline to be a refinement of what it saw.
-    let from_outline = its_outline.is_some();
+    let from_outline = fit.outline.is_some();
     // The laser points on the sphere: what its colours are learned from and
     // what the ellipsoid is fitted to.
     let near: Vec<(usize, Point3<f64>)> = evidence
@@ -282,8 +236,8 @@ fn refine_to_ellipsoid(
         .filter(|(_, p)| sphere.distance_mm(p) < SURFACE_BAND_MM)
         .collect();
     let points: Vec<Point3<f64>> = near.iter().map(|(_, p)| *p).collect();
-    let found = match its_outline {
-        Some(found) => Some(found),
+    let found = match fit.outline.clone() {
+        Some(outline) => Some((outline, FruitColours::Apple)),
         None if options.use_outline => outline_around(&sphere, &points, context, views),
         None => None,
     };
@@ -608,13 +562,11 @@ fn check_two_cuts(
 /// fruit's edge and a branch in front of it holds a part of each.
 const MIN_PRIOR_FIT_SHARE: f64 = 0.5;
 
-/// The fruit's outline in `colours` in the image of the search ball: a
-/// circle of the radius range the options accept, its centre where the
-/// ball's may lie.
+/// The fruit's outline in the image of the search ball: a circle of the
+/// radius range the options accept, its centre where the ball's may lie.
 pub(crate) fn find_scene_outline(
     context: &FrameContext,
     views: &[&RgbImage],
-    colours: &FruitColours,
 ) -> std::result::Result<Outline, String> {
     let (camera, search, options) = (context.camera, context.search, context.options);
     // The search ball's image: a box, the outline's radius range, and where
@@ -630,7 +582,7 @@ pub(crate) fn find_scene_outline(
     find_outline(
         views,
         area,
-        colours,
+        &FruitColours::Apple,
         radius_range_px,
         |c| (c - centre_px).norm() <= ball_px,
         options.seed,
@@ -650,11 +602,10 @@ fn fit_with_this_outline(
     context: &FrameContext,
     views: &[&RgbImage],
     outline: Outline,
-    colours: &FruitColours,
 ) -> std::result::Result<FusedFit, String> {
     let (camera, search, options) = (context.camera, context.search, context.options);
     let (lo_mm, hi_mm) = context.radius_range_mm();
-    // The laser points on the fruit: where the view is in its colours (the
+    // The laser points on the fruit: where the view is fruit-coloured (the
     // laser points on a leaf in front may lie on one sphere of the
     // outline's family and fix a wrong depth).
     let mut points = Vec::new();
@@ -663,7 +614,7 @@ fn fit_with_this_outline(
     for (k, result) in results.iter().enumerate() {
         for (i, p) in &result.points_in_camera {
             let pixel = result.stripe.get(*i).map(|s| Point2::new(s.u_px, s.v_px));
-            if pixel.is_some_and(|px| colours.contains_at(views, &px)) {
+            if pixel.is_some_and(|px| is_fruit_coloured_at(views, &px)) {
                 points.push(*p);
                 frame_of.push(k);
                 on_arc.push(result.fruit.contains(i));

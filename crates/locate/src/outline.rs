@@ -11,12 +11,11 @@
 //!    without the stripe. A pixel is fruit-coloured when red is not far
 //!    below green (an apple's red blush or its yellow-green ground; foliage
 //!    has green well above red) and blue is low (bark, sky and specular
-//!    highlights are not). Where the fixed test finds no outline, and once
-//!    a sphere is accepted, the fruit's own colours are learned from the
-//!    pixels its laser points lie on, against its surround's
-//!    ([`LearnedColours`]), and added to the test's: a green apple, which
-//!    the fixed test takes for a leaf, is then told from the leaves around
-//!    it.
+//!    highlights are not). Once a sphere is accepted, the fruit's own
+//!    colours are learned from the pixels its laser points lie on, against
+//!    its surround's ([`LearnedColours`]), and added to the test's: a green
+//!    apple, which the fixed test takes for a leaf, is then told from the
+//!    leaves around it.
 //! 2. **Outline.** The edges between fruit-coloured pixels and the rest,
 //!    each with its outward direction, and a RANSAC circle through them
 //!    whose edges face outwards: the fruit's silhouette. Leaf edges that
@@ -109,13 +108,6 @@ impl FruitColours {
             FruitColours::Apple => is_fruit_colour(rgb),
             FruitColours::Learned(learned) => is_fruit_colour(rgb) || learned.contains(rgb),
         }
-    }
-
-    /// Whether the pixel nearest `px` is the fruit's in the per-pixel
-    /// minimum of `images` (the view without the stripe); false outside
-    /// any of them.
-    pub(crate) fn contains_at(&self, images: &[&RgbImage], px: &Point2<f64>) -> bool {
-        least_at_px(images, px.x.round(), px.y.round()).is_some_and(|rgb| self.contains(rgb))
     }
 }
 
@@ -315,6 +307,12 @@ fn least_at(images: &[&RgbImage], u: u32, v: u32) -> [u8; 3] {
         }
     }
     least
+}
+
+/// Whether the pixel nearest `px` is fruit-coloured in the per-pixel
+/// minimum of `images` (module docs, step 1); false outside any of them.
+pub(crate) fn is_fruit_coloured_at(images: &[&RgbImage], px: &Point2<f64>) -> bool {
+    least_at_px(images, px.x.round(), px.y.round()).is_some_and(is_fruit_colour)
 }
 
 /// Every edge of the mask (4-neighbours), at the pixels' shared border.
