@@ -279,16 +279,17 @@ pub(crate) fn score(sphere: &Sphere, evidence: &Evidence) -> Score {
     let origin = Point3::origin();
     let mut frames_with = vec![0usize; evidence.frames.len()];
     for (k, p) in &evidence.points {
+        // Unsigned: a point deep inside the sphere is hidden because the
+        // camera's ray to it crosses the sphere.
         let d = sphere.distance_mm(p);
-        if d.abs() < SURFACE_BAND_MM {
+        if d < SURFACE_BAND_MM {
             reward += 1.0 - (d / SURFACE_BAND_MM).powi(2);
             explained += 1;
             sum_sq += d * d;
             if let Some(n) = frames_with.get_mut(*k) {
                 *n += 1;
             }
-        } else if d < -INSIDE_MM
-            || crosses(sphere, &origin, p)
+        } else if crosses(sphere, &origin, p)
             || evidence.frames.get(*k).is_some_and(|f| crosses(sphere, &f.laser_origin, p))
         {
             hidden += 1;
@@ -363,7 +364,7 @@ fn missing_rows(sphere: &Sphere, frame: &FrameEvidence, camera: &Camera) -> (usi
         let seen = frame.rows.get(row).is_some_and(|points| {
             points.iter().any(|p| {
                 // On the sphere, or in front of where it should be seen.
-                sphere.distance_mm(p).abs() < SURFACE_BAND_MM
+                sphere.distance_mm(p) < SURFACE_BAND_MM
                     || p.coords.norm() < q.coords.norm() - SURFACE_BAND_MM
             })
         });

@@ -88,7 +88,7 @@ pub(crate) fn position_covariance(
         .iter()
         .enumerate()
         .flat_map(|(k, r)| r.points_in_camera.iter().map(move |(_, p)| (k, *p)))
-        .filter(|(_, p)| sphere.distance_mm(p).abs() <= options.inlier_threshold_mm)
+        .filter(|(_, p)| sphere.distance_mm(p) <= options.inlier_threshold_mm)
         .collect();
     let free_radius = !fit.radius_from_prior;
     let centre = fit.ellipsoid.as_ref().map_or(sphere.centre, |e| e.centre);
