@@ -895,6 +895,14 @@ pub struct LaserLight {
     /// of the sine of the beam's incidence across the line (light entering
     /// obliquely travels on before it scatters back out).
     pub subsurface_shift: f64,
+    /// The line's cross-section from Gaussian (0: a single-mode diode's
+    /// TEM00 beam) to flat-topped (1/sqrt 2, the most a symmetric pair
+    /// of Gaussians keeps one peak): a multimode diode's line is not
+    /// Gaussian across. Two Gaussians at +-f sigma, each of sigma
+    /// sqrt(1 - f^2) sigma, so the cross-section's power and second moment
+    /// stay those of the Gaussian of [`LaserLight::stripe_sigma_px`].
+    /// Must lie in 0..1.
+    pub profile_flatness: f64,
 }
 
 impl Default for LaserLight {
@@ -911,6 +919,7 @@ impl Default for LaserLight {
             speckle_contrast: 0.0,
             subsurface_sigma_mm: 0.0,
             subsurface_shift: 0.0,
+            profile_flatness: 0.0,
         }
     }
 }
@@ -948,6 +957,8 @@ pub struct LaserStripe {
     pub subsurface_sigma_mm: f64,
     /// The glow's shift per mm of its sigma ([`LaserLight::subsurface_shift`]).
     pub subsurface_shift: f64,
+    /// The cross-section's flatness ([`LaserLight::profile_flatness`]).
+    pub profile_flatness: f64,
 }
 
 impl LaserStripe {
@@ -967,6 +978,7 @@ impl LaserStripe {
             half_sweep_mm: 0.0,
             subsurface_sigma_mm: look.subsurface_sigma_mm,
             subsurface_shift: look.subsurface_shift,
+            profile_flatness: look.profile_flatness,
         }
     }
 
@@ -1008,27 +1020,35 @@ impl LaserStripe {
             }
             // The glow spreads the light, it does not add any.
             let spread = sigma_mm / glow_sigma_mm;
-            return spread * self.lit(scene, hit, distance_mm, glow_sigma_mm);
+            return spread * self.lit(scene, hit, distance_mm, glow_sigma_mm, sigma_mm);
         }
         // Written so that NaN distances count as far.
         let near = distance_mm.abs() < STRIPE_CUTOFF_SIGMAS * sigma_mm + self.half_sweep_mm;
         if !near {
             return 0.0;
         }
-        self.lit(scene, hit, distance_mm, sigma_mm)
+        self.lit(scene, hit, distance_mm, sigma_mm, sigma_mm)
     }
 
     /// The irradiance at `distance_mm` from the plane through a cross-section
-    /// of `sigma_mm`, where the point faces the laser and nothing shadows it.
+    /// of `sigma_mm` (the line's own `beam_sigma_mm`, or wider where the
+    /// flesh glows), where the point faces the laser and nothing shadows it.
     #[inline]
-    fn lit(&self, scene: &impl Scene, hit: &SurfaceHit, distance_mm: f64, sigma_mm: f64) -> f64 {
+    fn lit(
+        &self,
+        scene: &impl Scene,
+        hit: &SurfaceHit,
+        distance_mm: f64,
+        sigma_mm: f64,
+        beam_sigma_mm: f64,
+    ) -> f64 {
         let to_origin = self.origin - hit.point;
         let cosine = hit.normal.dot(&to_origin) / to_origin.norm();
         let faces_laser = cosine > 0.0;
         if !faces_laser || scene.blocked(&self.origin, &hit.point) {
             return 0.0;
         }
-        self.power * self.profile(distance_mm, sigma_mm) * cosine
+        self.power * self.profile(distance_mm, sigma_mm, beam_sigma_mm) * cosine
     }
 
     /// Subsurface scattering in plane-distance terms: the point's distance
@@ -1066,12 +1086,29 @@ impl LaserStripe {
         }
     }
 
-    /// The stripe's cross-section at `distance_mm` from the plane, 1 at the
+    /// The stripe's cross-section at `distance_mm` from the plane, of the
+    /// power of a Gaussian of `sigma_mm`: that Gaussian, or where the line is
+    /// flat-topped ([`LaserLight::profile_flatness`] f) two at +-f times the
+    /// line's own `beam_sigma_mm`, each as much narrower as keeps the second
+    /// moment sigma_mm^2 (a glow widens both alike).
+    fn profile(&self, distance_mm: f64, sigma_mm: f64, beam_sigma_mm: f64) -> f64 {
+        let f = self.profile_flatness;
+        if f <= 0.0 {
+            return self.gaussian(distance_mm, sigma_mm);
+        }
+        let offset = f * beam_sigma_mm;
+        let component = (sigma_mm * sigma_mm - offset * offset).max(0.0).sqrt();
+        0.5 * sigma_mm / component
+            * (self.gaussian(distance_mm - offset, component)
+                + self.gaussian(distance_mm + offset, component))
+    }
+
+    /// A Gaussian cross-section at `distance_mm` from the plane, 1 at the
     /// centre of a still stripe: exp(-x^2 / (2 sigma^2)), or for a plane
     /// sweeping +-h during the exposure its mean over the exposure, the
     /// Gaussian convolved with a box of width 2h:
     /// sigma sqrt(pi / 2) / (2h) (erf((x + h) / (sigma sqrt 2)) - erf((x - h) / (sigma sqrt 2))).
-    fn profile(&self, distance_mm: f64, sigma_mm: f64) -> f64 {
+    fn gaussian(&self, distance_mm: f64, sigma_mm: f64) -> f64 {
         let h = self.half_sweep_mm;
         // Below a thousandth of sigma the box changes the profile by less
         // than 1e-7: the still stripe's formula, without the cancellation.
@@ -1230,6 +1267,7 @@ impl RenderOptions {
             ("speckle contrast", self.laser.speckle_contrast),
             ("subsurface sigma", self.laser.subsurface_sigma_mm),
             ("subsurface shift", self.laser.subsurface_shift),
+            ("profile flatness", self.laser.profile_flatness),
         ];
         let laser_rgb = self.laser.rgb.iter().map(|&c| ("laser colour", c));
         if let Some((name, value)) = non_negative
@@ -1242,6 +1280,12 @@ impl RenderOptions {
         let gain_db = self.sensor.exposure.gain_db;
         if !(gain_db.is_finite() && (0.0..=MAX_GAIN_DB).contains(&gain_db)) {
             return invalid(format!("gain {gain_db} dB must lie within 0-{MAX_GAIN_DB} dB"));
+        }
+        if self.laser.profile_flatness >= 1.0 {
+            return invalid(format!(
+                "profile flatness {} must lie in 0..1",
+                self.laser.profile_flatness
+            ));
         }
         if !(self.laser.stripe_sigma_px.is_finite() && self.laser.stripe_sigma_px > 0.0) {
             return invalid(format!(
@@ -1285,6 +1329,7 @@ mod tests {
             half_sweep_mm,
             subsurface_sigma_mm: 0.0,
             subsurface_shift: 0.0,
+            profile_flatness: 0.0,
         }
     }
 
@@ -1300,11 +1345,11 @@ mod tests {
                 let mean = (0..n)
                     .map(|i| {
                         let s = -half_sweep_mm + (i as f64 + 0.5) * 2.0 * half_sweep_mm / n as f64;
-                        still.profile(x - s, sigma_mm)
+                        still.profile(x - s, sigma_mm, sigma_mm)
                     })
                     .sum::<f64>()
                     / n as f64;
-                let profile = moving.profile(x, sigma_mm);
+                let profile = moving.profile(x, sigma_mm, sigma_mm);
                 assert!(
                     (profile - mean).abs() < 1e-6,
                     "h {half_sweep_mm} x {x}: {profile} vs {mean}"
@@ -1312,6 +1357,47 @@ mod tests {
             }
         }
         // No sweep: the still stripe's formula.
-        assert_eq!(stripe(0.0).profile(0.4, sigma_mm), (-0.125f64).exp());
+        assert_eq!(stripe(0.0).profile(0.4, sigma_mm, sigma_mm), (-0.125f64).exp());
+    }
+
+    /// A flat-topped line keeps the Gaussian's power and second moment, is
+    /// flat at its centre at 1/sqrt 2, and a glow widens it as it does the
+    /// Gaussian (the same power, the glow's second moment).
+    #[test]
+    fn a_flat_topped_line_keeps_the_gaussians_power_and_width() {
+        let beam_mm = 0.8;
+        let moments = |flatness: f64, sigma_mm: f64, half_sweep_mm: f64| {
+            let line = LaserStripe { profile_flatness: flatness, ..stripe(half_sweep_mm) };
+            let (step, mut power, mut second) = (1e-3, 0.0, 0.0);
+            for i in -20_000..=20_000 {
+                let x = f64::from(i) * step;
+                let value = line.profile(x, sigma_mm, beam_mm) * step;
+                power += value;
+                second += value * x * x;
+            }
+            (power, second / power)
+        };
+        let glow_mm = (beam_mm * beam_mm + 1.5f64.powi(2)).sqrt();
+        for sigma_mm in [beam_mm, glow_mm] {
+            let (gaussian_power, gaussian_second) = moments(0.0, sigma_mm, 0.0);
+            assert!((gaussian_power - sigma_mm * (std::f64::consts::TAU).sqrt()).abs() < 1e-6);
+            for flatness in [0.3, 0.5, std::f64::consts::FRAC_1_SQRT_2, 0.9] {
+                let (power, second) = moments(flatness, sigma_mm, 0.0);
+                assert!((power - gaussian_power).abs() < 1e-6, "{flatness}: {power}");
+                assert!((second - gaussian_second).abs() < 1e-6, "{flatness}: {second}");
+                // A sweep spreads it without changing its power.
+                let (swept, _) = moments(flatness, sigma_mm, 0.6);
+                assert!((swept - gaussian_power).abs() < 1e-6, "{flatness}: {swept}");
+            }
+        }
+        // At 1/sqrt 2 the centre is flat: its curvature vanishes, where a
+        // Gaussian's is -1 / sigma^2.
+        let curvature = |flatness: f64| {
+            let line = LaserStripe { profile_flatness: flatness, ..stripe(0.0) };
+            let (h, p) = (1e-3, |x: f64| line.profile(x, beam_mm, beam_mm));
+            (p(h) - 2.0 * p(0.0) + p(-h)) / (h * h)
+        };
+        assert!((curvature(0.0) + 1.0 / (beam_mm * beam_mm)).abs() < 1e-4);
+        assert!(curvature(std::f64::consts::FRAC_1_SQRT_2).abs() < 1e-4);
     }
 }

@@ -159,6 +159,9 @@ pub struct RigVariation {
     pub stripe_sigma_px: f64,
     /// The laser's peak irradiance, [`crate::LaserLight::power`] ([`Self::LASER_POWER`]).
     pub laser_power: f64,
+    /// The line's cross-section, Gaussian to flat-topped,
+    /// [`crate::LaserLight::profile_flatness`] ([`Self::PROFILE_FLATNESS`]).
+    pub profile_flatness: f64,
     /// Laser speckle's amplitude ([`Self::SPECKLE_CONTRAST`]).
     pub speckle_contrast: f64,
     /// The fruit's subsurface glow, sigma in mm ([`Self::SUBSURFACE_SIGMA_MM`]).
@@ -224,6 +227,15 @@ impl RigVariation {
     /// 0.9 m): a line's peak falls as 1 / range, +-33 % over 0.6-1.2 m, which
     /// the renderer holds constant, and modules differ in power.
     pub const LASER_POWER: DrawRange = (0.6, 1.5);
+    /// The line's cross-section ([`crate::LaserLight::profile_flatness`]):
+    /// a single-mode diode's line is Gaussian across (0); a multimode
+    /// diode's, the usual one at 100 mW and more, carries several
+    /// transverse modes and is flatter-topped, nearer a super-Gaussian
+    /// (RP Photonics' encyclopedia, "flat-top beams"; laser-line makers'
+    /// notes on intensity distribution), up to the flattest of the model
+    /// (1/sqrt 2). Symmetric: an asymmetric line's offset is taken up by
+    /// the calibration, which sees the same line.
+    pub const PROFILE_FLATNESS: DrawRange = (0.0, 0.7);
     /// Speckle amplitude: fully developed speckle (contrast 1) averaged
     /// over a pixel's aperture and the fruit's volume scattering.
     pub const SPECKLE_CONTRAST: DrawRange = (0.1, 0.5);
@@ -364,6 +376,9 @@ impl RigVariation {
         let mut variation = RigVariation {
             stripe_sigma_px,
             laser_power,
+            // Drawn last, below: a later addition, so that the draws made
+            // before it stay what they were.
+            profile_flatness: 0.0,
             speckle_contrast,
             subsurface_sigma_mm,
             subsurface_shift,
@@ -402,6 +417,7 @@ impl RigVariation {
             calyx_cavity_depth: draw(Self::CALYX_CAVITY_DEPTH),
             calyx_cavity_width_rad: draw(Self::CALYX_CAVITY_WIDTH_RAD),
         };
+        variation.profile_flatness = draw(Self::PROFILE_FLATNESS);
         variation
     }
 
@@ -449,6 +465,7 @@ impl RigVariation {
         let mut out = *render;
         out.laser.stripe_sigma_px = self.stripe_sigma_px;
         out.laser.power = self.laser_power;
+        out.laser.profile_flatness = self.profile_flatness;
         out.laser.speckle_contrast = self.speckle_contrast;
         out.laser.subsurface_sigma_mm = self.subsurface_sigma_mm;
         out.laser.subsurface_shift = self.subsurface_shift;

@@ -125,6 +125,7 @@ fn written_randomized_scans_keep_the_calibration_and_record_the_draw() {
     for key in [
         "stripe_sigma_px",
         "laser_power",
+        "profile_flatness",
         "speckle_contrast",
         "subsurface_sigma_mm",
         "subsurface_shift",
@@ -166,6 +167,7 @@ fn drawn_values_lie_within_their_ranges_and_vary() {
     type V = RigVariation;
     check("stripe sigma", V::STRIPE_SIGMA_PX, |v| v.stripe_sigma_px);
     check("laser power", V::LASER_POWER, |v| v.laser_power);
+    check("profile flatness", V::PROFILE_FLATNESS, |v| v.profile_flatness);
     check("speckle", V::SPECKLE_CONTRAST, |v| v.speckle_contrast);
     check("subsurface sigma", V::SUBSURFACE_SIGMA_MM, |v| v.subsurface_sigma_mm);
     check("subsurface shift", V::SUBSURFACE_SHIFT, |v| v.subsurface_shift);
