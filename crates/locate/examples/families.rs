@@ -40,7 +40,7 @@
 
 use alacs_locate::{FrameImages, LocateOptions, Prior, Status, locate};
 use alacs_model::{Camera, LaserModel, Ray, ScanStrategy};
-use alacs_sim::{OrchardOptions, ScanOptions, TakeOut, simulate_rendered_scan};
+use alacs_sim::{OrchardOptions, OrchardScene, ScanOptions, TakeOut, simulate_rendered_scan};
 
 /// First seed of the tuning range.
 const TUNE_SEEDS: u64 = 10_000;
@@ -370,16 +370,13 @@ fn measure(settings: &Settings, randomize: bool) -> Measured {
                         let sigma = answer
                             .position_cov_mm2
                             .map_or(f64::NAN, |c| c.symmetric_eigenvalues().max().max(0.0).sqrt());
-                        // Of the answer's points, those on the true fruit.
+                        // Of the answer's points (within 2.5 mm of its sphere), those
+                        // on the true fruit ([`on_true_fruit`]).
                         let on_truth = answer.fused.as_ref().map_or((0, 0), |f| {
                             let points = answer.frames.iter().flat_map(|r| &r.points_in_camera);
-                            let on =
-                                |p: &nalgebra::Point3<f64>, c: nalgebra::Point3<f64>, r: f64| {
-                                    ((p - c).norm() - r).abs() < 2.5
-                                };
                             points.fold((0, 0), |(t, n), (_, p)| {
-                                if on(p, f.sphere.centre, f.sphere.radius_mm) {
-                                    (t + usize::from(on(p, truth, truth_radius)), n + 1)
+                                if (f.sphere.distance_mm(p)) < 2.5 {
+                                    (t + usize::from(on_true_fruit(&scan.scene, p)), n + 1)
                                 } else {
                                     (t, n)
                                 }
@@ -465,9 +462,10 @@ fn measure(settings: &Settings, randomize: bool) -> Measured {
                 };
                 if let Some(v) = &scan.variation {
                     println!(
-                        "  variation: {:?} sigma {:.2} px power {:.2} exposure {:.2} subsurface {:.1} mm blur {:.2} px",
+                        "  variation: {:?} sigma {:.2} px flatness {:.2} power {:.2} exposure {:.2} subsurface {:.1} mm blur {:.2} px",
                         v.fruit_colour,
                         v.stripe_sigma_px,
+                        v.profile_flatness,
                         v.laser_power,
                         v.exposure_factor,
                         v.subsurface_sigma_mm,
@@ -486,7 +484,7 @@ fn measure(settings: &Settings, randomize: bool) -> Measured {
                     100.0 * scan.scene.occlusion
                 );
                 // Each frame's stripe points, those on the fruit's colour, and
-                // those within 2.5 mm of the true fruit.
+                // those on the true fruit ([`on_true_fruit`]).
                 let frames: Vec<String> = answer
                     .frames
                     .iter()
@@ -494,7 +492,7 @@ fn measure(settings: &Settings, randomize: bool) -> Measured {
                         let on = r
                             .points_in_camera
                             .iter()
-                            .filter(|(_, p)| ((p - truth).norm() - truth_radius).abs() < 2.5)
+                            .filter(|(_, p)| on_true_fruit(&scan.scene, p))
                             .count();
                         format!("{}/{}/{on}", r.stripe.len(), r.fruit.len())
                     })
@@ -548,6 +546,17 @@ const ANATOMY: [(&str, Switches); 7] = {
         ),
     ]
 };
+
+/// Whether a laser point (camera frame, mm) lies on the scene's fruit: its
+/// camera ray meets the fruit first, within 2.5 mm of the point. The
+/// rendered surface, so the apple's form and elongation count as fruit
+/// where a sphere of the true radius would not.
+fn on_true_fruit(scene: &OrchardScene, p: &nalgebra::Point3<f64>) -> bool {
+    let ray = Ray { origin: nalgebra::Point3::origin(), direction: p.coords.normalize() };
+    scene
+        .first_hit(&ray, 1.0)
+        .is_some_and(|hit| hit.object == 0 && (p.coords.norm() - hit.t).abs() < 2.5)
+}
 
 /// `--anatomy`: the randomized families once per row of [`ANATOMY`], one
 /// line each.
