@@ -375,7 +375,7 @@ fn measure(settings: &Settings, randomize: bool) -> Measured {
                         let on_truth = answer.fused.as_ref().map_or((0, 0), |f| {
                             let points = answer.frames.iter().flat_map(|r| &r.points_in_camera);
                             points.fold((0, 0), |(t, n), (_, p)| {
-                                if (f.sphere.distance_mm(p)) < 2.5 {
+                                if f.sphere.distance_mm(p) < 2.5 {
                                     (t + usize::from(on_true_fruit(&scan.scene, p)), n + 1)
                                 } else {
                                     (t, n)
@@ -390,17 +390,8 @@ fn measure(settings: &Settings, randomize: bool) -> Measured {
                                 .frames
                                 .iter()
                                 .flat_map(|r| &r.points_in_camera)
-                                .filter(|(_, p)| {
-                                    ((p - f.sphere.centre).norm() - f.sphere.radius_mm).abs() < 2.5
-                                })
-                                .filter_map(|(_, p)| {
-                                    let ray = Ray {
-                                        origin: nalgebra::Point3::origin(),
-                                        direction: p.coords.normalize(),
-                                    };
-                                    let hit = scan.scene.first_hit(&ray, 1.0)?;
-                                    (hit.object == 0).then(|| p.coords.norm() - hit.t)
-                                })
+                                .filter(|(_, p)| f.sphere.distance_mm(p) < 2.5)
+                                .filter_map(|(_, p)| behind_true_fruit_mm(&scan.scene, p))
                                 .collect();
                             offsets.sort_by(f64::total_cmp);
                             offsets.get(offsets.len() / 2).copied().unwrap_or(f64::NAN)
@@ -547,15 +538,21 @@ const ANATOMY: [(&str, Switches); 7] = {
     ]
 };
 
+/// How far a laser point (camera frame, mm) lies behind the scene's fruit
+/// along its camera ray, where that ray meets the fruit first; `None`
+/// where it meets something else or nothing.
+fn behind_true_fruit_mm(scene: &OrchardScene, p: &nalgebra::Point3<f64>) -> Option<f64> {
+    let ray = Ray { origin: nalgebra::Point3::origin(), direction: p.coords.normalize() };
+    let hit = scene.first_hit(&ray, 1.0)?;
+    (hit.object == 0).then(|| p.coords.norm() - hit.t)
+}
+
 /// Whether a laser point (camera frame, mm) lies on the scene's fruit: its
 /// camera ray meets the fruit first, within 2.5 mm of the point. The
 /// rendered surface, so the apple's form and elongation count as fruit
 /// where a sphere of the true radius would not.
 fn on_true_fruit(scene: &OrchardScene, p: &nalgebra::Point3<f64>) -> bool {
-    let ray = Ray { origin: nalgebra::Point3::origin(), direction: p.coords.normalize() };
-    scene
-        .first_hit(&ray, 1.0)
-        .is_some_and(|hit| hit.object == 0 && (p.coords.norm() - hit.t).abs() < 2.5)
+    behind_true_fruit_mm(scene, p).is_some_and(|behind| behind.abs() < 2.5)
 }
 
 /// `--anatomy`: the randomized families once per row of [`ANATOMY`], one
