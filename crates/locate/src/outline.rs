@@ -16,8 +16,10 @@
 //!    its surround's ([`LearnedColours`]), and added to the test's: a green
 //!    apple, which the fixed test takes for a leaf, is then told from the
 //!    leaves around it.
-//! 2. **Outline.** The edges between fruit-coloured pixels and the rest,
-//!    each with its outward direction, and a RANSAC circle through them
+//! 2. **Outline.** The edges between fruit-coloured pixels and the rest
+//!    whose two sides differ in colour beyond the sensor's noise (a dark
+//!    background's noisy chromaticity speckles the mask with edges of no
+//!    silhouette), each with its outward direction, and a RANSAC circle through them
 //!    whose edges face outwards: the fruit's silhouette. Leaf edges that
 //!    cut across the fruit do not lie on one circle with it.
 //! 3. **Sphere.** Every camera ray through the outline touches the sphere:
@@ -351,8 +353,11 @@ fn mask_edges(mask: &[bool], area: PixelBox) -> Vec<Edge> {
 const EDGE_SIDE_PX: i32 = 4;
 
 /// Least colour difference (8-bit, Euclidean over RGB) between the two
-/// sides of an edge for the sub-pixel position: below it the sensor's
-/// noise (a few DN) would move the crossing by a pixel.
+/// sides of an edge: below it the sensor's noise (a few DN) would move the
+/// crossing by a pixel, and the edge is more likely the colour test's
+/// noise than a silhouette (a dark pixel's chromaticity is mostly the
+/// sensor's, and speckles a dark background with "fruit"), so it is not
+/// one of the outline's.
 const MIN_EDGE_CONTRAST: f64 = 12.0;
 
 /// Where along its axis an edge of the mask lies at half coverage: the
@@ -365,22 +370,15 @@ const MIN_EDGE_CONTRAST: f64 = 12.0;
 /// two sides differ too little or the profile does not cross half at least
 /// a pixel and a half from where the two sides are read.
 fn half_coverage_px(images: &[&RgbImage], edge: &Edge) -> Option<Point2<f64>> {
-    let step = edge.outward;
-    // The fruit pixel of the edge; its neighbour is one step outwards.
-    let fruit = edge.at_px - step * 0.5;
-    let colour = |k: i32| -> Option<Vector3<f64>> {
-        let p = fruit + step * f64::from(k);
-        let rgb = least_at_px(images, p.x.round(), p.y.round())?;
-        Some(Vector3::new(f64::from(rgb[0]), f64::from(rgb[1]), f64::from(rgb[2])))
-    };
-    let inside = colour(-EDGE_SIDE_PX)?;
-    let outside = colour(EDGE_SIDE_PX + 1)?;
-    let contrast = inside - outside;
+    let contrast = contrast_across(images, edge)?;
     if contrast.norm() < MIN_EDGE_CONTRAST {
         return None;
     }
-    let coverage =
-        |k: i32| colour(k).map(|c| (c - outside).dot(&contrast) / contrast.norm_squared());
+    let outside = colour_across(images, edge, EDGE_SIDE_PX + 1)?;
+    let coverage = |k: i32| {
+        colour_across(images, edge, k)
+            .map(|c| (c - outside).dot(&contrast) / contrast.norm_squared())
+    };
     let mut best: Option<f64> = None;
     for k in -EDGE_SIDE_PX..=EDGE_SIDE_PX {
         let (a, b) = (coverage(k)?, coverage(k + 1)?);
@@ -392,7 +390,26 @@ fn half_coverage_px(images: &[&RgbImage], edge: &Edge) -> Option<Point2<f64>> {
         }
     }
     let at = best?;
-    ((at - 0.5).abs() <= f64::from(EDGE_SIDE_PX) - 1.5).then(|| fruit + step * at)
+    ((at - 0.5).abs() <= f64::from(EDGE_SIDE_PX) - 1.5)
+        .then(|| edge.at_px + edge.outward * (at - 0.5))
+}
+
+/// The view's colour (RGB) `k` pixels outwards from the fruit pixel of
+/// `edge` (0: that pixel; 1: its neighbour across the edge), `None`
+/// outside the frames.
+fn colour_across(images: &[&RgbImage], edge: &Edge, k: i32) -> Option<Vector3<f64>> {
+    let p = edge.at_px + edge.outward * (f64::from(k) - 0.5);
+    let rgb = least_at_px(images, p.x.round(), p.y.round())?;
+    Some(Vector3::new(f64::from(rgb[0]), f64::from(rgb[1]), f64::from(rgb[2])))
+}
+
+/// The fruit's colour minus its neighbour's across `edge`, each read
+/// [`EDGE_SIDE_PX`] from it.
+fn contrast_across(images: &[&RgbImage], edge: &Edge) -> Option<Vector3<f64>> {
+    Some(
+        colour_across(images, edge, -EDGE_SIDE_PX)?
+            - colour_across(images, edge, EDGE_SIDE_PX + 1)?,
+    )
 }
 
 /// The fruit mask of `area` and its edges, each moved to half coverage
@@ -404,6 +421,11 @@ fn edges_at_half_coverage(
 ) -> (Vec<bool>, Vec<Edge>) {
     let mask = fruit_mask(images, area, colours);
     let mut edges = mask_edges(&mask, area);
+    // An edge whose two sides the colours hardly tell apart is the colour
+    // test's noise (a dark pixel's chromaticity is mostly the sensor's),
+    // not a silhouette.
+    edges
+        .retain(|edge| contrast_across(images, edge).is_none_or(|c| c.norm() >= MIN_EDGE_CONTRAST));
     for edge in &mut edges {
         edge.at_px = half_coverage_px(images, edge).unwrap_or(edge.at_px);
     }
