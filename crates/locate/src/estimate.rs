@@ -22,7 +22,8 @@
 //! position's prior (the RGB-D camera's error) add their negative log
 //! likelihoods.
 //!
-//! **Accept** ([`accept`]): the best sphere must beat the best explanation
+//! **Accept** ([`accept`]): the best sphere must lie on the laser's cut in
+//! one frame at least, and beat the best explanation
 //! more than [`RIVAL_DISTANCE`] away, and the empty scene (score 0), by
 //! [`ACCEPT_MARGIN`] rows, and its position's standard deviation must lie
 //! within [`MAX_POSITION_STD_MM`]. Otherwise the fruit is not found, and
@@ -584,6 +585,18 @@ pub(crate) fn accept(ranked: &[Hypothesis], prior: &Prior) -> Decision {
     let Some(best) = ranked.first().copied() else {
         return Decision::Refuse("no hypothesis of the fruit".into());
     };
+    // The laser must show the fruit: without a frame's cut on the sphere
+    // its depth is the rough position's (the RGB-D camera's, 2 % of the
+    // depth), which the laser points' covariance does not know.
+    if best.score.frames == 0 {
+        return Decision::Refuse(format!(
+            "the laser shows the best sphere ({}: radius {:.1} mm) in no frame ({} points on it, fewer than {} in any frame): its depth would be the rough position's",
+            best.source.describe(),
+            best.sphere.radius_mm,
+            best.score.explained,
+            crate::frame::MIN_POINTS
+        ));
+    }
     let required = ACCEPT_MARGIN + ACCEPT_MARGIN_FRACTION * best.score.explained as f64;
     let rival_distance = RIVAL_DISTANCE * prior.fruit_radius_mm;
     let rival =
@@ -658,6 +671,12 @@ mod tests {
         // Too little evidence against the empty scene.
         let Decision::Refuse(reason) = accept(&[h(0.0, -11.0, 20)], &prior) else { panic!() };
         assert!(reason.contains("no fruit at all"), "{reason}");
+        // However well it scores, a sphere no frame's cut lies on (its score
+        // from the outline and a few stray points) is refused.
+        let mut unseen = h(0.0, -100.0, 3);
+        unseen.score.frames = 0;
+        let Decision::Refuse(reason) = accept(&[unseen], &prior) else { panic!() };
+        assert!(reason.contains("in no frame"), "{reason}");
     }
 
     /// Points on the camera's side of a sphere, none inside `other`.
