@@ -1,7 +1,7 @@
 //! The localizer judged per family of simulated scans: found rate, wrong
 //! rate and error percentiles, as docs/ACCURACY.md's table.
 //!
-//! `cargo run --release -p alacs-locate --example families -- [--seeds tune|report] [--n N] [--scale S] [--randomize on|off|both] [--family NAME] [--scans] [--round] [--no-form] [--no-glow] [--no-outline] [--true-calibration] [--no-extension] [--anatomy]`
+//! `cargo run --release -p alacs-locate --example families -- [--seeds tune|report] [--n N] [--scale S] [--randomize on|off|both] [--family NAME] [--scans] [--round] [--no-form] [--no-glow] [--no-outline] [--true-calibration] [--true-calibration-of camera,laser,slide] [--no-extension] [--anatomy]`
 //!
 //! Randomized scans draw, per scan, what real rigs vary in (alacs-sim's
 //! `RigVariation`: laser, light in the flesh, fruit and leaf colours, lens,
@@ -30,7 +30,9 @@
 //! keeps its form, its cavities and taper, within it), `--no-outline`
 //! locates without the fruit's outline, `--true-calibration` locates a randomized scan
 //! with the calibration its images were rendered with (no calibration
-//! error), and on randomized rigs `--no-form` renders the apple's plain
+//! error; `--true-calibration-of` a comma list of `camera` (focal length
+//! and principal point), `laser` (alpha, L0, beta) and `slide` (its
+//! scale k) takes out those parts only), and on randomized rigs `--no-form` renders the apple's plain
 //! ellipsoid (no taper, flat cheek or cavities) and `--no-glow` no light in
 //! its flesh. `--anatomy` measures the randomized families once per row of
 //! docs/ACCURACY.md's table of what the randomized error is made of (each
@@ -123,8 +125,9 @@ fn percentile(sorted: &[f64], p: f64) -> f64 {
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    const USAGE: &str = "families [--seeds tune|report] [--n N] [--scale S] [--randomize on|off|both] [--family NAME] [--scans] [--round] [--no-form] [--no-glow] [--no-outline] [--true-calibration] [--no-extension] [--anatomy]";
-    const VALUED: [&str; 5] = ["--seeds", "--n", "--scale", "--randomize", "--family"];
+    const USAGE: &str = "families [--seeds tune|report] [--n N] [--scale S] [--randomize on|off|both] [--family NAME] [--scans] [--round] [--no-form] [--no-glow] [--no-outline] [--true-calibration] [--true-calibration-of camera,laser,slide] [--no-extension] [--anatomy]";
+    const VALUED: [&str; 6] =
+        ["--seeds", "--n", "--scale", "--randomize", "--family", "--true-calibration-of"];
     const SWITCHES: [&str; 8] = [
         "--anatomy",
         "--scans",
@@ -218,6 +221,9 @@ struct Switches {
     no_glow: bool,
     no_outline: bool,
     true_calibration: bool,
+    /// The parts of the calibration `--true-calibration-of` takes out:
+    /// camera, laser, slide.
+    true_parts: [bool; 3],
     no_extension: bool,
 }
 
@@ -230,6 +236,20 @@ impl Switches {
             no_glow: on("--no-glow"),
             no_outline: on("--no-outline"),
             true_calibration: on("--true-calibration"),
+            true_parts: {
+                let value = args
+                    .iter()
+                    .position(|a| a == "--true-calibration-of")
+                    .map_or(String::new(), |k| args[k + 1].clone());
+                let parts: Vec<&str> = value.split(',').filter(|p| !p.is_empty()).collect();
+                for part in &parts {
+                    assert!(
+                        ["camera", "laser", "slide"].contains(part),
+                        "--true-calibration-of takes camera, laser and slide, not {part}"
+                    );
+                }
+                ["camera", "laser", "slide"].map(|name| parts.contains(&name))
+            },
             no_extension: on("--no-extension"),
         }
     }
@@ -307,12 +327,20 @@ fn measure(settings: &Settings, randomize: bool) -> Measured {
             // The calibration the localizer is given, or (to measure what
             // the randomized calibration error costs) the one the images
             // were rendered with.
-            let (camera, laser) = if settings.switches.true_calibration {
-                (&scan.rendered_camera, &scan.rendered_laser)
-            } else {
-                (&scan.camera, &scan.laser)
-            };
-            let mut answer = locate(camera, laser, &prior, &frames, &locate_options)
+            let switches = &settings.switches;
+            let [true_camera, true_laser, true_slide] =
+                switches.true_parts.map(|part| part || switches.true_calibration);
+            let camera = if true_camera { &scan.rendered_camera } else { &scan.camera };
+            let rendered = &scan.rendered_laser;
+            let mut laser = scan.laser;
+            if true_laser {
+                (laser.alpha_rad, laser.l0_mm, laser.beta_rad) =
+                    (rendered.alpha_rad, rendered.l0_mm, rendered.beta_rad);
+            }
+            if true_slide {
+                laser.slide_scale = rendered.slide_scale;
+            }
+            let mut answer = locate(camera, &laser, &prior, &frames, &locate_options)
                 .expect("a simulated scan is valid input");
             // Not found in the sweep for want of evidence: the strategy's
             // extension frames (beyond both ends of it), as the scan
@@ -335,7 +363,7 @@ fn measure(settings: &Settings, randomize: bool) -> Measured {
                     extended = images.len();
                     let mut all = frames.clone();
                     all.extend(images.iter().map(|(image, d)| FrameImages::from((image, *d))));
-                    answer = locate(camera, laser, &prior, &all, &locate_options)
+                    answer = locate(camera, &laser, &prior, &all, &locate_options)
                         .expect("a simulated scan is valid input");
                 }
             }
@@ -513,6 +541,7 @@ const ANATOMY: [(&str, Switches); 7] = {
         no_glow: false,
         no_outline: false,
         true_calibration: false,
+        true_parts: [false; 3],
         no_extension: false,
     };
     [
