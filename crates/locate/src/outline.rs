@@ -775,6 +775,36 @@ mod tests {
     }
 
     #[test]
+    fn speckles_of_a_dark_background_make_no_outline() {
+        // A dark background whose noise passes the colour test here and
+        // there (a dark pixel's chromaticity is mostly noise), densely in a
+        // ring just outside a half-hidden fruit: a circle through the
+        // speckles' edges would cover more of itself than the fruit's does.
+        let (background, speckle) = ([15, 30, 10], [22, 28, 5]);
+        assert!(is_fruit_colour(speckle) && !is_fruit_colour(background));
+        let (cu, cv, radius) = (100.3, 99.6, 40.0);
+        let image = RgbImage::from_fn(200, 200, |u, v| {
+            let (x, y) = (f64::from(u) - cu, f64::from(v) - cv);
+            let r = x.hypot(y);
+            let hash = (u64::from(u) * 7919 + u64::from(v) * 104_729)
+                .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+                >> 60;
+            if r < radius && x > 0.0 {
+                image::Rgb([200, 60, 40])
+            } else if (44.0..54.0).contains(&r) && hash < 6 {
+                image::Rgb(speckle)
+            } else {
+                image::Rgb(background)
+            }
+        });
+        let area = PixelBox { u0: 0, v0: 0, u1: 200, v1: 200 };
+        let outline =
+            find_outline(&[&image], area, &FruitColours::Apple, (20.0, 80.0), |_| true, 1).unwrap();
+        assert!((outline.radius_px - radius).abs() < 1.0, "{outline:?}");
+        assert!((outline.centre_px - Point2::new(cu, cv)).norm() < 1.0, "{outline:?}");
+    }
+
+    #[test]
     fn outline_of_a_disk_half_hidden() {
         let mut image = RgbImage::from_pixel(200, 200, image::Rgb([30, 90, 25]));
         for (u, v, p) in image.enumerate_pixels_mut() {
