@@ -366,18 +366,18 @@ const MIN_EDGE_CONTRAST: f64 = 12.0;
 /// silhouette lies where the mixture is half and half. The colour test that
 /// made the mask calls a pixel fruit from a fifth of fruit in it or less
 /// (red over green is a ratio, and a little red lifts it), which puts the
-/// mask's border up to a pixel outside the silhouette. `None` where the
-/// two sides differ too little or the profile does not cross half at least
-/// a pixel and a half from where the two sides are read.
-fn half_coverage_px(images: &[&RgbImage], edge: &Edge) -> Option<Point2<f64>> {
-    let contrast = contrast_across(images, edge)?;
-    if contrast.norm() < MIN_EDGE_CONTRAST {
-        return None;
-    }
+/// mask's border up to a pixel outside the silhouette. `contrast` is the
+/// edge's [`contrast_across`]. `None` where the profile does not cross half
+/// at least a pixel and a half from where the two sides are read.
+fn half_coverage_px(
+    images: &[&RgbImage],
+    edge: &Edge,
+    contrast: &Vector3<f64>,
+) -> Option<Point2<f64>> {
     let outside = colour_across(images, edge, EDGE_SIDE_PX + 1)?;
     let coverage = |k: i32| {
         colour_across(images, edge, k)
-            .map(|c| (c - outside).dot(&contrast) / contrast.norm_squared())
+            .map(|c| (c - outside).dot(contrast) / contrast.norm_squared())
     };
     let mut best: Option<f64> = None;
     for k in -EDGE_SIDE_PX..=EDGE_SIDE_PX {
@@ -413,22 +413,29 @@ fn contrast_across(images: &[&RgbImage], edge: &Edge) -> Option<Vector3<f64>> {
 }
 
 /// The fruit mask of `area` and its edges, each moved to half coverage
-/// ([`half_coverage_px`]) where it can be.
+/// ([`half_coverage_px`]) where it can be; an edge whose two sides differ
+/// by less than [`MIN_EDGE_CONTRAST`] is left out.
 fn edges_at_half_coverage(
     images: &[&RgbImage],
     area: PixelBox,
     colours: &FruitColours,
 ) -> (Vec<bool>, Vec<Edge>) {
     let mask = fruit_mask(images, area, colours);
-    let mut edges = mask_edges(&mask, area);
-    // An edge whose two sides the colours hardly tell apart is the colour
-    // test's noise (a dark pixel's chromaticity is mostly the sensor's),
-    // not a silhouette.
-    edges
-        .retain(|edge| contrast_across(images, edge).is_none_or(|c| c.norm() >= MIN_EDGE_CONTRAST));
-    for edge in &mut edges {
-        edge.at_px = half_coverage_px(images, edge).unwrap_or(edge.at_px);
-    }
+    let edges = mask_edges(&mask, area)
+        .into_iter()
+        .filter_map(|mut edge| match contrast_across(images, &edge) {
+            // Its sides beyond the frames: where the mask put it.
+            None => Some(edge),
+            // Two sides the colours hardly tell apart: the colour test's
+            // noise (a dark pixel's chromaticity is mostly the sensor's),
+            // not a silhouette.
+            Some(contrast) if contrast.norm() < MIN_EDGE_CONTRAST => None,
+            Some(contrast) => {
+                edge.at_px = half_coverage_px(images, &edge, &contrast).unwrap_or(edge.at_px);
+                Some(edge)
+            }
+        })
+        .collect();
     (mask, edges)
 }
 
